@@ -1,0 +1,28 @@
+# mobmap_configure_target(<target>): the one place that sets the language level
+# and the warning set for every first-party target.
+function(mobmap_configure_target target)
+  target_compile_features(${target} PUBLIC cxx_std_17)
+  set_target_properties(${target} PROPERTIES CXX_EXTENSIONS OFF)
+  if(CMAKE_CXX_COMPILER_ID MATCHES "GNU|Clang")
+    target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic -Wshadow)
+  endif()
+endfunction()
+
+# mobmap_add_module(<name> SOURCES ... DEPS ...): a library `mobmap_<name>` with
+# the alias `mobmap::<name>`, public headers under <name>/include, installed and
+# exported under the name `<name>` so consumers link `mobmap::<name>`.
+function(mobmap_add_module name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
+  add_library(mobmap_${name} ${ARG_SOURCES})
+  add_library(mobmap::${name} ALIAS mobmap_${name})
+  set_target_properties(mobmap_${name} PROPERTIES EXPORT_NAME ${name})
+  target_include_directories(mobmap_${name} PUBLIC
+    $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>
+    $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+  target_link_libraries(mobmap_${name} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
+  mobmap_configure_target(mobmap_${name})
+  install(TARGETS mobmap_${name} EXPORT mobmapTargets
+    ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+    LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
+  install(DIRECTORY include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+endfunction()

@@ -1,0 +1,68 @@
+#pragma once
+/// @file camera.hpp
+/// Pinhole camera model and depth images (camera frame, OpenCV axes: x right,
+/// y down, z forward; metres).
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+namespace mobmap::perception {
+
+/// Intrinsics of a pinhole depth camera. Pixel (u, v) with integer indices looks
+/// along the ray ((u - cx) / fx, (v - cy) / fy, 1): the convention of 7-Scenes,
+/// TUM RGB-D and PCL's organized clouds.
+struct PinholeIntrinsics {
+  int width = 640;
+  int height = 480;
+  double fx = 585.0;  ///< focal length in pixels
+  double fy = 585.0;
+  double cx = 320.0;  ///< principal point in pixels
+  double cy = 240.0;
+
+  bool operator==(const PinholeIntrinsics& o) const {
+    return width == o.width && height == o.height && fx == o.fx && fy == o.fy && cx == o.cx &&
+           cy == o.cy;
+  }
+};
+
+/// Throws std::invalid_argument naming the field unless the size is positive (at most
+/// 16384 per side) and the focal lengths are finite and > 0, the principal point finite.
+void validate(const PinholeIntrinsics& intrinsics);
+
+/// A depth image: metres along the optical axis (z, not range), row-major,
+/// 0 where there is no measurement.
+struct DepthImage {
+  int width = 0;
+  int height = 0;
+  std::vector<float> depth_m;
+
+  DepthImage() = default;
+  DepthImage(int w, int h) : width(w), height(h), depth_m(static_cast<std::size_t>(w) * h, 0.f) {}
+  [[nodiscard]] float at(int u, int v) const { return depth_m[static_cast<std::size_t>(v) * width + u]; }
+  float& at(int u, int v) { return depth_m[static_cast<std::size_t>(v) * width + u]; }
+};
+
+/// The camera-frame point seen at pixel (u, v) at depth z (metres).
+inline Eigen::Vector3d backProject(const PinholeIntrinsics& k, double u, double v, double z) {
+  return {(u - k.cx) / k.fx * z, (v - k.cy) / k.fy * z, z};
+}
+
+/// Unit-free ray direction (z = 1) through pixel (u, v).
+inline Eigen::Vector3d pixelRay(const PinholeIntrinsics& k, double u, double v) {
+  return {(u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0};
+}
+
+/// Pixel coordinates of a camera-frame point (paper eq. 13), or nullopt when it is
+/// behind the camera (z <= 0). The result may lie outside the image.
+inline std::optional<Eigen::Vector2d> project(const PinholeIntrinsics& k, const Eigen::Vector3d& p) {
+  if (!(p.z() > 0.0)) return std::nullopt;
+  return Eigen::Vector2d(k.fx * p.x() / p.z() + k.cx, k.fy * p.y() / p.z() + k.cy);
+}
+
+/// Back-projects every valid pixel (depth > 0 and finite) into camera-frame points.
+std::vector<Eigen::Vector3d> depthToPoints(const DepthImage& depth, const PinholeIntrinsics& k);
+
+}  // namespace mobmap::perception
