@@ -291,6 +291,15 @@ TEST(MobilityModel, BatchEqualsSinglePredictions) {
   }
 }
 
+TEST(MobilityModel, MeanOnlyBatchEqualsFullPrediction) {
+  const MobilityModel model;
+  Eigen::MatrixX2d f(4, 2);
+  f << 0, 1.0, 17, 1.45, 38, 1.1, 70, 2.9;
+  const Eigen::VectorXd m = model.mobility(f);
+  const auto full = model.predict(f);
+  for (int i = 0; i < 4; ++i) EXPECT_NEAR(m(i), full[static_cast<std::size_t>(i)].mobility, 1e-12);
+}
+
 TEST(MobilityModel, RuleModelUsesTheTableAndItsNominalVariance) {
   MobilityModelParams p;
   p.model = ModelKind::kRuleTable;
@@ -313,8 +322,8 @@ TEST(MobilityModel, RejectsInvalidInputsAndParameters) {
 }
 
 TEST(MobilityModel, TrainingPositionsCoverEdgesCentresAndOpenBins) {
-  const auto s = trainingPositions({0, 10, 20, 30, 40}, 90);
-  const std::vector<double> expected = {0, 5, 15, 25, 35, 45, 55, 65, 75, 85};
+  const auto s = trainingPositions({0, 10, 20, 30, 40}, 100);
+  const std::vector<double> expected = {0, 5, 15, 25, 35, 45, 55, 65, 75, 85, 95};
   ASSERT_EQ(s.size(), expected.size());
   for (std::size_t i = 0; i < s.size(); ++i) EXPECT_NEAR(s[i], expected[i], 1e-9);
 }

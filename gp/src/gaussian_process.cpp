@@ -1,5 +1,6 @@
 #include "mobmap/gp/gaussian_process.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -78,18 +79,32 @@ GaussianProcess::GaussianProcess(Eigen::MatrixXd inputs, Eigen::VectorXd targets
   alpha_ = llt_.solve(targets_);
 }
 
+// Queries are processed in blocks so the m x n cross-kernel never exceeds a few MB,
+// whatever m is (a user may evaluate a whole plane of features).
+constexpr Eigen::Index kBlockRows = 2048;
+
 Eigen::VectorXd GaussianProcess::predictMean(const Eigen::MatrixXd& queries) const {
-  return squaredExponentialKernel(queries, inputs_, params_) * alpha_;
+  Eigen::VectorXd mean(queries.rows());
+  for (Eigen::Index b = 0; b < queries.rows(); b += kBlockRows) {
+    const Eigen::Index m = std::min(kBlockRows, queries.rows() - b);
+    mean.segment(b, m) = squaredExponentialKernel(queries.middleRows(b, m), inputs_, params_) * alpha_;
+  }
+  return mean;
 }
 
 GpPrediction GaussianProcess::predict(const Eigen::MatrixXd& queries) const {
-  const Eigen::MatrixXd k_star = squaredExponentialKernel(queries, inputs_, params_);  // m x n
   GpPrediction out;
-  out.mean = k_star * alpha_;
-  // v = L^-1 k*, variance = k(x*,x*) - v^T v  (Algorithm 2.1, lines 5-6).
-  const Eigen::MatrixXd v = llt_.matrixL().solve(k_star.transpose());  // n x m
+  out.mean.resize(queries.rows());
+  out.variance.resize(queries.rows());
   const double sf2 = params_.signal_std * params_.signal_std;
-  out.variance = (sf2 - v.colwise().squaredNorm().array()).matrix().transpose();
+  for (Eigen::Index b = 0; b < queries.rows(); b += kBlockRows) {
+    const Eigen::Index m = std::min(kBlockRows, queries.rows() - b);
+    const Eigen::MatrixXd k_star = squaredExponentialKernel(queries.middleRows(b, m), inputs_, params_);
+    out.mean.segment(b, m) = k_star * alpha_;
+    // v = L^-1 k*, variance = k(x*,x*) - v^T v  (Algorithm 2.1, lines 5-6).
+    const Eigen::MatrixXd v = llt_.matrixL().solve(k_star.transpose());  // n x m
+    out.variance.segment(b, m) = (sf2 - v.colwise().squaredNorm().array()).matrix().transpose();
+  }
   return out;
 }
 

@@ -99,6 +99,16 @@ Eigen::VectorXd MobilityModel::rawMean(const Eigen::MatrixX2d& features) const {
   return gp_->predictMean(normalise(features));
 }
 
+Eigen::VectorXd MobilityModel::mobility(const Eigen::MatrixX2d& features) const {
+  checkFeatures(features);
+  Eigen::VectorXd out(features.rows());
+  if (!gp_) {
+    for (Eigen::Index i = 0; i < features.rows(); ++i) out(i) = table_.lookup(features(i, 0), features(i, 1));
+    return out;
+  }
+  return gp_->predictMean(normalise(features)).cwiseMax(0.0).cwiseMin(1.0);
+}
+
 std::vector<MobilityEstimate> MobilityModel::predict(const Eigen::MatrixX2d& features) const {
   checkFeatures(features);
   std::vector<MobilityEstimate> out(static_cast<std::size_t>(features.rows()));

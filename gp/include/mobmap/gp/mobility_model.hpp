@@ -33,7 +33,7 @@ struct MobilityModelParams {
   double roughness_scale = 2.0;    ///< roughness per normalised unit
   /// Open-ended bins (">40 deg", ">2.2") get training points every bin width up to
   /// these limits, so the GP stays confident there instead of decaying to its prior.
-  double open_slope_limit_deg = 90.0;
+  double open_slope_limit_deg = 100.0;
   double open_roughness_limit = 3.0;
   /// Variance reported by the rule table, which has none of its own: a uniform
   /// error over one table step of 0.25, 0.25^2 / 12.
@@ -61,6 +61,10 @@ class MobilityModel {
 
   /// Score many: column 0 slope (degrees), column 1 roughness. Same validation.
   [[nodiscard]] std::vector<MobilityEstimate> predict(const Eigen::MatrixX2d& features) const;
+
+  /// Mobility only (clamped to [0,1]), without variances: O(n) per point instead of
+  /// O(n^2), for drawing the whole (slope, roughness) plane.
+  [[nodiscard]] Eigen::VectorXd mobility(const Eigen::MatrixX2d& features) const;
 
   /// Unclamped GP mean (for diagnostics and tests). Throws std::logic_error for the
   /// rule-table model.

@@ -1,0 +1,41 @@
+#pragma once
+// An RGB drawing surface for the tool's pictures (plots, overlays, top views), with
+// a built-in 5x7 bitmap font so no font library is needed.
+
+#include "png_io.hpp"
+
+#include <array>
+#include <cstdint>
+#include <string>
+
+namespace mobmap::app {
+
+using Rgb = std::array<std::uint8_t, 3>;
+
+/// Mobility colour: red at 0, yellow at 0.5, green at 1 (the paper's figures).
+Rgb mobilityColour(double mobility);
+
+class Canvas {
+ public:
+  Canvas(int width, int height, Rgb background = {255, 255, 255});
+  [[nodiscard]] int width() const { return image_.width; }
+  [[nodiscard]] int height() const { return image_.height; }
+  void set(int x, int y, Rgb c);  ///< ignores points outside
+  [[nodiscard]] Rgb get(int x, int y) const;
+  void fillRect(int x0, int y0, int x1, int y1, Rgb c);  ///< inclusive corners
+  void rect(int x0, int y0, int x1, int y1, Rgb c);      ///< outline
+  void line(int x0, int y0, int x1, int y1, Rgb c);
+  /// Text with the top-left corner at (x, y); `scale` multiplies the 5x7 glyphs.
+  /// Letters are drawn upper-case; characters without a glyph are drawn as '?'.
+  void text(int x, int y, const std::string& s, Rgb c, int scale = 1);
+  [[nodiscard]] static int textWidth(const std::string& s, int scale = 1) {
+    return static_cast<int>(s.size()) * 6 * scale;
+  }
+  [[nodiscard]] const ImageRgb& image() const { return image_; }
+  void save(const std::string& path) const { writePngRgb(path, image_); }
+
+ private:
+  ImageRgb image_;
+};
+
+}  // namespace mobmap::app

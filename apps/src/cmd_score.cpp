@@ -1,0 +1,107 @@
+#include "commands.hpp"
+#include "files.hpp"
+#include "io_error.hpp"
+#include "mobility_plot.hpp"
+
+#include "mobmap/gp/mobility_model.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <iomanip>
+#include <iostream>
+#include <memory>
+
+namespace mobmap::app {
+
+/// Loads a rule table CSV, putting the path into parse errors.
+gp::RuleTable loadRuleTable(const std::string& path) {
+  if (path.empty()) return gp::RuleTable::paper();
+  const std::string text = readTextFile(path, 1 << 20);
+  try {
+    return gp::RuleTable::parseCsv(text);
+  } catch (const std::invalid_argument& e) {
+    throw IoError(path, e.what());
+  }
+}
+
+Command addScoreCommand(CLI::App& app) {
+  auto* cmd = app.add_subcommand(
+      "score", "Mobility of a surface from its slope and roughness (rule table or Gaussian process)");
+  struct Options {
+    double slope = -1;
+    double roughness = -1;
+    std::string model = "gp";
+    std::string table;
+    std::string plot;
+    bool json = false;
+    bool fit = false;
+  };
+  auto o = std::make_shared<Options>();
+  auto* slope = cmd->add_option("--slope", o->slope, "Slope in degrees against gravity/ground (>= 0)");
+  auto* rough = cmd->add_option("--roughness", o->roughness, "Roughness ratio A/A' (>= 1)");
+  cmd->add_option("--model", o->model, "Scorer: rule (paper Table I) or gp (GP over the table)")
+      ->check(CLI::IsMember({"rule", "gp"}))->capture_default_str();
+  cmd->add_option("--table", o->table, "Rule table CSV for another robot (see maps/FORMATS.md)");
+  auto* plot = cmd->add_option("--plot", o->plot, "Draw the mobility surface (slope 0-60, roughness 1-2.5) to a PNG");
+  cmd->add_flag("--json", o->json, "Print one JSON object");
+  cmd->add_flag("--fit", o->fit, "Fit sf, l, sn by maximising the log marginal likelihood, report and use them");
+  slope->needs(rough);
+  rough->needs(slope);
+  plot->excludes(slope);
+  return [o, slope, plot]() {
+    if (slope->count() == 0 && plot->count() == 0) {
+      throw UsageError("score needs --slope and --roughness, or --plot OUT.png");
+    }
+    gp::MobilityModelParams params;
+    params.model = o->model == "rule" ? gp::ModelKind::kRuleTable : gp::ModelKind::kGaussianProcess;
+    gp::RuleTable table = loadRuleTable(o->table);
+    nlohmann::json fit_json;
+    if (o->fit) {
+      if (params.model != gp::ModelKind::kGaussianProcess) throw UsageError("--fit needs --model gp");
+      const gp::MobilityModel initial(table, params);
+      const auto fit = gp::fitHyperparameters(initial.normalise(initial.trainingFeatures()),
+                                              initial.trainingTargets(),
+                                              {params.signal_std, params.length_scale, params.noise_std});
+      params.signal_std = fit.params.signal_std;
+      params.length_scale = fit.params.length_scale;
+      params.noise_std = fit.params.noise_std;
+      fit_json = {{"signal_std", params.signal_std}, {"length_scale", params.length_scale},
+                  {"noise_std", params.noise_std}, {"log_marginal_likelihood", fit.log_marginal_likelihood},
+                  {"iterations", fit.iterations}, {"converged", fit.converged}};
+      if (!o->json) {
+        std::cout << "fitted hyperparameters: sf = " << params.signal_std << ", l = " << params.length_scale
+                  << ", sn = " << params.noise_std << " (log marginal likelihood "
+                  << fit.log_marginal_likelihood << ", " << fit.iterations << " iterations)\n";
+      }
+    }
+    const gp::MobilityModel model(std::move(table), params);
+    if (plot->count() > 0) {
+      plotMobilitySurface(model).save(o->plot);
+      if (o->json) {
+        std::cout << nlohmann::json{{"plot", o->plot}, {"model", o->model}, {"fit", fit_json}}.dump() << "\n";
+      } else {
+        std::cout << "wrote " << o->plot << "\n";
+      }
+      return 0;
+    }
+    gp::MobilityEstimate e;
+    try {
+      e = model.predict(o->slope, o->roughness);
+    } catch (const std::invalid_argument& err) {
+      throw UsageError(err.what());
+    }
+    if (o->json) {
+      nlohmann::json j{{"slope_deg", o->slope}, {"roughness", o->roughness}, {"model", o->model},
+                       {"mobility", e.mobility}, {"variance", e.variance}};
+      if (o->fit) j["fit"] = fit_json;
+      std::cout << j.dump() << "\n";
+    } else {
+      std::cout << std::fixed << std::setprecision(4) << "mobility " << e.mobility << "  variance "
+                << e.variance << "  (" << o->model << ", slope " << o->slope << " deg, roughness "
+                << o->roughness << ")\n";
+    }
+    return 0;
+  };
+}
+
+}  // namespace mobmap::app

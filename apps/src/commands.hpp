@@ -1,0 +1,17 @@
+#pragma once
+// The `mobmap` subcommands. Each registers its options on the CLI11 app and returns
+// the function that runs it (exit code).
+
+#include <CLI/CLI.hpp>
+
+#include <functional>
+
+namespace mobmap::app {
+
+using Command = std::function<int()>;
+
+Command addSimulateCommand(CLI::App& app);
+Command addScoreCommand(CLI::App& app);
+Command addDemoCommand(CLI::App& app);
+
+}  // namespace mobmap::app

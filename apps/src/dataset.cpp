@@ -1,0 +1,207 @@
+#include "dataset.hpp"
+
+#include "files.hpp"
+#include "io_error.hpp"
+#include "png_io.hpp"
+
+#include "mobmap/mapping/gravity.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iomanip>
+#include <regex>
+#include <sstream>
+
+namespace mobmap::app {
+namespace {
+
+// Parses whitespace-separated numbers, `rows` lines of `cols` numbers (blank lines
+// and '#' comments skipped). Errors name the line.
+Eigen::MatrixXd readMatrixFile(const std::string& path, int rows, int cols) {
+  const std::string text = readTextFile(path, 1 << 20);
+  std::istringstream in(text);
+  std::string line;
+  Eigen::MatrixXd m(rows, cols);
+  int row = 0, line_no = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    const auto first = line.find_first_not_of(" \t\r");
+    if (first == std::string::npos || line[first] == '#') continue;
+    if (row == rows) throw IoError(path, "line " + std::to_string(line_no) + ": more than " + std::to_string(rows) + " rows");
+    std::istringstream ls(line);
+    std::string token;
+    int col = 0;
+    while (ls >> token) {
+      if (col == cols) throw IoError(path, "line " + std::to_string(line_no) + ": more than " + std::to_string(cols) + " numbers");
+      std::size_t used = 0;
+      double v = NAN;
+      try {
+        v = std::stod(token, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used != token.size() || !std::isfinite(v)) {
+        throw IoError(path, "line " + std::to_string(line_no) + ": '" + token + "' is not a finite number");
+      }
+      m(row, col++) = v;
+    }
+    if (col != cols) {
+      throw IoError(path, "line " + std::to_string(line_no) + ": expected " + std::to_string(cols) +
+                              " numbers, found " + std::to_string(col));
+    }
+    ++row;
+  }
+  if (row != rows) {
+    throw IoError(path, "expected " + std::to_string(rows) + " rows of numbers, found " + std::to_string(row));
+  }
+  return m;
+}
+
+std::string formatRows(const Eigen::MatrixXd& m) {
+  std::ostringstream out;
+  out << std::scientific << std::setprecision(18);
+  for (Eigen::Index r = 0; r < m.rows(); ++r) {
+    for (Eigen::Index c = 0; c < m.cols(); ++c) out << (c ? " " : "") << m(r, c);
+    out << '\n';
+  }
+  return out.str();
+}
+
+}  // namespace
+
+std::string frameStem(int index) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "frame-%06d", index);
+  return buf;
+}
+
+perception::PinholeIntrinsics readIntrinsicsFile(const std::string& path, int width, int height) {
+  const Eigen::MatrixXd k = readMatrixFile(path, 3, 3);
+  if (k(0, 1) != 0 || k(1, 0) != 0 || k(2, 0) != 0 || k(2, 1) != 0 || k(2, 2) != 1) {
+    throw IoError(path, "not a pinhole camera matrix [fx 0 cx; 0 fy cy; 0 0 1]");
+  }
+  perception::PinholeIntrinsics out{width, height, k(0, 0), k(1, 1), k(0, 2), k(1, 2)};
+  try {
+    perception::validate(out);
+  } catch (const std::invalid_argument& e) {
+    throw IoError(path, e.what());
+  }
+  return out;
+}
+
+Eigen::Matrix4d readPoseFile(const std::string& path) {
+  const Eigen::Matrix4d t = readMatrixFile(path, 4, 4);
+  if (auto problem = mapping::checkRigid(t)) throw IoError(path, "not a rigid transform: " + *problem);
+  return t;
+}
+
+Eigen::Vector3d readGravityFile(const std::string& path) {
+  const std::string text = readTextFile(path, 1 << 16);
+  std::istringstream in(text);
+  Eigen::Vector3d g;
+  for (int i = 0; i < 3; ++i) {
+    std::string token;
+    if (!(in >> token)) throw IoError(path, "expected 3 numbers, found " + std::to_string(i));
+    std::size_t used = 0;
+    double v = NAN;
+    try {
+      v = std::stod(token, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != token.size() || !std::isfinite(v)) throw IoError(path, "'" + token + "' is not a finite number");
+    g(i) = v;
+  }
+  std::string extra;
+  if (in >> extra) throw IoError(path, "more than 3 numbers");
+  if (g.norm() < 1e-9) throw IoError(path, "gravity direction is the zero vector");
+  return g.normalized();
+}
+
+void writeIntrinsicsFile(const std::string& path, const perception::PinholeIntrinsics& k) {
+  Eigen::Matrix3d m;
+  m << k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1;
+  writeTextFileAtomically(path, formatRows(m));
+}
+
+void writePoseFile(const std::string& path, const Eigen::Matrix4d& t) {
+  writeTextFileAtomically(path, formatRows(t));
+}
+
+void writeGravityFile(const std::string& path, const Eigen::Vector3d& g) {
+  writeTextFileAtomically(path, formatRows(g));
+}
+
+void writeDepthPng(const std::string& path, const perception::DepthImage& depth) {
+  Image16 img;
+  img.width = depth.width;
+  img.height = depth.height;
+  img.pixels.resize(depth.depth_m.size());
+  for (std::size_t i = 0; i < depth.depth_m.size(); ++i) {
+    const double mm = std::round(static_cast<double>(depth.depth_m[i]) * 1000.0);
+    img.pixels[i] = (depth.depth_m[i] > 0 && mm < 65535.0) ? static_cast<std::uint16_t>(mm) : 0;
+  }
+  writePng16(path, img);
+}
+
+perception::DepthImage readDepthPng(const std::string& path) {
+  const Image16 img = readPng16(path);
+  perception::DepthImage d(img.width, img.height);
+  for (std::size_t i = 0; i < img.pixels.size(); ++i) {
+    const std::uint16_t mm = img.pixels[i];
+    d.depth_m[i] = (mm == 0 || mm == 65535) ? 0.f : static_cast<float>(mm) * 1e-3f;
+  }
+  return d;
+}
+
+SevenScenesDirectory::SevenScenesDirectory(std::string dir) : dir_(std::move(dir)) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::is_directory(dir_, ec)) throw IoError(dir_, "not a directory");
+  const std::regex pattern(R"(frame-(\d{6})\.depth\.png)");
+  for (const auto& entry : fs::directory_iterator(dir_, ec)) {
+    std::smatch m;
+    const std::string name = entry.path().filename().string();
+    if (std::regex_match(name, m, pattern)) frames_.push_back(std::stoi(m[1]));
+  }
+  if (ec) throw IoError(dir_, "cannot list: " + ec.message());
+  if (frames_.empty()) throw IoError(dir_, "no frame-NNNNNN.depth.png files (not a 7-Scenes layout directory)");
+  std::sort(frames_.begin(), frames_.end());
+  std::string kpath = (fs::path(dir_) / "camera-intrinsics.txt").string();
+  if (!fs::exists(kpath, ec)) {
+    const std::string parent = (fs::absolute(dir_, ec).parent_path() / "camera-intrinsics.txt").string();
+    if (!fs::exists(parent, ec)) throw IoError(dir_, "no camera-intrinsics.txt here or in the parent directory");
+    kpath = parent;
+  }
+  const Image16 first = readPng16(depthPath(frames_.front()));
+  intrinsics_ = readIntrinsicsFile(kpath, first.width, first.height);
+  const std::string gpath = (fs::path(dir_) / "gravity-direction.txt").string();
+  if (fs::exists(gpath, ec)) gravity_ = readGravityFile(gpath);
+}
+
+std::string SevenScenesDirectory::depthPath(int frame) const {
+  return (std::filesystem::path(dir_) / (frameStem(frame) + ".depth.png")).string();
+}
+std::string SevenScenesDirectory::posePath(int frame) const {
+  return (std::filesystem::path(dir_) / (frameStem(frame) + ".pose.txt")).string();
+}
+std::string SevenScenesDirectory::labelsPath(int frame) const {
+  return (std::filesystem::path(dir_) / (frameStem(frame) + ".labels.png")).string();
+}
+
+perception::DepthImage SevenScenesDirectory::readDepth(int frame) const {
+  const std::string path = depthPath(frame);
+  perception::DepthImage d = readDepthPng(path);
+  if (d.width != intrinsics_.width || d.height != intrinsics_.height) {
+    throw IoError(path, "depth image is " + std::to_string(d.width) + "x" + std::to_string(d.height) +
+                            " but the sequence's images are " + std::to_string(intrinsics_.width) + "x" +
+                            std::to_string(intrinsics_.height));
+  }
+  return d;
+}
+
+Eigen::Matrix4d SevenScenesDirectory::readPose(int frame) const { return readPoseFile(posePath(frame)); }
+
+}  // namespace mobmap::app

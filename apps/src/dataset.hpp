@@ -1,0 +1,68 @@
+#pragma once
+// Readers and writers of the 7-Scenes / 3DMatch directory layout:
+//   frame-NNNNNN.depth.png  16-bit, millimetres; 0 and 65535 mean "no measurement"
+//   frame-NNNNNN.color.png|jpg, frame-NNNNNN.pose.txt (4x4 camera-to-world, row-major)
+//   camera-intrinsics.txt (3x3 K), optional gravity-direction.txt (unit "down", world)
+// mobmap's simulator adds frame-NNNNNN.labels.png (surface id per pixel) and
+// ground_truth.json.
+
+#include "mobmap/perception/camera.hpp"
+
+#include <Eigen/Core>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace mobmap::app {
+
+/// Parses a 3x3 camera matrix (camera-intrinsics.txt). IoError names the file, line
+/// and problem. Width and height are not in the file: pass them.
+perception::PinholeIntrinsics readIntrinsicsFile(const std::string& path, int width, int height);
+/// Parses a 4x4 camera-to-world pose and checks it is rigid (mapping::checkRigid).
+Eigen::Matrix4d readPoseFile(const std::string& path);
+/// Parses three numbers (a direction); IoError if missing, non-finite or zero.
+Eigen::Vector3d readGravityFile(const std::string& path);
+
+void writeIntrinsicsFile(const std::string& path, const perception::PinholeIntrinsics& k);
+void writePoseFile(const std::string& path, const Eigen::Matrix4d& T_world_camera);
+void writeGravityFile(const std::string& path, const Eigen::Vector3d& gravity_down);
+
+/// Depth in metres -> 16-bit millimetres (rounded; 0 for no measurement or > 65.534 m).
+void writeDepthPng(const std::string& path, const perception::DepthImage& depth);
+/// 16-bit millimetres -> metres; 0 and 65535 become 0 ("no measurement").
+perception::DepthImage readDepthPng(const std::string& path);
+
+/// "frame-000042"
+std::string frameStem(int index);
+
+/// A directory in the 7-Scenes layout, scanned once.
+class SevenScenesDirectory {
+ public:
+  /// Scans `dir` for frame-NNNNNN.depth.png. camera-intrinsics.txt is looked for in
+  /// `dir` and then its parent (the 3DMatch layout keeps it one level up); image size
+  /// comes from the first depth image. IoError if the directory has no frames or no
+  /// intrinsics.
+  explicit SevenScenesDirectory(std::string dir);
+
+  [[nodiscard]] const std::string& dir() const { return dir_; }
+  /// Frame numbers found, ascending (not necessarily contiguous).
+  [[nodiscard]] const std::vector<int>& frameNumbers() const { return frames_; }
+  [[nodiscard]] const perception::PinholeIntrinsics& intrinsics() const { return intrinsics_; }
+  [[nodiscard]] const std::optional<Eigen::Vector3d>& gravityDown() const { return gravity_; }
+
+  [[nodiscard]] std::string depthPath(int frame) const;
+  [[nodiscard]] std::string posePath(int frame) const;
+  [[nodiscard]] std::string labelsPath(int frame) const;
+  /// Depth of a frame; IoError if its size differs from the intrinsics'.
+  [[nodiscard]] perception::DepthImage readDepth(int frame) const;
+  [[nodiscard]] Eigen::Matrix4d readPose(int frame) const;
+
+ private:
+  std::string dir_;
+  std::vector<int> frames_;
+  perception::PinholeIntrinsics intrinsics_;
+  std::optional<Eigen::Vector3d> gravity_;
+};
+
+}  // namespace mobmap::app

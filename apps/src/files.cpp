@@ -1,0 +1,63 @@
+#include "files.hpp"
+
+#include "io_error.hpp"
+
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace mobmap::app {
+
+std::string readTextFile(const std::string& path, std::size_t max_bytes) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw IoError(path, "no such file");
+  if (std::filesystem::is_directory(path, ec)) throw IoError(path, "is a directory, expected a file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw IoError(path, std::string("cannot open: ") + std::strerror(errno));
+  const auto size = std::filesystem::file_size(path, ec);
+  if (!ec && size > max_bytes) {
+    throw IoError(path, "file is " + std::to_string(size) + " bytes, more than the " +
+                            std::to_string(max_bytes) + " expected");
+  }
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+void writeAtomically(const std::string& path, const std::function<void(const std::string&)>& write) {
+  const std::filesystem::path target(path);
+  std::error_code ec;
+  if (target.has_parent_path()) {
+    std::filesystem::create_directories(target.parent_path(), ec);
+    if (ec) throw IoError(path, "cannot create directory " + target.parent_path().string() + ": " + ec.message());
+  }
+  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  try {
+    write(tmp);
+  } catch (...) {
+    std::filesystem::remove(tmp, ec);
+    throw;
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    const std::string reason = std::strerror(errno);
+    std::filesystem::remove(tmp, ec);
+    throw IoError(path, "cannot rename the temporary file into place: " + reason);
+  }
+}
+
+void writeTextFileAtomically(const std::string& path, const std::string& text) {
+  writeAtomically(path, [&](const std::string& tmp) {
+    std::ofstream out(tmp, std::ios::binary);
+    if (!out) throw IoError(path, std::string("cannot write: ") + std::strerror(errno));
+    out << text;
+    out.flush();
+    if (!out) throw IoError(path, "write failed (disk full?)");
+  });
+}
+
+}  // namespace mobmap::app

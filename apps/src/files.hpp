@@ -1,0 +1,20 @@
+#pragma once
+// Small file helpers: whole-file reads and atomic writes (temporary file + rename).
+
+#include <functional>
+#include <string>
+
+namespace mobmap::app {
+
+/// Reads a whole file; IoError if it cannot be opened or is larger than max_bytes.
+std::string readTextFile(const std::string& path, std::size_t max_bytes = 64u << 20);
+
+/// Calls `write(temporary_path)` and then renames the temporary file over `path`, so
+/// `path` is either the old file or the complete new one, never half written. The
+/// temporary file is removed if `write` throws. Creates missing parent directories.
+void writeAtomically(const std::string& path, const std::function<void(const std::string&)>& write);
+
+/// writeAtomically() for text.
+void writeTextFileAtomically(const std::string& path, const std::string& text);
+
+}  // namespace mobmap::app

@@ -1,0 +1,27 @@
+#pragma once
+// Errors of the apps layer's readers and writers: the message always starts with
+// the path and says what is wrong with it.
+
+#include <stdexcept>
+#include <string>
+
+namespace mobmap::app {
+
+/// An I/O or format error: "<path>: <reason>".
+class IoError : public std::runtime_error {
+ public:
+  IoError(const std::string& path, const std::string& reason)
+      : std::runtime_error(path + ": " + reason), path_(path) {}
+  [[nodiscard]] const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+
+/// A mistake on the command line (exit code 2).
+class UsageError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+}  // namespace mobmap::app

@@ -1,0 +1,39 @@
+// mobmap: RGB-D depth frames -> 3D mobility maps for legged robots.
+#include "commands.hpp"
+#include "io_error.hpp"
+
+#include <cstdio>
+#include <exception>
+#include <iostream>
+#include <map>
+
+#ifndef MOBMAP_VERSION
+#define MOBMAP_VERSION "unknown"
+#endif
+
+int main(int argc, char** argv) {
+  CLI::App app{"mobmap " MOBMAP_VERSION
+               ": mobility maps for legged robots from RGB-D depth frames (Genesio et al.)"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", MOBMAP_VERSION);
+  std::map<std::string, mobmap::app::Command> commands;
+  commands["simulate"] = mobmap::app::addSimulateCommand(app);
+  commands["score"] = mobmap::app::addScoreCommand(app);
+  commands["demo"] = mobmap::app::addDemoCommand(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);  // prints help, the version or the usage error
+    return code == 0 ? 0 : 2;
+  }
+  try {
+    for (auto* sub : app.get_subcommands()) return commands.at(sub->get_name())();
+  } catch (const mobmap::app::UsageError& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 1;
+  }
+  return 2;
+}

@@ -1,0 +1,35 @@
+#pragma once
+// PNG reading and writing (libpng), for depth, label and colour images.
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace mobmap::app {
+
+/// A 16-bit single-channel image, row-major.
+struct Image16 {
+  int width = 0;
+  int height = 0;
+  std::vector<std::uint16_t> pixels;
+};
+
+/// An 8-bit RGB image, row-major.
+struct ImageRgb {
+  int width = 0;
+  int height = 0;
+  std::vector<std::array<std::uint8_t, 3>> pixels;
+};
+
+/// Reads a 16-bit greyscale PNG. IoError (with the path) if the file is missing,
+/// not a PNG, corrupt or truncated, not 16-bit greyscale, or larger than 16384 px a side.
+Image16 readPng16(const std::string& path);
+/// Reads any 8-bit PNG (grey, RGB, RGBA, palette) as RGB.
+ImageRgb readPngRgb(const std::string& path);
+
+/// Writes atomically (temporary file + rename).
+void writePng16(const std::string& path, const Image16& image);
+void writePngRgb(const std::string& path, const ImageRgb& image);
+
+}  // namespace mobmap::app

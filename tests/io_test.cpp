@@ -1,0 +1,275 @@
+// Readers and writers of the apps layer: round trips, hostile files, real data.
+#include "dataset.hpp"
+#include "files.hpp"
+#include "io_error.hpp"
+#include "png_io.hpp"
+#include "simulation_writer.hpp"
+
+#include <Eigen/SVD>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <random>
+
+#include <unistd.h>
+
+namespace mobmap::app {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+class TempDir {
+ public:
+  TempDir() {
+    path_ = fs::temp_directory_path() /
+            ("mobmap-test-" + std::to_string(::getpid()) + "-" + std::to_string(counter_++));
+    fs::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  [[nodiscard]] std::string file(const std::string& name) const { return (path_ / name).string(); }
+  [[nodiscard]] std::string str() const { return path_.string(); }
+
+ private:
+  static inline int counter_ = 0;
+  fs::path path_;
+};
+
+void writeBytes(const std::string& path, const std::string& bytes) {
+  std::ofstream(path, std::ios::binary) << bytes;
+}
+
+std::string errorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const IoError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(Png, SixteenBitRoundTripIsExact) {
+  TempDir dir;
+  Image16 img{37, 11, {}};
+  std::mt19937 rng(3);
+  for (int i = 0; i < 37 * 11; ++i) img.pixels.push_back(static_cast<std::uint16_t>(rng()));
+  writePng16(dir.file("a.png"), img);
+  const Image16 back = readPng16(dir.file("a.png"));
+  EXPECT_EQ(back.width, 37);
+  EXPECT_EQ(back.height, 11);
+  EXPECT_EQ(back.pixels, img.pixels);
+}
+
+TEST(Png, RgbRoundTripIsExact) {
+  TempDir dir;
+  ImageRgb img{5, 4, {}};
+  for (int i = 0; i < 20; ++i) img.pixels.push_back({static_cast<std::uint8_t>(i), static_cast<std::uint8_t>(3 * i), 200});
+  writePngRgb(dir.file("c.png"), img);
+  EXPECT_EQ(readPngRgb(dir.file("c.png")).pixels, img.pixels);
+}
+
+TEST(Png, HostileFilesGiveErrorsNamingTheFile) {
+  TempDir dir;
+  EXPECT_NE(errorOf([&] { readPng16(dir.file("missing.png")); }).find("missing.png: cannot open"), std::string::npos);
+  writeBytes(dir.file("text.png"), "this is not a png at all");
+  EXPECT_NE(errorOf([&] { readPng16(dir.file("text.png")); }).find("text.png: not a PNG"), std::string::npos);
+  // A valid 16-bit PNG cut in half.
+  Image16 img{64, 64, std::vector<std::uint16_t>(64 * 64, 1234)};
+  for (std::size_t i = 0; i < img.pixels.size(); ++i) img.pixels[i] = static_cast<std::uint16_t>(i * 7919);
+  writePng16(dir.file("full.png"), img);
+  const std::string bytes = readTextFile(dir.file("full.png"));
+  writeBytes(dir.file("cut.png"), bytes.substr(0, bytes.size() / 2));
+  EXPECT_NE(errorOf([&] { readPng16(dir.file("cut.png")); }).find("cut.png: corrupt or truncated"), std::string::npos);
+  // An 8-bit colour PNG where depth is expected.
+  writePngRgb(dir.file("rgb.png"), ImageRgb{2, 2, std::vector<std::array<std::uint8_t, 3>>(4)});
+  EXPECT_NE(errorOf([&] { readPng16(dir.file("rgb.png")); }).find("not a 16-bit greyscale PNG"), std::string::npos);
+}
+
+TEST(DepthPng, MillimetresWithZeroAndMaxMeaningNoMeasurement) {
+  TempDir dir;
+  Image16 img{4, 1, {0, 1000, 65535, 1500}};
+  writePng16(dir.file("d.png"), img);
+  const auto d = readDepthPng(dir.file("d.png"));
+  EXPECT_EQ(d.depth_m[0], 0.f);
+  EXPECT_FLOAT_EQ(d.depth_m[1], 1.0f);
+  EXPECT_EQ(d.depth_m[2], 0.f);
+  EXPECT_FLOAT_EQ(d.depth_m[3], 1.5f);
+}
+
+TEST(PoseFile, RoundTripAndValidation) {
+  TempDir dir;
+  Eigen::Matrix4d t = Eigen::Matrix4d::Identity();
+  t.topLeftCorner<3, 3>() = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  t.topRightCorner<3, 1>() = Eigen::Vector3d(1.5, -2.25, 0.125);
+  writePoseFile(dir.file("p.txt"), t);
+  EXPECT_LT((readPoseFile(dir.file("p.txt")) - t).cwiseAbs().maxCoeff(), 1e-15);
+
+  writeBytes(dir.file("nan.txt"), "1 0 0 0\n0 1 0 nan\n0 0 1 0\n0 0 0 1\n");
+  EXPECT_NE(errorOf([&] { readPoseFile(dir.file("nan.txt")); }).find("nan.txt: line 2"), std::string::npos);
+  writeBytes(dir.file("short.txt"), "1 0 0 0\n0 1 0\n0 0 1 0\n0 0 0 1\n");
+  EXPECT_NE(errorOf([&] { readPoseFile(dir.file("short.txt")); }).find("line 2: expected 4 numbers, found 3"), std::string::npos);
+  writeBytes(dir.file("three.txt"), "1 0 0 0\n0 1 0 0\n0 0 1 0\n");
+  EXPECT_NE(errorOf([&] { readPoseFile(dir.file("three.txt")); }).find("expected 4 rows"), std::string::npos);
+  writeBytes(dir.file("scaled.txt"), "2 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n");
+  EXPECT_NE(errorOf([&] { readPoseFile(dir.file("scaled.txt")); }).find("not a rigid transform"), std::string::npos);
+  writeBytes(dir.file("mirror.txt"), "-1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n");
+  EXPECT_NE(errorOf([&] { readPoseFile(dir.file("mirror.txt")); }).find("reflection"), std::string::npos);
+}
+
+TEST(IntrinsicsFile, RoundTripAndValidation) {
+  TempDir dir;
+  const perception::PinholeIntrinsics k{640, 480, 570.342, 571.5, 320.25, 239.75};
+  writeIntrinsicsFile(dir.file("k.txt"), k);
+  EXPECT_EQ(readIntrinsicsFile(dir.file("k.txt"), 640, 480), k);
+  writeBytes(dir.file("bad.txt"), "585 0 320\n0 -585 240\n0 0 1\n");
+  EXPECT_NE(errorOf([&] { readIntrinsicsFile(dir.file("bad.txt"), 640, 480); }).find("fy"), std::string::npos);
+}
+
+TEST(AtomicWrite, FailedWriteLeavesTheOldFileAndNoTemporary) {
+  TempDir dir;
+  writeTextFileAtomically(dir.file("m.txt"), "old");
+  EXPECT_THROW(writeAtomically(dir.file("m.txt"),
+                               [](const std::string& tmp) {
+                                 std::ofstream(tmp) << "half";
+                                 throw std::runtime_error("killed mid-write");
+                               }),
+               std::runtime_error);
+  EXPECT_EQ(readTextFile(dir.file("m.txt")), "old");
+  int files = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir.str())) ++files;
+  EXPECT_EQ(files, 1);
+}
+
+// Writes a short noise-free corridor and reads it back through the dataset reader.
+class WrittenCorridor : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new TempDir();
+    sim::CorridorParams p;
+    p.frames = 40;
+    p.noise = sim::NoiseModel::kNone;
+    scene_ = new sim::CorridorScene(p);
+    // Only a few frames are needed: write the whole sequence's metadata, then the frames.
+    writeSimulation(*scene_, dir_->str(), 2, [](int) {});
+  }
+  static void TearDownTestSuite() {
+    delete scene_;
+    delete dir_;
+  }
+  static inline TempDir* dir_ = nullptr;
+  static inline sim::CorridorScene* scene_ = nullptr;
+};
+
+TEST_F(WrittenCorridor, SevenScenesReaderRoundTrip) {
+  const SevenScenesDirectory d(dir_->str());
+  ASSERT_EQ(d.frameNumbers().size(), 40u);
+  EXPECT_EQ(d.intrinsics(), scene_->params().intrinsics);
+  ASSERT_TRUE(d.gravityDown().has_value());
+  EXPECT_NEAR((*d.gravityDown() - scene_->gravityDown()).norm(), 0.0, 1e-15);
+  for (int f : {0, 17, 39}) {
+    const auto r = scene_->render(f);
+    const auto depth = d.readDepth(f);
+    for (std::size_t i = 0; i < depth.depth_m.size(); ++i) {
+      if (r.exact_depth.depth_m[i] > 0 && r.exact_depth.depth_m[i] < 65.0f) {
+        ASSERT_NEAR(depth.depth_m[i], r.exact_depth.depth_m[i], 0.5e-3 + 1e-6);  // millimetre rounding
+      } else {
+        ASSERT_EQ(depth.depth_m[i], 0.f);
+      }
+    }
+    EXPECT_LT((d.readPose(f) - r.T_world_camera.matrix()).cwiseAbs().maxCoeff(), 1e-15);
+    EXPECT_EQ(readPng16(d.labelsPath(f)).pixels, r.labels);
+  }
+}
+
+TEST_F(WrittenCorridor, BackProjectedRampsRecoverTheirSlopeWithinATenthOfADegree) {
+  const SevenScenesDirectory d(dir_->str());
+  const Eigen::Vector3d up = -*d.gravityDown();
+  std::map<int, std::vector<Eigen::Vector3d>> points;  // ramp id -> world points
+  for (int f : {0, 20, 39}) {
+    const auto depth = d.readDepth(f);
+    const Eigen::Matrix4d pose = d.readPose(f);
+    const Eigen::Affine3d T(pose);
+    const auto labels = readPng16(d.labelsPath(f)).pixels;
+    const auto& k = d.intrinsics();
+    for (int v = 0; v < k.height; ++v) {
+      for (int u = 0; u < k.width; ++u) {
+        const auto i = static_cast<std::size_t>(v * k.width + u);
+        const int id = labels[i];
+        if (id == 0 || depth.depth_m[i] <= 0 || scene_->surface(id).kind != sim::SurfaceKind::kRamp) continue;
+        points[id].push_back(T * perception::backProject(k, u, v, depth.depth_m[i]));
+      }
+    }
+  }
+  ASSERT_GE(points.size(), 4u);
+  for (const auto& [id, pts] : points) {
+    if (pts.size() < 2000) continue;  // only well-observed ramps
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (const auto& p : pts) mean += p;
+    mean /= static_cast<double>(pts.size());
+    Eigen::MatrixXd a(pts.size(), 3);
+    for (std::size_t i = 0; i < pts.size(); ++i) a.row(static_cast<Eigen::Index>(i)) = (pts[i] - mean).transpose();
+    Eigen::JacobiSVD<Eigen::MatrixXd> svd(a, Eigen::ComputeThinV);
+    const Eigen::Vector3d n = svd.matrixV().col(2);
+    const double slope = std::acos(std::min(1.0, std::abs(n.dot(up)))) / kDeg;
+    EXPECT_NEAR(slope, scene_->surface(id).slope_deg, 0.1) << scene_->surface(id).name << " from " << pts.size() << " points";
+  }
+}
+
+TEST_F(WrittenCorridor, GroundTruthJsonListsEverySurface) {
+  const auto j = nlohmann::json::parse(readTextFile(dir_->file("ground_truth.json")));
+  ASSERT_EQ(j["surfaces"].size(), scene_->surfaces().size());
+  for (const auto& s : j["surfaces"]) {
+    const auto& truth = scene_->surface(s["id"].get<int>());
+    EXPECT_EQ(s["name"], truth.name);
+    EXPECT_DOUBLE_EQ(s["slope_deg"].get<double>(), truth.slope_deg);
+    EXPECT_DOUBLE_EQ(s["roughness"].get<double>(), truth.roughness);
+    EXPECT_DOUBLE_EQ(s["expected_mobility"].get<double>(), truth.expected_mobility);
+  }
+  EXPECT_EQ(j["moving_obstacle"]["start_frame"].get<int>(), scene_->movingObstacle().start_frame);
+}
+
+TEST(SevenScenesDirectory, MismatchedInputsNameTheFile) {
+  TempDir dir;
+  EXPECT_NE(errorOf([&] { SevenScenesDirectory{dir.str()}; }).find("no frame-NNNNNN.depth.png"), std::string::npos);
+  writePng16(dir.file("frame-000000.depth.png"), Image16{8, 6, std::vector<std::uint16_t>(48, 1000)});
+  EXPECT_NE(errorOf([&] { SevenScenesDirectory{dir.str()}; }).find("no camera-intrinsics.txt"), std::string::npos);
+  writeIntrinsicsFile(dir.file("camera-intrinsics.txt"), {8, 6, 5, 5, 4, 3});
+  writePng16(dir.file("frame-000001.depth.png"), Image16{9, 6, std::vector<std::uint16_t>(54, 1000)});
+  const SevenScenesDirectory d(dir.str());
+  EXPECT_NO_THROW((void)d.readDepth(0));
+  EXPECT_NE(errorOf([&] { (void)d.readDepth(1); }).find("frame-000001.depth.png: depth image is 9x6"), std::string::npos);
+  EXPECT_NE(errorOf([&] { (void)d.readPose(0); }).find("frame-000000.pose.txt: no such file"), std::string::npos);
+}
+
+TEST(RealData, SevenScenesRedkitchenReadsWithGravityAndRigidPoses) {
+  const std::string dir = std::string(MOBMAP_SHARED_DATA_DIR) + "/7scenes-redkitchen";
+  if (!fs::exists(dir)) GTEST_SKIP() << "shared data not found at " << dir;
+  const SevenScenesDirectory d(dir);
+  EXPECT_EQ(d.frameNumbers().size(), 1000u);
+  EXPECT_EQ(d.intrinsics(), (perception::PinholeIntrinsics{640, 480, 585, 585, 320, 240}));
+  ASSERT_TRUE(d.gravityDown().has_value());
+  EXPECT_NEAR(d.gravityDown()->norm(), 1.0, 1e-12);
+  const auto depth = d.readDepth(50);
+  int valid = 0;
+  for (float z : depth.depth_m) valid += (z > 0.3f && z < 10.f);
+  EXPECT_GT(valid, 100000);
+  (void)d.readPose(50);  // throws if not rigid
+}
+
+TEST(RealData, ThreeDMatchLoungeFindsIntrinsicsInTheParentDirectory) {
+  const std::string dir = std::string(MOBMAP_SHARED_DATA_DIR) + "/3dmatch-lounge/seq-01";
+  if (!fs::exists(dir)) GTEST_SKIP() << "shared data not found at " << dir;
+  const SevenScenesDirectory d(dir);
+  EXPECT_EQ(d.frameNumbers().size(), 5u);
+  EXPECT_NEAR(d.intrinsics().fx, 570.342205, 1e-9);  // the file's value (the data README rounds it)
+  EXPECT_FALSE(d.gravityDown().has_value());
+}
+
+}  // namespace
+}  // namespace mobmap::app
