@@ -13,5 +13,6 @@ using Command = std::function<int()>;
 Command addSimulateCommand(CLI::App& app);
 Command addScoreCommand(CLI::App& app);
 Command addDemoCommand(CLI::App& app);
+Command addAnalyzeCommand(CLI::App& app);
 
 }  // namespace mobmap::app

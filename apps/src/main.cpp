@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
   commands["simulate"] = mobmap::app::addSimulateCommand(app);
   commands["score"] = mobmap::app::addScoreCommand(app);
   commands["demo"] = mobmap::app::addDemoCommand(app);
+  commands["analyze"] = mobmap::app::addAnalyzeCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1,0 +1,180 @@
+#include "canvas.hpp"
+#include "commands.hpp"
+#include "files.hpp"
+#include "frame_source.hpp"
+#include "io_error.hpp"
+
+#include "mobmap/perception/pipeline.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <memory>
+
+namespace mobmap::app {
+
+nlohmann::json frameResultJson(const perception::FrameResult& r) {
+  using nlohmann::json;
+  json j;
+  json stages = json::array();
+  for (const auto& s : r.stages) {
+    stages.push_back({{"stage", s.name}, {"ms", s.milliseconds}, {"points_in", s.points_in}, {"points_out", s.points_out}});
+  }
+  j["stages"] = stages;
+  j["total_ms"] = r.totalMilliseconds();
+  j["slope_reference"] = perception::toString(r.reference);
+  if (r.ground_plane) {
+    const auto& g = *r.ground_plane;
+    j["ground_plane"] = {g(0), g(1), g(2), g(3)};
+    j["ground_distance_m"] = g(3);
+  } else {
+    j["ground_plane"] = nullptr;
+  }
+  json segs = json::array();
+  for (const auto& s : r.segments) {
+    segs.push_back({{"id", s.id}, {"points", s.points.size()}, {"is_ground", s.is_ground},
+                    {"centroid", {s.centroid.x(), s.centroid.y(), s.centroid.z()}},
+                    {"normal", {s.normal.x(), s.normal.y(), s.normal.z()}},
+                    {"slope_deg", s.slope_deg}, {"roughness", s.roughness}, {"area_m2", s.area_m2},
+                    {"mobility", s.mobility}, {"variance", s.variance}});
+  }
+  j["segments"] = segs;
+  return j;
+}
+
+namespace {
+
+void writeSegmentsPcd(const std::string& path, const perception::FrameResult& r) {
+  std::size_t n = 0;
+  for (int s : r.segment_of_point) n += s >= 0;
+  std::string text;
+  text += "# .PCD v0.7 - mobmap segments: rgb = mobility colour (red 0, green 1)\n";
+  text += "VERSION 0.7\nFIELDS x y z rgb segment mobility\nSIZE 4 4 4 4 4 4\nTYPE F F F F I F\nCOUNT 1 1 1 1 1 1\n";
+  text += "WIDTH " + std::to_string(n) + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + std::to_string(n) + "\nDATA ascii\n";
+  char line[160];
+  for (std::size_t i = 0; i < r.points.size(); ++i) {
+    const int s = r.segment_of_point[i];
+    if (s < 0) continue;
+    const double m = r.segments[static_cast<std::size_t>(s)].mobility;
+    const Rgb c = mobilityColour(m);
+    const std::uint32_t packed = (static_cast<std::uint32_t>(c[0]) << 16) | (static_cast<std::uint32_t>(c[1]) << 8) | c[2];
+    float rgb = 0.f;
+    std::memcpy(&rgb, &packed, sizeof(rgb));
+    std::snprintf(line, sizeof(line), "%.5f %.5f %.5f %.9g %d %.4f\n", r.points[i].x(), r.points[i].y(),
+                  r.points[i].z(), rgb, s, m);
+    text += line;
+  }
+  writeTextFileAtomically(path, text);
+}
+
+Canvas overlay(const LoadedFrame& f, const perception::FrameResult& r, int width, int height) {
+  Canvas c(width, height, {0, 0, 0});
+  const std::size_t pixels = static_cast<std::size_t>(width) * height;
+  // Base: the colour image, else shaded depth.
+  std::vector<float> z(pixels, 0.f);
+  if (f.depth) {
+    z = f.depth->depth_m;
+  } else {
+    for (std::size_t i = 0; i < pixels && i < f.points.size(); ++i) z[i] = std::isfinite(f.points[i].z()) ? f.points[i].z() : 0.f;
+  }
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u) {
+      const std::size_t i = static_cast<std::size_t>(v) * width + u;
+      Rgb base{0, 0, 0};
+      if (f.colour && f.colour->width == width && f.colour->height == height) {
+        base = f.colour->pixels[i];
+      } else if (z[i] > 0) {
+        const auto g = static_cast<std::uint8_t>(std::clamp(255.0 - 45.0 * z[i], 40.0, 230.0));
+        base = {g, g, g};
+      }
+      const int p = r.point_of_pixel.empty() ? -1 : r.point_of_pixel[i];
+      const int s = p >= 0 ? r.segment_of_point[static_cast<std::size_t>(p)] : -1;
+      if (s >= 0) {
+        const Rgb m = mobilityColour(r.segments[static_cast<std::size_t>(s)].mobility);
+        for (std::size_t ch = 0; ch < 3; ++ch) base[ch] = static_cast<std::uint8_t>((base[ch] * 2 + m[ch] * 3) / 5);
+      }
+      c.set(u, v, base);
+    }
+  }
+  return c;
+}
+
+}  // namespace
+
+Command addAnalyzeCommand(CLI::App& app) {
+  auto* cmd = app.add_subcommand("analyze", "Run the per-frame pipeline on one frame and print stages and segments");
+  struct Options {
+    std::string input;
+    int frame = -1;
+    std::string gravity;
+    std::string intrinsics;
+    bool json = false;
+    std::string segments;
+    std::string overlay;
+    double max_range = -1;
+  };
+  auto o = std::make_shared<Options>();
+  cmd->add_option("INPUT", o->input, "A .pcd, a 16-bit depth .png (millimetres) or a 7-Scenes layout directory")->required();
+  cmd->add_option("--frame", o->frame, "Frame number in a directory (default: the first)");
+  cmd->add_option("--gravity", o->gravity, "Gravity (down) in the camera frame, X,Y,Z (default: from the pose and gravity-direction.txt if present)");
+  cmd->add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy or a camera-intrinsics.txt file (required for a PNG)");
+  cmd->add_option("--max-range", o->max_range, "Maximum range in metres (default 3)");
+  cmd->add_flag("--json", o->json, "Print one JSON object instead of tables");
+  cmd->add_option("--segments", o->segments, "Write the segmented points as PCD (x y z rgb segment mobility)");
+  cmd->add_option("--overlay", o->overlay, "Write a PNG of the frame coloured by mobility (red 0, green 1)");
+  return [o]() {
+    LoadedFrame f = loadSingleFrame(o->input, o->frame, o->intrinsics);
+    if (!o->gravity.empty()) f.gravity_camera = parseVector3(o->gravity, "--gravity");
+    perception::PerceptionParams params;
+    if (o->max_range > 0) params.max_range_m = o->max_range;
+    const perception::FramePipeline pipeline(params);
+    perception::FrameResult r;
+    int width = 0, height = 0;
+    if (f.depth) {
+      r = pipeline.process(*f.depth, f.intrinsics, f.gravity_camera);
+      width = f.depth->width;
+      height = f.depth->height;
+    } else if (f.height > 1) {
+      r = pipeline.processOrganized(f.points, f.width, f.height, f.gravity_camera);
+      width = f.width;
+      height = f.height;
+    } else {
+      r = pipeline.process(f.points, f.gravity_camera);
+    }
+    if (!o->segments.empty()) writeSegmentsPcd(o->segments, r);
+    if (!o->overlay.empty()) {
+      if (width == 0) throw UsageError("--overlay needs an organized input (depth image or organized PCD)");
+      overlay(f, r, width, height).save(o->overlay);
+    }
+    if (o->json) {
+      auto j = frameResultJson(r);
+      j["input"] = f.description;
+      std::cout << j.dump() << "\n";
+      return 0;
+    }
+    std::printf("%s\n\n%-20s %10s %10s %10s\n", f.description.c_str(), "stage", "ms", "points in", "points out");
+    for (const auto& s : r.stages) std::printf("%-20s %10.2f %10zu %10zu\n", s.name.c_str(), s.milliseconds, s.points_in, s.points_out);
+    std::printf("%-20s %10.2f\n\n", "total", r.totalMilliseconds());
+    if (r.ground_plane) {
+      std::printf("ground plane: normal (%.3f, %.3f, %.3f), %.3f m from the camera\n", (*r.ground_plane)(0),
+                  (*r.ground_plane)(1), (*r.ground_plane)(2), (*r.ground_plane)(3));
+    } else {
+      std::printf("no ground plane found (no floor in view?)\n");
+    }
+    std::printf("slope measured against: %s\n\n", perception::toString(r.reference));
+    std::printf("%4s %7s %-26s %-24s %7s %9s %8s %8s %6s\n", "id", "points", "centroid (m)", "normal", "slope", "roughness",
+                "mobility", "variance", "ground");
+    for (const auto& s : r.segments) {
+      std::printf("%4d %7zu (%6.2f,%6.2f,%6.2f)    (%6.3f,%6.3f,%6.3f)  %6.1f° %9.3f %8.2f %8.4f %6s\n", s.id, s.points.size(),
+                  s.centroid.x(), s.centroid.y(), s.centroid.z(), s.normal.x(), s.normal.y(), s.normal.z(), s.slope_deg,
+                  s.roughness, s.mobility, s.variance, s.is_ground ? "yes" : "");
+    }
+    if (r.segments.empty()) std::printf("no segments (empty frame or nothing in range)\n");
+    return 0;
+  };
+}
+
+}  // namespace mobmap::app

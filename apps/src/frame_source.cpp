@@ -1,0 +1,142 @@
+#include "frame_source.hpp"
+
+#include "dataset.hpp"
+#include "io_error.hpp"
+
+#include <pcl/console/print.h>
+#include <pcl/io/pcd_io.h>
+#include <pcl/point_types.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <sstream>
+
+namespace mobmap::app {
+namespace {
+
+std::vector<double> splitNumbers(const std::string& spec) {
+  std::vector<double> out;
+  std::stringstream in(spec);
+  std::string cell;
+  while (std::getline(in, cell, ',')) {
+    std::size_t used = 0;
+    double v = NAN;
+    try {
+      v = std::stod(cell, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != cell.size() || !std::isfinite(v)) return {};
+    out.push_back(v);
+  }
+  return out;
+}
+
+}  // namespace
+
+Eigen::Vector3f parseVector3(const std::string& spec, const std::string& what) {
+  const auto v = splitNumbers(spec);
+  if (v.size() != 3) throw UsageError(what + " must be three numbers X,Y,Z, got '" + spec + "'");
+  const Eigen::Vector3f out(static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2]));
+  if (out.norm() < 1e-6f) throw UsageError(what + " must not be the zero vector");
+  return out;
+}
+
+perception::PinholeIntrinsics parseIntrinsics(const std::string& spec, int width, int height) {
+  const auto v = splitNumbers(spec);
+  if (v.size() == 4) {
+    perception::PinholeIntrinsics k{width, height, v[0], v[1], v[2], v[3]};
+    try {
+      perception::validate(k);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--intrinsics: ") + e.what());
+    }
+    return k;
+  }
+  if (!std::filesystem::exists(spec)) {
+    throw UsageError("--intrinsics must be fx,fy,cx,cy or a camera-intrinsics.txt file; '" + spec + "' is neither");
+  }
+  return readIntrinsicsFile(spec, width, height);
+}
+
+LoadedFrame loadPcd(const std::string& path) {
+  if (!std::filesystem::exists(path)) throw IoError(path, "no such file");
+  pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);  // errors come back as codes; we word them
+  pcl::PCDReader reader;
+  pcl::PCLPointCloud2 header;
+  Eigen::Vector4f origin;
+  Eigen::Quaternionf orientation;
+  int version = 0, type = 0;
+  unsigned int offset = 0;
+  if (reader.readHeader(path, header, origin, orientation, version, type, offset) < 0) {
+    throw IoError(path, "not a readable PCD file (bad header)");
+  }
+  bool has_x = false, has_y = false, has_z = false, has_rgb = false;
+  for (const auto& f : header.fields) {
+    has_x |= f.name == "x";
+    has_y |= f.name == "y";
+    has_z |= f.name == "z";
+    has_rgb |= f.name == "rgb" || f.name == "rgba";
+  }
+  if (!(has_x && has_y && has_z)) throw IoError(path, "PCD has no x, y and z fields");
+  pcl::PointCloud<pcl::PointXYZRGBA> cloud;
+  if (reader.read(path, cloud) < 0) throw IoError(path, "PCD data is corrupt or shorter than its header declares");
+  LoadedFrame f;
+  f.points.reserve(cloud.size());
+  for (const auto& p : cloud.points) f.points.emplace_back(p.x, p.y, p.z);
+  f.width = static_cast<int>(cloud.width);
+  f.height = static_cast<int>(cloud.height);
+  if (has_rgb && cloud.height > 1) {
+    ImageRgb c{f.width, f.height, {}};
+    c.pixels.reserve(cloud.size());
+    for (const auto& p : cloud.points) c.pixels.push_back({p.r, p.g, p.b});
+    f.colour = std::move(c);
+  }
+  std::ostringstream d;
+  d << path << " (" << (cloud.height > 1 ? "organized " : "unorganized ") << cloud.width << "x" << cloud.height << ")";
+  f.description = d.str();
+  return f;
+}
+
+LoadedFrame loadSingleFrame(const std::string& input, int frame, const std::string& intrinsics_spec) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::is_directory(input, ec)) {
+    const SevenScenesDirectory dir(input);
+    const int n = frame < 0 ? dir.frameNumbers().front() : frame;
+    if (std::find(dir.frameNumbers().begin(), dir.frameNumbers().end(), n) == dir.frameNumbers().end()) {
+      throw IoError(input, "has no frame " + std::to_string(n) + " (frames " + std::to_string(dir.frameNumbers().front()) +
+                               ".." + std::to_string(dir.frameNumbers().back()) + ")");
+    }
+    LoadedFrame f;
+    f.description = "frame " + std::to_string(n) + " of " + input;
+    f.intrinsics = intrinsics_spec.empty() ? dir.intrinsics()
+                                           : parseIntrinsics(intrinsics_spec, dir.intrinsics().width, dir.intrinsics().height);
+    f.depth = dir.readDepth(n);
+    const std::string colour = (fs::path(input) / (frameStem(n) + ".color.png")).string();
+    if (fs::exists(colour, ec)) f.colour = readPngRgb(colour);
+    if (fs::exists(dir.posePath(n), ec)) {
+      f.T_world_camera = dir.readPose(n);
+      if (dir.gravityDown()) {
+        const Eigen::Matrix3d r_wc = f.T_world_camera->topLeftCorner<3, 3>();
+        f.gravity_camera = (r_wc.transpose() * *dir.gravityDown()).cast<float>();
+      }
+    }
+    return f;
+  }
+  const std::string ext = fs::path(input).extension().string();
+  if (ext == ".pcd") return loadPcd(input);
+  if (ext == ".png") {
+    if (intrinsics_spec.empty()) throw UsageError("a depth PNG needs --intrinsics fx,fy,cx,cy or FILE");
+    LoadedFrame f;
+    f.description = input;
+    f.depth = readDepthPng(input);
+    f.intrinsics = parseIntrinsics(intrinsics_spec, f.depth->width, f.depth->height);
+    return f;
+  }
+  if (!fs::exists(input, ec)) throw IoError(input, "no such file or directory");
+  throw IoError(input, "unknown input type (expected a .pcd, a 16-bit depth .png or a 7-Scenes directory)");
+}
+
+}  // namespace mobmap::app

@@ -1,0 +1,45 @@
+#pragma once
+// Loading one frame for `mobmap analyze`: a PCD file, a 16-bit depth PNG with
+// intrinsics, or one frame of a 7-Scenes layout directory.
+
+#include "png_io.hpp"
+
+#include "mobmap/perception/camera.hpp"
+
+#include <Eigen/Core>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace mobmap::app {
+
+struct LoadedFrame {
+  std::string description;  ///< "frame 12 of DIR", "FILE.pcd (organized 640x480)"
+  /// Either a depth image with intrinsics ...
+  std::optional<perception::DepthImage> depth;
+  perception::PinholeIntrinsics intrinsics;
+  /// ... or a cloud (organized when width * height == points.size() and height > 1).
+  std::vector<Eigen::Vector3f> points;
+  int width = 0;
+  int height = 0;
+  std::optional<ImageRgb> colour;                 ///< for overlays, when the input has one
+  std::optional<Eigen::Vector3f> gravity_camera;  ///< gravity (down) in the camera frame
+  std::optional<Eigen::Matrix4d> T_world_camera;
+};
+
+/// Reads a PCD file (x y z, optional rgb/rgba) with PCL. IoError naming the file if it
+/// is missing, unreadable, has no x/y/z fields or fewer points than declared.
+LoadedFrame loadPcd(const std::string& path);
+
+/// Parses "fx,fy,cx,cy" or reads a camera-intrinsics.txt file.
+perception::PinholeIntrinsics parseIntrinsics(const std::string& spec, int width, int height);
+
+/// Parses "X,Y,Z" (non-zero, finite). Throws UsageError.
+Eigen::Vector3f parseVector3(const std::string& spec, const std::string& what);
+
+/// Loads INPUT as `mobmap analyze` describes it. `frame` picks the frame of a
+/// directory (-1: the first one). `intrinsics_spec` is required for a PNG.
+LoadedFrame loadSingleFrame(const std::string& input, int frame, const std::string& intrinsics_spec);
+
+}  // namespace mobmap::app

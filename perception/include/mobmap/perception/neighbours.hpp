@@ -1,0 +1,35 @@
+#pragma once
+/// @file neighbours.hpp
+/// Exact k-nearest-neighbour search over a point cloud with a hashed uniform grid.
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <vector>
+
+namespace mobmap::perception {
+
+/// k nearest neighbours of every point (excluding the point itself), stored flat:
+/// the neighbours of point i are indices[i*k .. i*k+count[i]), nearest first, with
+/// squared distances in sq_dist. count[i] < k only when the cloud has fewer than
+/// k+1 points or the point is isolated beyond `max_radius`.
+struct KnnGraph {
+  int k = 0;
+  std::vector<int> indices;
+  std::vector<float> sq_dist;
+  std::vector<int> count;
+};
+
+/// Builds the exact kNN graph. Points are bucketed into cubic cells of `cell_m`;
+/// each point's candidates come from the 3x3x3 cells around it, which is exact as
+/// long as the k-th distance is at most `cell_m`; otherwise the search widens ring by
+/// ring (each ring adds a guaranteed cell_m of radius) up to `max_radius_m`.
+/// Cost is linear in the number of points for surface-like clouds. Points must be
+/// finite. Throws std::invalid_argument for k < 1 or non-positive sizes.
+KnnGraph buildKnnGraph(const std::vector<Eigen::Vector3f>& points, int k, float cell_m,
+                       float max_radius_m);
+
+/// Reference: the same graph by brute force, O(n^2). For tests.
+KnnGraph bruteForceKnnGraph(const std::vector<Eigen::Vector3f>& points, int k);
+
+}  // namespace mobmap::perception

@@ -1,0 +1,139 @@
+#pragma once
+/// @file pipeline.hpp
+/// The per-frame pipeline of Genesio et al.: reduction, denoising, normals, RGB-N
+/// colours, ground removal, colour region growing, per-segment slope, roughness and
+/// mobility. One frame, camera frame (OpenCV axes), metres; no poses.
+
+#include "mobmap/gp/mobility_model.hpp"
+#include "mobmap/perception/camera.hpp"
+
+#include <Eigen/Core>
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace mobmap::perception {
+
+/// Every tunable of the pipeline, with units in the names. Defaults follow the paper
+/// where it gives a value (1 cm voxels, RANSAC with p = 0.99) and our measurements
+/// elsewhere; docs/PERCEPTION.md says which is which.
+struct PerceptionParams {
+  // 1. Data reduction
+  double min_range_m = 0.3;    ///< points closer than this (Euclidean range) are dropped
+  double max_range_m = 3.0;    ///< points farther than this are dropped (paper: 1.5-2 m)
+  double voxel_size_m = 0.01;  ///< voxel grid reduction (paper: 1 cm); output = voxel centroids
+  // 2. Statistical outlier removal (paper eq. 1)
+  int outlier_k = 16;            ///< neighbours for the mean distance
+  double outlier_alpha = 2.0;    ///< keep mean distance within mu +- alpha sigma
+  // 3. Normals (paper eqs. 2-4)
+  int normal_k = 30;  ///< neighbours of the least-squares plane
+  // 5. Ground (paper eq. 6)
+  double ground_distance_m = 0.02;        ///< RANSAC inlier distance
+  double ground_probability = 0.99;       ///< p: chance of drawing one outlier-free sample
+  int ground_max_iterations = 1000;
+  double ground_max_tilt_deg = 20.0;      ///< with gravity: plane normal within this of "up"
+  double ground_normal_tolerance_deg = 25.0;  ///< inliers' own normals within this of the plane's
+  int ground_min_points = 500;            ///< fewer inliers: "no floor in view"
+  // 6. Region growing (paper Algorithm 1)
+  double colour_threshold = 12.0;       ///< max YCrCb distance between neighbours (0-255 scale)
+  double neighbour_distance_m = 0.025;  ///< neighbours farther apart are not connected
+  int min_segment_points = 50;
+  // 7. Surface properties
+  double plane_ransac_distance_m = 0.01;  ///< floor of the RANSAC refinement threshold
+  double max_triangle_edge_m = 0.05;      ///< Delaunay triangles with a longer edge span gaps: skipped
+  /// Measure roughness on points projected onto their local least-squares plane (the
+  /// plane of their normal, one planar moving-least-squares step) instead of the raw
+  /// voxel centroids. Removes sensor noise and depth quantisation below the normal
+  /// neighbourhood's scale, which otherwise inflates A/A' with range; false follows the
+  /// paper literally.
+  bool roughness_smoothing = true;
+  std::uint32_t random_seed = 42;         ///< RANSAC sampling (results are deterministic)
+};
+
+/// Throws std::invalid_argument "PerceptionParams: <field> is <value> (<rule>)".
+void validate(const PerceptionParams& params);
+
+/// What the slope of a segment is measured against.
+enum class SlopeReference {
+  kGravity,  ///< "up" from a known gravity direction
+  kGround,   ///< the ground plane's normal (paper eq. 7)
+  kCamera,   ///< neither known: the camera's -y axis
+};
+const char* toString(SlopeReference r);
+
+/// Time and point counts of one stage (the paper's Table II).
+struct StageTiming {
+  std::string name;
+  double milliseconds = 0.0;
+  std::size_t points_in = 0;
+  std::size_t points_out = 0;
+};
+
+/// One surface segment.
+struct Segment {
+  int id = 0;                   ///< 0 is the ground when one was found
+  bool is_ground = false;
+  std::vector<int> points;      ///< indices into FrameResult::points
+  Eigen::Vector3f centroid = Eigen::Vector3f::Zero();  ///< camera frame, metres
+  Eigen::Vector3f normal = Eigen::Vector3f::Zero();    ///< unit, towards the camera
+  double slope_deg = 0.0;
+  double roughness = 1.0;       ///< A / A' (paper eqs. 8-10)
+  double mobility = 0.0;        ///< [0,1]
+  double variance = 0.0;        ///< of the mobility
+  double area_m2 = 0.0;         ///< true (3D) area of the triangulation
+};
+
+/// Output of FramePipeline::process().
+struct FrameResult {
+  std::vector<StageTiming> stages;
+  /// Reduced, denoised points (camera frame) and their per-point attributes.
+  std::vector<Eigen::Vector3f> points;
+  std::vector<Eigen::Vector3f> normals;
+  std::vector<float> curvature;
+  std::vector<std::array<std::uint8_t, 3>> colours;  ///< RGB-N (eq. 5)
+  std::vector<int> segment_of_point;                  ///< index into segments, -1 = none
+  std::vector<Segment> segments;
+  std::optional<Eigen::Vector4f> ground_plane;  ///< n.x + d = 0, n towards the camera
+  SlopeReference reference = SlopeReference::kCamera;
+  /// For organized input: the index into `points` of each pixel's voxel, -1 if the
+  /// pixel was invalid, cropped or removed as an outlier. Empty for unorganized input.
+  std::vector<int> point_of_pixel;
+  [[nodiscard]] double totalMilliseconds() const;
+};
+
+/// Runs the pipeline. Immutable after construction: process() may run on several
+/// threads at once (each call uses its own buffers).
+class FramePipeline {
+ public:
+  explicit FramePipeline(PerceptionParams params = {}, gp::MobilityModel model = gp::MobilityModel());
+
+  /// A depth image (metres, 0 = invalid) with its intrinsics; gravity (pointing down)
+  /// in the camera frame if known. Throws std::invalid_argument if the image and
+  /// intrinsics sizes differ or gravity is zero/non-finite. An empty or all-invalid
+  /// frame gives a result with no segments, not an error.
+  [[nodiscard]] FrameResult process(const DepthImage& depth, const PinholeIntrinsics& intrinsics,
+                                    const std::optional<Eigen::Vector3f>& gravity_down_camera = std::nullopt) const;
+
+  /// An organized cloud (row-major, width x height, non-finite = invalid pixel), such
+  /// as a Kinect PCD; FrameResult::point_of_pixel is filled.
+  [[nodiscard]] FrameResult processOrganized(const std::vector<Eigen::Vector3f>& points, int width, int height,
+                                             const std::optional<Eigen::Vector3f>& gravity_down_camera = std::nullopt) const;
+
+  /// An unorganized cloud (non-finite points are skipped).
+  [[nodiscard]] FrameResult process(const std::vector<Eigen::Vector3f>& points,
+                                    const std::optional<Eigen::Vector3f>& gravity_down_camera = std::nullopt) const;
+
+  [[nodiscard]] const PerceptionParams& params() const { return params_; }
+  [[nodiscard]] const gp::MobilityModel& model() const { return model_; }
+
+ private:
+  FrameResult run(std::vector<Eigen::Vector3f> raw, std::vector<int> pixel_of_raw, std::size_t pixels,
+                  const std::optional<Eigen::Vector3f>& gravity_down_camera) const;
+  PerceptionParams params_;
+  gp::MobilityModel model_;
+};
+
+}  // namespace mobmap::perception

@@ -1,0 +1,96 @@
+#pragma once
+/// @file stages.hpp
+/// The pipeline's stages as separate functions, so each can be tested against a
+/// brute-force reference. FramePipeline chains them.
+
+#include "mobmap/perception/neighbours.hpp"
+
+#include <Eigen/Core>
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <random>
+#include <vector>
+
+namespace mobmap::perception {
+
+/// Voxel-grid reduction: the centroid of the points in each occupied cubic voxel of
+/// `voxel_m` (grid aligned to the origin), in order of first occurrence.
+/// `voxel_of_point` (optional) receives the output index of each input point.
+std::vector<Eigen::Vector3f> voxelReduce(const std::vector<Eigen::Vector3f>& points, float voxel_m,
+                                         std::vector<int>* voxel_of_point = nullptr);
+
+/// Statistical outlier removal (paper eq. 1): mean distance d_i to the k nearest
+/// neighbours; keep points with |d_i - mu| <= alpha sigma over the cloud. Returns the
+/// mask of kept points. Points without k neighbours within the graph are removed.
+std::vector<bool> statisticalOutlierMask(const KnnGraph& graph, double alpha);
+
+/// PCA normals (paper eqs. 2-3): eigenvector of the smallest eigenvalue of the
+/// neighbourhood covariance (the point and its graph neighbours), oriented towards
+/// `viewpoint` (eq. 4). Curvature = lambda_min / (sum of eigenvalues). Points with
+/// fewer than 3 neighbours get a zero normal and curvature 1. If `projected` is given
+/// it receives each point moved onto its neighbourhood's least-squares plane.
+void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph& graph,
+                     const Eigen::Vector3f& viewpoint, std::vector<Eigen::Vector3f>& normals,
+                     std::vector<float>& curvature, std::vector<Eigen::Vector3f>* projected = nullptr);
+
+/// RGB-N colours (paper eq. 5): each normal component mapped to 0-255 with the
+/// cloud's own min and max of that component.
+std::vector<std::array<std::uint8_t, 3>> normalColours(const std::vector<Eigen::Vector3f>& normals);
+
+/// ITU-R BT.601 full-range RGB -> (Y, Cr, Cb), each 0-255.
+Eigen::Vector3f rgbToYCrCb(const std::array<std::uint8_t, 3>& rgb);
+
+/// A plane n.x + d = 0 with unit n, and its inliers.
+struct PlaneFit {
+  Eigen::Vector4f plane = Eigen::Vector4f::Zero();
+  std::vector<int> inliers;
+  int iterations = 0;
+};
+
+/// Options of ransacPlane().
+struct RansacOptions {
+  double distance_m = 0.02;
+  double probability = 0.99;   ///< p in eq. 6
+  int max_iterations = 1000;
+  /// If set, only planes whose normal is within max_tilt_deg of this unit vector qualify.
+  std::optional<Eigen::Vector3f> required_normal;
+  double max_tilt_deg = 20.0;
+  /// If normals are given, inliers must also have a normal within this angle of the plane's.
+  const std::vector<Eigen::Vector3f>* point_normals = nullptr;
+  double normal_tolerance_deg = 180.0;
+};
+
+/// RANSAC plane among `candidates` (indices into points) with the adaptive number of
+/// iterations of paper eq. 6: N = log(1-p) / log(1-w^3), w the best inlier ratio so
+/// far. The returned plane is refitted by least squares to its inliers. nullopt if no
+/// qualifying plane has 3 or more inliers.
+std::optional<PlaneFit> ransacPlane(const std::vector<Eigen::Vector3f>& points, const std::vector<int>& candidates,
+                                    const RansacOptions& options, std::mt19937& rng);
+
+/// Least-squares plane (PCA) through the given points; normal is unit, sign arbitrary.
+/// Also returns the RMS distance of the points to it.
+Eigen::Vector4f leastSquaresPlane(const std::vector<Eigen::Vector3f>& points, const std::vector<int>& indices,
+                                  double* rms = nullptr);
+
+/// Region growing on colours (paper Algorithm 1): a neighbour joins the region of the
+/// point it is reached from if it is within `max_distance_m` and the Euclidean
+/// distance of their YCrCb colours is at most `colour_threshold`. Only points with
+/// `eligible[i]` take part. Regions smaller than `min_points` are dropped (label -1).
+/// Returns a label per point (0, 1, ... in order of seeds) and the number of regions.
+std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
+                             const std::vector<std::array<std::uint8_t, 3>>& colours, const KnnGraph& graph,
+                             const std::vector<bool>& eligible, double colour_threshold, double max_distance_m,
+                             int min_points, int* regions);
+
+/// Roughness r = A / A' (paper eqs. 8-10) of a segment: CGAL 2D Delaunay triangulation
+/// of the points projected on `plane`; A sums the triangles' 3D areas, A' the areas of
+/// the same triangles in the plane. Triangles with an edge longer than
+/// `max_edge_m` (in 3D) bridge gaps and are skipped. Returns {r, A}; r = 1 and A = 0
+/// when fewer than 3 points or no triangle remain (collinear, degenerate).
+std::pair<double, double> delaunayRoughness(const std::vector<Eigen::Vector3f>& points,
+                                            const std::vector<int>& indices, const Eigen::Vector4f& plane,
+                                            double max_edge_m);
+
+}  // namespace mobmap::perception

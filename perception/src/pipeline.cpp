@@ -1,0 +1,326 @@
+#include "mobmap/perception/pipeline.hpp"
+
+#include "mobmap/perception/stages.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace mobmap::perception {
+namespace {
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+
+class StageClock {
+ public:
+  explicit StageClock(std::vector<StageTiming>& out) : out_(out) {}
+  void start() { t0_ = std::chrono::steady_clock::now(); }
+  void stop(const char* name, std::size_t in, std::size_t out) {
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0_).count();
+    out_.push_back({name, ms, in, out});
+  }
+
+ private:
+  std::vector<StageTiming>& out_;
+  std::chrono::steady_clock::time_point t0_;
+};
+
+// Grid cell for the kNN search: large enough that the k-th neighbour on a surface
+// sampled every voxel_m usually lies inside the guaranteed radius (sqrt(k / pi)
+// spacings on a plane), so the exact search rarely widens.
+float knnCell(double voxel_m, int k) {
+  return static_cast<float>(voxel_m * (std::sqrt(k / M_PI) + 0.6));
+}
+
+void fail(const char* field, double value, const char* rule) {
+  std::ostringstream msg;
+  msg << "PerceptionParams: " << field << " is " << value << " (" << rule << ")";
+  throw std::invalid_argument(msg.str());
+}
+
+}  // namespace
+
+const char* toString(SlopeReference r) {
+  switch (r) {
+    case SlopeReference::kGravity: return "gravity";
+    case SlopeReference::kGround: return "ground";
+    case SlopeReference::kCamera: return "camera";
+  }
+  return "unknown";
+}
+
+void validate(const PerceptionParams& p) {
+  if (!(p.min_range_m >= 0) || !std::isfinite(p.min_range_m)) fail("min_range_m", p.min_range_m, "must be finite and >= 0");
+  if (!(p.max_range_m > p.min_range_m) || !std::isfinite(p.max_range_m)) fail("max_range_m", p.max_range_m, "must be finite and > min_range_m");
+  if (p.max_range_m > 1000) fail("max_range_m", p.max_range_m, "must be at most 1000");
+  if (!(p.voxel_size_m >= 0.001 && p.voxel_size_m <= 1.0)) fail("voxel_size_m", p.voxel_size_m, "must be in [0.001, 1]");
+  if (p.outlier_k < 1 || p.outlier_k > 200) fail("outlier_k", p.outlier_k, "must be 1..200");
+  if (!(p.outlier_alpha > 0) || !std::isfinite(p.outlier_alpha)) fail("outlier_alpha", p.outlier_alpha, "must be finite and > 0");
+  if (p.normal_k < 3 || p.normal_k > 200) fail("normal_k", p.normal_k, "must be 3..200");
+  if (!(p.ground_distance_m > 0) || !std::isfinite(p.ground_distance_m)) fail("ground_distance_m", p.ground_distance_m, "must be finite and > 0");
+  if (!(p.ground_probability > 0 && p.ground_probability < 1)) fail("ground_probability", p.ground_probability, "must be in (0, 1)");
+  if (p.ground_max_iterations < 1) fail("ground_max_iterations", p.ground_max_iterations, "must be >= 1");
+  if (!(p.ground_max_tilt_deg >= 0 && p.ground_max_tilt_deg <= 90)) fail("ground_max_tilt_deg", p.ground_max_tilt_deg, "must be in [0, 90]");
+  if (!(p.ground_normal_tolerance_deg > 0 && p.ground_normal_tolerance_deg <= 180)) fail("ground_normal_tolerance_deg", p.ground_normal_tolerance_deg, "must be in (0, 180]");
+  if (p.ground_min_points < 3) fail("ground_min_points", p.ground_min_points, "must be >= 3");
+  if (!(p.colour_threshold > 0) || !std::isfinite(p.colour_threshold)) fail("colour_threshold", p.colour_threshold, "must be finite and > 0");
+  if (!(p.neighbour_distance_m > 0) || !std::isfinite(p.neighbour_distance_m)) fail("neighbour_distance_m", p.neighbour_distance_m, "must be finite and > 0");
+  if (p.min_segment_points < 3) fail("min_segment_points", p.min_segment_points, "must be >= 3");
+  if (!(p.plane_ransac_distance_m > 0) || !std::isfinite(p.plane_ransac_distance_m)) fail("plane_ransac_distance_m", p.plane_ransac_distance_m, "must be finite and > 0");
+  if (!(p.max_triangle_edge_m > 0) || !std::isfinite(p.max_triangle_edge_m)) fail("max_triangle_edge_m", p.max_triangle_edge_m, "must be finite and > 0");
+}
+
+double FrameResult::totalMilliseconds() const {
+  double t = 0;
+  for (const auto& s : stages) t += s.milliseconds;
+  return t;
+}
+
+FramePipeline::FramePipeline(PerceptionParams params, gp::MobilityModel model)
+    : params_(params), model_(std::move(model)) {
+  validate(params_);
+}
+
+FrameResult FramePipeline::process(const DepthImage& depth, const PinholeIntrinsics& k,
+                                   const std::optional<Eigen::Vector3f>& gravity) const {
+  validate(k);
+  if (depth.width != k.width || depth.height != k.height ||
+      depth.depth_m.size() != static_cast<std::size_t>(k.width) * k.height) {
+    std::ostringstream msg;
+    msg << "FramePipeline::process: depth image is " << depth.width << "x" << depth.height
+        << " but the intrinsics are for " << k.width << "x" << k.height;
+    throw std::invalid_argument(msg.str());
+  }
+  std::vector<Eigen::Vector3f> raw;
+  std::vector<int> pixel_of_raw;
+  raw.reserve(depth.depth_m.size());
+  pixel_of_raw.reserve(depth.depth_m.size());
+  const float inv_fx = static_cast<float>(1.0 / k.fx), inv_fy = static_cast<float>(1.0 / k.fy);
+  for (int v = 0; v < k.height; ++v) {
+    const float ry = (static_cast<float>(v) - static_cast<float>(k.cy)) * inv_fy;
+    for (int u = 0; u < k.width; ++u) {
+      const float z = depth.depth_m[static_cast<std::size_t>(v) * k.width + u];
+      if (!(z > 0.f) || !std::isfinite(z)) continue;
+      raw.emplace_back((static_cast<float>(u) - static_cast<float>(k.cx)) * inv_fx * z, ry * z, z);
+      pixel_of_raw.push_back(v * k.width + u);
+    }
+  }
+  return run(std::move(raw), std::move(pixel_of_raw), depth.depth_m.size(), gravity);
+}
+
+FrameResult FramePipeline::processOrganized(const std::vector<Eigen::Vector3f>& points, int width, int height,
+                                            const std::optional<Eigen::Vector3f>& gravity) const {
+  if (width <= 0 || height <= 0 || points.size() != static_cast<std::size_t>(width) * static_cast<std::size_t>(height)) {
+    std::ostringstream msg;
+    msg << "FramePipeline::processOrganized: " << points.size() << " points do not make a " << width << "x"
+        << height << " organized cloud";
+    throw std::invalid_argument(msg.str());
+  }
+  std::vector<Eigen::Vector3f> raw;
+  std::vector<int> pixel_of_raw;
+  raw.reserve(points.size());
+  pixel_of_raw.reserve(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!points[i].allFinite()) continue;
+    raw.push_back(points[i]);
+    pixel_of_raw.push_back(static_cast<int>(i));
+  }
+  return run(std::move(raw), std::move(pixel_of_raw), points.size(), gravity);
+}
+
+FrameResult FramePipeline::process(const std::vector<Eigen::Vector3f>& points,
+                                   const std::optional<Eigen::Vector3f>& gravity) const {
+  std::vector<Eigen::Vector3f> raw;
+  raw.reserve(points.size());
+  for (const auto& p : points) {
+    if (p.allFinite()) raw.push_back(p);
+  }
+  return run(std::move(raw), {}, 0, gravity);
+}
+
+FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int> pixel_of_raw, std::size_t pixels,
+                               const std::optional<Eigen::Vector3f>& gravity) const {
+  std::optional<Eigen::Vector3f> up;
+  if (gravity) {
+    const float norm = gravity->norm();
+    if (!gravity->allFinite() || norm < 1e-6f) {
+      throw std::invalid_argument("FramePipeline::process: gravity vector must be finite and non-zero");
+    }
+    up = -*gravity / norm;
+  }
+  const PerceptionParams& p = params_;
+  FrameResult out;
+  StageClock clock(out.stages);
+  std::mt19937 rng(p.random_seed);
+
+  // 1. Data reduction: range crop, then 1 cm voxel centroids.
+  clock.start();
+  const std::size_t n_raw = raw.size();
+  {
+    const float lo2 = static_cast<float>(p.min_range_m * p.min_range_m);
+    const float hi2 = static_cast<float>(p.max_range_m * p.max_range_m);
+    std::size_t w = 0;
+    for (std::size_t i = 0; i < raw.size(); ++i) {
+      const float r2 = raw[i].squaredNorm();
+      if (r2 < lo2 || r2 > hi2) continue;
+      raw[w] = raw[i];
+      if (!pixel_of_raw.empty()) pixel_of_raw[w] = pixel_of_raw[i];
+      ++w;
+    }
+    raw.resize(w);
+    if (!pixel_of_raw.empty()) pixel_of_raw.resize(w);
+  }
+  std::vector<int> voxel_of_raw;
+  std::vector<Eigen::Vector3f> voxels = voxelReduce(raw, static_cast<float>(p.voxel_size_m), &voxel_of_raw);
+  clock.stop("reduction", n_raw, voxels.size());
+
+  // 2. Statistical outlier removal.
+  clock.start();
+  std::vector<int> kept_index(voxels.size(), -1);
+  {
+    const KnnGraph g = buildKnnGraph(voxels, p.outlier_k, knnCell(p.voxel_size_m, p.outlier_k),
+                                     static_cast<float>(20 * p.voxel_size_m));
+    const std::vector<bool> keep = statisticalOutlierMask(g, p.outlier_alpha);
+    for (std::size_t i = 0; i < voxels.size(); ++i) {
+      if (!keep[i]) continue;
+      kept_index[i] = static_cast<int>(out.points.size());
+      out.points.push_back(voxels[i]);
+    }
+  }
+  clock.stop("denoising", voxels.size(), out.points.size());
+  if (pixels > 0) {
+    out.point_of_pixel.assign(pixels, -1);
+    for (std::size_t i = 0; i < raw.size(); ++i) {
+      out.point_of_pixel[static_cast<std::size_t>(pixel_of_raw[i])] = kept_index[static_cast<std::size_t>(voxel_of_raw[i])];
+    }
+  }
+  const std::size_t n = out.points.size();
+
+  // 3. Normals.
+  clock.start();
+  const KnnGraph graph = buildKnnGraph(out.points, p.normal_k, knnCell(p.voxel_size_m, p.normal_k),
+                                       static_cast<float>(20 * p.voxel_size_m));
+  std::vector<Eigen::Vector3f> smoothed;
+  estimateNormals(out.points, graph, Eigen::Vector3f::Zero(), out.normals, out.curvature,
+                  p.roughness_smoothing ? &smoothed : nullptr);
+  clock.stop("normals", n, n);
+
+  // 4. RGB-N colours.
+  clock.start();
+  out.colours = normalColours(out.normals);
+  clock.stop("rgb-n", n, n);
+
+  // 5. Ground removal.
+  clock.start();
+  out.segment_of_point.assign(n, -1);
+  std::vector<bool> eligible(n, true);
+  std::vector<int> all(n);
+  for (std::size_t i = 0; i < n; ++i) all[i] = static_cast<int>(i);
+  std::vector<int> ground_points;
+  {
+    RansacOptions o;
+    o.distance_m = p.ground_distance_m;
+    o.probability = p.ground_probability;
+    o.max_iterations = p.ground_max_iterations;
+    o.required_normal = up;
+    o.max_tilt_deg = p.ground_max_tilt_deg;
+    o.point_normals = &out.normals;
+    o.normal_tolerance_deg = p.ground_normal_tolerance_deg;
+    auto fit = ransacPlane(out.points, all, o, rng);
+    if (fit && static_cast<int>(fit->inliers.size()) >= p.ground_min_points) {
+      Eigen::Vector4f plane = fit->plane;
+      if (plane(3) < 0) plane = -plane;  // normal towards the camera at the origin
+      out.ground_plane = plane;
+      ground_points = std::move(fit->inliers);
+      for (int i : ground_points) eligible[static_cast<std::size_t>(i)] = false;
+    }
+  }
+  clock.stop("ground", n, n - ground_points.size());
+
+  // 6. Colour region growing on what is not ground.
+  clock.start();
+  int regions = 0;
+  const std::vector<int> labels = growRegions(out.points, out.colours, graph, eligible, p.colour_threshold,
+                                              p.neighbour_distance_m, p.min_segment_points, &regions);
+  std::vector<std::vector<int>> members(static_cast<std::size_t>(regions));
+  for (std::size_t i = 0; i < n; ++i) {
+    if (labels[i] >= 0) members[static_cast<std::size_t>(labels[i])].push_back(static_cast<int>(i));
+  }
+  if (!ground_points.empty()) {
+    Segment g;
+    g.is_ground = true;
+    g.points = std::move(ground_points);
+    out.segments.push_back(std::move(g));
+  }
+  for (auto& m : members) {
+    Segment s;
+    s.points = std::move(m);
+    out.segments.push_back(std::move(s));
+  }
+  std::size_t segmented = 0;
+  for (std::size_t s = 0; s < out.segments.size(); ++s) {
+    out.segments[s].id = static_cast<int>(s);
+    for (int i : out.segments[s].points) out.segment_of_point[static_cast<std::size_t>(i)] = static_cast<int>(s);
+    segmented += out.segments[s].points.size();
+  }
+  clock.stop("segmentation", n, segmented);
+
+  // 7. Surface properties.
+  clock.start();
+  Eigen::Vector3f reference(0, -1, 0);  // camera "up" (OpenCV y points down)
+  out.reference = SlopeReference::kCamera;
+  if (up) {
+    reference = *up;
+    out.reference = SlopeReference::kGravity;
+  } else if (out.ground_plane) {
+    reference = out.ground_plane->head<3>();
+    out.reference = SlopeReference::kGround;
+  }
+  Eigen::MatrixX2d features(static_cast<Eigen::Index>(out.segments.size()), 2);
+  for (std::size_t s = 0; s < out.segments.size(); ++s) {
+    Segment& seg = out.segments[s];
+    double rms = 0.0;
+    Eigen::Vector4f plane = leastSquaresPlane(out.points, seg.points, &rms);
+    // RANSAC refinement rejects stragglers; its threshold is never below the
+    // surface's own spread, so a rough surface keeps its mean plane.
+    RansacOptions o;
+    o.distance_m = std::max(p.plane_ransac_distance_m, 2.5 * rms);
+    o.probability = p.ground_probability;
+    o.max_iterations = 200;
+    if (auto fit = ransacPlane(out.points, seg.points, o, rng); fit && fit->inliers.size() * 2 >= seg.points.size()) {
+      plane = fit->plane;
+    }
+    Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
+    for (int i : seg.points) centroid += out.points[static_cast<std::size_t>(i)];
+    centroid /= static_cast<float>(seg.points.size());
+    Eigen::Vector3f normal = plane.head<3>().normalized();
+    if (normal.dot(-centroid) < 0) normal = -normal;  // towards the camera
+    plane << normal, -normal.dot(centroid);
+    seg.centroid = centroid;
+    seg.normal = normal;
+    seg.slope_deg = std::acos(std::clamp(static_cast<double>(normal.dot(reference)), -1.0, 1.0)) * kRadToDeg;
+    const auto [r, area] = delaunayRoughness(p.roughness_smoothing ? smoothed : out.points, seg.points, plane,
+                                             p.max_triangle_edge_m);
+    seg.roughness = r;
+    seg.area_m2 = area;
+    features(static_cast<Eigen::Index>(s), 0) = seg.slope_deg;
+    features(static_cast<Eigen::Index>(s), 1) = seg.roughness;
+  }
+  clock.stop("surface properties", n, out.segments.size());
+
+  // 8. Mobility.
+  clock.start();
+  if (!out.segments.empty()) {
+    const auto scores = model_.predict(features);
+    for (std::size_t s = 0; s < out.segments.size(); ++s) {
+      out.segments[s].mobility = scores[s].mobility;
+      out.segments[s].variance = scores[s].variance;
+    }
+  }
+  clock.stop("mobility", out.segments.size(), out.segments.size());
+  return out;
+}
+
+}  // namespace mobmap::perception

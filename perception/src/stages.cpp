@@ -1,0 +1,248 @@
+#include "mobmap/perception/stages.hpp"
+
+#include "spatial_hash.hpp"
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <limits>
+#include <stdexcept>
+
+namespace mobmap::perception {
+
+std::vector<Eigen::Vector3f> voxelReduce(const std::vector<Eigen::Vector3f>& points, float voxel_m,
+                                         std::vector<int>* voxel_of_point) {
+  if (!(voxel_m > 0.f)) throw std::invalid_argument("voxelReduce: voxel size must be > 0");
+  const float inv = 1.f / voxel_m;
+  detail::CellHash index(points.size() / 4 + 16);
+  std::vector<Eigen::Vector3d> sums;  // double: sums of many points stay exact enough
+  std::vector<int> counts;
+  if (voxel_of_point) voxel_of_point->resize(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3i c = detail::cellOf(points[i], inv);
+    int& v = index.slot(detail::cellKey(c.x(), c.y(), c.z()));
+    if (v < 0) {
+      v = static_cast<int>(sums.size());
+      sums.emplace_back(Eigen::Vector3d::Zero());
+      counts.push_back(0);
+    }
+    sums[static_cast<std::size_t>(v)] += points[i].cast<double>();
+    ++counts[static_cast<std::size_t>(v)];
+    if (voxel_of_point) (*voxel_of_point)[i] = v;
+  }
+  std::vector<Eigen::Vector3f> out(sums.size());
+  for (std::size_t v = 0; v < sums.size(); ++v) out[v] = (sums[v] / counts[v]).cast<float>();
+  return out;
+}
+
+std::vector<bool> statisticalOutlierMask(const KnnGraph& g, double alpha) {
+  const std::size_t n = g.count.size();
+  std::vector<double> mean_d(n, 0.0);
+  std::vector<bool> keep(n, false);
+  double sum = 0.0, sum2 = 0.0;
+  std::size_t m = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (g.count[i] < g.k) continue;  // too isolated to have k neighbours: an outlier
+    double d = 0.0;
+    for (int j = 0; j < g.k; ++j) d += std::sqrt(g.sq_dist[i * static_cast<std::size_t>(g.k) + static_cast<std::size_t>(j)]);
+    mean_d[i] = d / g.k;
+    sum += mean_d[i];
+    sum2 += mean_d[i] * mean_d[i];
+    ++m;
+  }
+  if (m == 0) return keep;
+  const double mu = sum / static_cast<double>(m);
+  const double sigma = std::sqrt(std::max(0.0, sum2 / static_cast<double>(m) - mu * mu));
+  for (std::size_t i = 0; i < n; ++i) {
+    keep[i] = g.count[i] >= g.k && std::abs(mean_d[i] - mu) <= alpha * sigma + 1e-12;
+  }
+  return keep;
+}
+
+void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph& g, const Eigen::Vector3f& viewpoint,
+                     std::vector<Eigen::Vector3f>& normals, std::vector<float>& curvature,
+                     std::vector<Eigen::Vector3f>* projected) {
+  const std::size_t n = points.size();
+  normals.assign(n, Eigen::Vector3f::Zero());
+  curvature.assign(n, 1.f);
+  if (projected) *projected = points;
+  for (std::size_t i = 0; i < n; ++i) {
+    const int c = g.count[i];
+    if (c < 2) continue;  // with the point itself, 3 points make a plane
+    // Covariance about the mean, accumulated relative to the point for precision.
+    const Eigen::Vector3d p0 = points[i].cast<double>();
+    Eigen::Vector3d s = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d ss = Eigen::Matrix3d::Zero();
+    for (int j = 0; j < c; ++j) {
+      const Eigen::Vector3d d = points[static_cast<std::size_t>(g.indices[i * static_cast<std::size_t>(g.k) + static_cast<std::size_t>(j)])].cast<double>() - p0;
+      s += d;
+      ss += d * d.transpose();
+    }
+    const double m = c + 1.0;  // the point itself contributes d = 0
+    const Eigen::Vector3d mean = s / m;
+    const Eigen::Matrix3d cov = ss / m - mean * mean.transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+    es.computeDirect(cov);
+    Eigen::Vector3d normal = es.eigenvectors().col(0);
+    const double total = es.eigenvalues().sum();
+    curvature[i] = total > 0 ? static_cast<float>(std::max(0.0, es.eigenvalues()(0)) / total) : 0.f;
+    if (normal.dot((viewpoint - points[i]).cast<double>()) < 0) normal = -normal;  // eq. 4
+    normals[i] = normal.normalized().cast<float>();
+    // Move the point along the normal onto the plane through the neighbourhood mean
+    // (`mean` is relative to the point).
+    if (projected) (*projected)[i] = (p0 + normal * normal.dot(mean)).cast<float>();
+  }
+}
+
+std::vector<std::array<std::uint8_t, 3>> normalColours(const std::vector<Eigen::Vector3f>& normals) {
+  Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
+  Eigen::Vector3f hi = -lo;
+  for (const auto& nrm : normals) {
+    if (nrm.isZero()) continue;
+    lo = lo.cwiseMin(nrm);
+    hi = hi.cwiseMax(nrm);
+  }
+  std::vector<std::array<std::uint8_t, 3>> out(normals.size(), {0, 0, 0});
+  for (std::size_t i = 0; i < normals.size(); ++i) {
+    if (normals[i].isZero()) continue;
+    for (int c = 0; c < 3; ++c) {
+      const float range = hi(c) - lo(c);
+      const float t = range > 1e-6f ? (normals[i](c) - lo(c)) / range : 0.5f;  // eq. 5
+      out[i][static_cast<std::size_t>(c)] = static_cast<std::uint8_t>(std::lround(255.f * std::clamp(t, 0.f, 1.f)));
+    }
+  }
+  return out;
+}
+
+Eigen::Vector3f rgbToYCrCb(const std::array<std::uint8_t, 3>& rgb) {
+  const float r = rgb[0], g = rgb[1], b = rgb[2];
+  const float y = 0.299f * r + 0.587f * g + 0.114f * b;
+  return {y, 128.f + 0.713f * (r - y), 128.f + 0.564f * (b - y)};
+}
+
+Eigen::Vector4f leastSquaresPlane(const std::vector<Eigen::Vector3f>& points, const std::vector<int>& idx, double* rms) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (int i : idx) mean += points[static_cast<std::size_t>(i)].cast<double>();
+  mean /= static_cast<double>(std::max<std::size_t>(1, idx.size()));
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (int i : idx) {
+    const Eigen::Vector3d d = points[static_cast<std::size_t>(i)].cast<double>() - mean;
+    cov += d * d.transpose();
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+  es.computeDirect(cov / static_cast<double>(std::max<std::size_t>(1, idx.size())));
+  const Eigen::Vector3d n = es.eigenvectors().col(0).normalized();
+  if (rms) *rms = std::sqrt(std::max(0.0, es.eigenvalues()(0)));
+  Eigen::Vector4f plane;
+  plane << n.cast<float>(), static_cast<float>(-n.dot(mean));
+  return plane;
+}
+
+std::optional<PlaneFit> ransacPlane(const std::vector<Eigen::Vector3f>& points, const std::vector<int>& cand,
+                                    const RansacOptions& o, std::mt19937& rng) {
+  if (cand.size() < 3) return std::nullopt;
+  const double cos_tilt = std::cos(o.max_tilt_deg * M_PI / 180.0);
+  const double cos_normal = std::cos(o.normal_tolerance_deg * M_PI / 180.0);
+  const float dist = static_cast<float>(o.distance_m);
+  std::uniform_int_distribution<std::size_t> pick(0, cand.size() - 1);
+  std::size_t best_count = 0;
+  Eigen::Vector4f best = Eigen::Vector4f::Zero();
+  double needed = static_cast<double>(o.max_iterations);
+  int it = 0;
+  auto countInliers = [&](const Eigen::Vector4f& pl, std::vector<int>* out) {
+    std::size_t count = 0;
+    const Eigen::Vector3f n = pl.head<3>();
+    for (int i : cand) {
+      const Eigen::Vector3f& p = points[static_cast<std::size_t>(i)];
+      if (std::abs(n.dot(p) + pl(3)) > dist) continue;
+      if (o.point_normals && std::abs(n.dot((*o.point_normals)[static_cast<std::size_t>(i)])) < cos_normal) continue;
+      ++count;
+      if (out) out->push_back(i);
+    }
+    return count;
+  };
+  for (; it < o.max_iterations && it < needed; ++it) {
+    const Eigen::Vector3f a = points[static_cast<std::size_t>(cand[pick(rng)])];
+    const Eigen::Vector3f b = points[static_cast<std::size_t>(cand[pick(rng)])];
+    const Eigen::Vector3f c = points[static_cast<std::size_t>(cand[pick(rng)])];
+    Eigen::Vector3f n = (b - a).cross(c - a);
+    const float len = n.norm();
+    if (len < 1e-9f) continue;  // degenerate sample
+    n /= len;
+    if (o.required_normal && std::abs(n.dot(*o.required_normal)) < cos_tilt) continue;
+    Eigen::Vector4f pl;
+    pl << n, -n.dot(a);
+    const std::size_t count = countInliers(pl, nullptr);
+    if (count > best_count) {
+      best_count = count;
+      best = pl;
+      // Eq. 6 with the outlier ratio e = 1 - w updated from the best set so far.
+      const double w = static_cast<double>(count) / static_cast<double>(cand.size());
+      const double denom = std::log(std::max(1e-12, 1.0 - w * w * w));
+      needed = denom < 0 ? std::log(1.0 - o.probability) / denom : 0.0;
+    }
+  }
+  if (best_count < 3) return std::nullopt;
+  PlaneFit fit;
+  fit.iterations = it;
+  countInliers(best, &fit.inliers);
+  // Least-squares refit on the inliers, then the final inlier set of that plane.
+  Eigen::Vector4f refined = leastSquaresPlane(points, fit.inliers);
+  if (refined.head<3>().dot(best.head<3>()) < 0) refined = -refined;
+  if (!o.required_normal || std::abs(refined.head<3>().dot(*o.required_normal)) >= cos_tilt) {
+    std::vector<int> again;
+    if (countInliers(refined, &again) >= fit.inliers.size()) {
+      best = refined;
+      fit.inliers = std::move(again);
+    }
+  }
+  fit.plane = best;
+  return fit;
+}
+
+std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
+                             const std::vector<std::array<std::uint8_t, 3>>& colours, const KnnGraph& g,
+                             const std::vector<bool>& eligible, double colour_threshold, double max_distance_m,
+                             int min_points, int* regions) {
+  const std::size_t n = points.size();
+  std::vector<Eigen::Vector3f> ycc(n);
+  for (std::size_t i = 0; i < n; ++i) ycc[i] = rgbToYCrCb(colours[i]);
+  const float max_d2 = static_cast<float>(max_distance_m * max_distance_m);
+  const float thr2 = static_cast<float>(colour_threshold * colour_threshold);
+  std::vector<int> label(n, -1);
+  std::vector<int> members;
+  std::vector<int> queue;
+  int next = 0;
+  for (std::size_t seed = 0; seed < n; ++seed) {
+    if (!eligible[seed] || label[seed] != -1) continue;
+    members.clear();
+    queue.clear();
+    queue.push_back(static_cast<int>(seed));
+    label[seed] = next;
+    for (std::size_t head = 0; head < queue.size(); ++head) {
+      const int i = queue[head];
+      members.push_back(i);
+      const std::size_t base = static_cast<std::size_t>(i) * static_cast<std::size_t>(g.k);
+      for (int j = 0; j < g.count[static_cast<std::size_t>(i)]; ++j) {
+        const int nb = g.indices[base + static_cast<std::size_t>(j)];
+        if (g.sq_dist[base + static_cast<std::size_t>(j)] > max_d2) break;  // sorted by distance
+        if (!eligible[static_cast<std::size_t>(nb)] || label[static_cast<std::size_t>(nb)] != -1) continue;
+        if ((ycc[static_cast<std::size_t>(i)] - ycc[static_cast<std::size_t>(nb)]).squaredNorm() > thr2) continue;
+        label[static_cast<std::size_t>(nb)] = next;
+        queue.push_back(nb);
+      }
+    }
+    if (static_cast<int>(members.size()) < min_points) {
+      for (int i : members) label[static_cast<std::size_t>(i)] = -2;  // visited, too small
+    } else {
+      ++next;
+    }
+  }
+  for (auto& l : label) l = l < 0 ? -1 : l;
+  if (regions) *regions = next;
+  return label;
+}
+
+}  // namespace mobmap::perception
