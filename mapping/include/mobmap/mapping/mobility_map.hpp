@@ -1,0 +1,156 @@
+#pragma once
+/// @file mobility_map.hpp
+/// Fusing scored frames into a MobilityOcTree, and the queries a footstep planner asks.
+
+#include "mobmap/mapping/mobility_octree.hpp"
+#include "mobmap/perception/camera.hpp"
+#include "mobmap/perception/pipeline.hpp"
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+namespace mrpt::poses {
+class CPose3D;
+}
+
+namespace mobmap::mapping {
+
+/// Map parameters, units in the names. OctoMap's own sensor-model defaults.
+struct MapParams {
+  double resolution_m = 0.02;
+  double max_range_m = 4.0;      ///< points beyond this range from the camera are ignored
+  double prob_hit = 0.7;         ///< occupancy update of a surface voxel
+  double prob_miss = 0.4;        ///< occupancy update of a voxel seen through
+  double clamp_min = 0.12;
+  double clamp_max = 0.97;
+  double max_weight = 20000.0;   ///< cap on a voxel's summed 1/variance (~40 confident observations)
+  /// Observation variance = segment variance + range_variance_per_m2 * range^2, so a
+  /// far (noisier) observation weighs less than a near one.
+  double range_variance_per_m2 = 0.002;
+  /// Free space: a mapped voxel whose projection into the depth image lies more than
+  /// this (or 3 voxels, whichever is larger) in front of the measured depth is seen
+  /// through and gets a miss.
+  double free_space_margin_m = 0.06;
+  /// Free space for unmapped space: one ray per this many pixels (each way) from the
+  /// camera to just before the measured surface. 0 disables the rays.
+  int free_space_ray_stride_px = 16;
+};
+
+/// Throws std::invalid_argument "MapParams: <field> is <value> (<rule>)".
+void validate(const MapParams& params);
+
+/// What a point of space is.
+enum class VoxelState { kUnknown, kFree, kSurface };
+const char* toString(VoxelState s);
+
+/// Answer of MobilityMap::query().
+struct PointQuery {
+  VoxelState state = VoxelState::kUnknown;
+  bool has_mobility = false;
+  double mobility = 0.0;   ///< meaningful when has_mobility
+  double variance = 0.0;   ///< +inf when !has_mobility
+  int count = 0;
+  double occupancy = 0.5;  ///< probability
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();  ///< map frame
+  double size_m = 0.0;     ///< edge of the (possibly pruned) voxel
+};
+
+/// Answer of MobilityMap::footprint().
+struct FootprintQuery {
+  double min_mobility = 0.0;        ///< over sole samples with a known surface (0 if none)
+  double mean_mobility = 0.0;
+  double known_fraction = 0.0;      ///< samples with a surface voxel that has a mobility
+  double max_height_difference_m = 0.0;  ///< between the highest and lowest supporting voxel
+  int samples = 0;
+};
+
+/// A rectangle sole: centre (x, y, z) in the map frame, yaw about +z (radians), length
+/// along the yaw direction, width across, metres.
+struct Foot {
+  double x = 0, y = 0, z = 0, yaw = 0, length = 0.2, width = 0.1;
+};
+
+/// Fuses scored frames. Frames: the map frame is gravity aligned (z up);
+/// T_map_world = R_map_world (a fixed rotation for data sets whose world frame is not).
+///
+/// Threading: integrate() must not run concurrently with anything else. All const
+/// methods (queries, exports) are safe to call from several threads at once while no
+/// integrate() or finalize() runs.
+class MobilityMap {
+ public:
+  explicit MobilityMap(MapParams params = {}, const Eigen::Matrix3d& R_map_world = Eigen::Matrix3d::Identity());
+  /// Wraps a loaded tree (params.resolution_m must match the tree's).
+  MobilityMap(std::unique_ptr<MobilityOcTree> tree, MapParams params, const Eigen::Matrix3d& R_map_world);
+
+  /// Fuses one frame: every segment point marks its voxel occupied and fuses the
+  /// segment's mobility (inverse-variance weighting); points outside segments mark
+  /// occupancy only. With the frame's depth image and intrinsics, free space is
+  /// updated too (see MapParams). Leaves are current at once; call finalize() before
+  /// saving or asking coarse (inner-node) questions.
+  void integrate(const perception::FrameResult& frame, const Eigen::Isometry3d& T_world_camera,
+                 const perception::DepthImage* depth = nullptr, const perception::PinholeIntrinsics* intrinsics = nullptr);
+  /// The same with an MRPT pose (camera-to-world).
+  void integrate(const perception::FrameResult& frame, const mrpt::poses::CPose3D& T_world_camera,
+                 const perception::DepthImage* depth = nullptr, const perception::PinholeIntrinsics* intrinsics = nullptr);
+
+  /// Recomputes inner nodes (occupancy max, mobility min) and prunes equal children.
+  void finalize();
+
+  /// State of the voxel holding `p_map` (map frame).
+  [[nodiscard]] PointQuery query(const Eigen::Vector3d& p_map) const;
+  /// The first surface voxel at or below `p_map` along -z within `max_drop_m`, searched
+  /// one voxel at a time; nullopt if none.
+  [[nodiscard]] std::optional<PointQuery> snapDown(const Eigen::Vector3d& p_map, double max_drop_m) const;
+  /// Mobility under a rectangular sole, sampled every voxel; each sample snaps down from
+  /// foot.z + `search_up_m` over `search_up_m + search_down_m`.
+  [[nodiscard]] FootprintQuery footprint(const Foot& foot, double search_up_m = 0.1, double search_down_m = 0.1) const;
+
+  /// Converts a point of the data's world frame into the map frame.
+  [[nodiscard]] Eigen::Vector3d worldToMap(const Eigen::Vector3d& p_world) const { return R_map_world_ * p_world; }
+
+  [[nodiscard]] const MobilityOcTree& tree() const { return *tree_; }
+  [[nodiscard]] MobilityOcTree& tree() { return *tree_; }
+  [[nodiscard]] const MapParams& params() const { return params_; }
+  [[nodiscard]] const Eigen::Matrix3d& rotationMapWorld() const { return R_map_world_; }
+  [[nodiscard]] int framesIntegrated() const { return frames_; }
+  void setFramesIntegrated(int n) { frames_ = n; }
+
+ private:
+  void clearSeenThrough(const Eigen::Isometry3d& T_map_camera, const perception::DepthImage& depth,
+                        const perception::PinholeIntrinsics& k);
+  void castFreeRays(const Eigen::Isometry3d& T_map_camera, const perception::DepthImage& depth,
+                    const perception::PinholeIntrinsics& k);
+  PointQuery describe(const octomap::OcTreeKey& key, const MobilityOcTreeNode* node, unsigned int depth) const;
+
+  MapParams params_;
+  Eigen::Matrix3d R_map_world_;
+  std::unique_ptr<MobilityOcTree> tree_;
+  int frames_ = 0;
+};
+
+/// Map file errors: the message starts with the path.
+class MapIoError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Writes the full tree (.ot) atomically: a temporary file beside `path`, then rename.
+void saveMobilityMap(const MobilityOcTree& tree, const std::string& path);
+/// Reads a .ot written by saveMobilityMap(). MapIoError naming the path if the file is
+/// missing, truncated, of another tree type, or not an OctoMap file. Always links
+/// the MobilityOcTree registration, also from static libraries.
+std::unique_ptr<MobilityOcTree> loadMobilityMap(const std::string& path);
+/// Occupancy only, OctoMap's binary .bt (readable by any OctoMap tool), atomically.
+void saveOccupancyBt(const MobilityOcTree& tree, const std::string& path);
+/// A ColorOcTree .ot for stock octovis: mobility red (0) to green (1), grey where a
+/// voxel is occupied without a mobility estimate. Free space is not exported.
+void saveOctovisColorTree(const MobilityOcTree& tree, const std::string& path);
+/// Surface voxel centres as ASCII PCD with fields x y z mobility variance count.
+void saveSurfacePcd(const MobilityOcTree& tree, const std::string& path);
+
+}  // namespace mobmap::mapping

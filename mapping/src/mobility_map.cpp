@@ -1,0 +1,258 @@
+#include "mobmap/mapping/mobility_map.hpp"
+
+#include <mrpt/math/CMatrixFixed.h>
+#include <mrpt/poses/CPose3D.h>
+
+#include <octomap/OcTreeKey.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <unordered_map>
+
+namespace mobmap::mapping {
+namespace {
+
+void fail(const char* field, double value, const char* rule) {
+  std::ostringstream msg;
+  msg << "MapParams: " << field << " is " << value << " (" << rule << ")";
+  throw std::invalid_argument(msg.str());
+}
+
+octomap::point3d toOcto(const Eigen::Vector3d& p) {
+  return {static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())};
+}
+
+}  // namespace
+
+void validate(const MapParams& p) {
+  if (!(p.resolution_m >= 0.001 && p.resolution_m <= 10)) fail("resolution_m", p.resolution_m, "must be in [0.001, 10]");
+  if (!(p.max_range_m > 0) || !std::isfinite(p.max_range_m)) fail("max_range_m", p.max_range_m, "must be finite and > 0");
+  if (!(p.prob_hit > 0.5 && p.prob_hit < 1)) fail("prob_hit", p.prob_hit, "must be in (0.5, 1)");
+  if (!(p.prob_miss > 0 && p.prob_miss < 0.5)) fail("prob_miss", p.prob_miss, "must be in (0, 0.5)");
+  if (!(p.clamp_min > 0 && p.clamp_min < 0.5)) fail("clamp_min", p.clamp_min, "must be in (0, 0.5)");
+  if (!(p.clamp_max > 0.5 && p.clamp_max < 1)) fail("clamp_max", p.clamp_max, "must be in (0.5, 1)");
+  if (!(p.max_weight > 0) || !std::isfinite(p.max_weight)) fail("max_weight", p.max_weight, "must be finite and > 0");
+  if (!(p.range_variance_per_m2 >= 0) || !std::isfinite(p.range_variance_per_m2)) fail("range_variance_per_m2", p.range_variance_per_m2, "must be finite and >= 0");
+  if (!(p.free_space_margin_m >= 0) || !std::isfinite(p.free_space_margin_m)) fail("free_space_margin_m", p.free_space_margin_m, "must be finite and >= 0");
+  if (p.free_space_ray_stride_px < 0) fail("free_space_ray_stride_px", p.free_space_ray_stride_px, "must be >= 0");
+}
+
+const char* toString(VoxelState s) {
+  switch (s) {
+    case VoxelState::kUnknown: return "unknown";
+    case VoxelState::kFree: return "free";
+    case VoxelState::kSurface: return "surface";
+  }
+  return "unknown";
+}
+
+MobilityMap::MobilityMap(MapParams params, const Eigen::Matrix3d& R_map_world)
+    : MobilityMap(nullptr, params, R_map_world) {}
+
+MobilityMap::MobilityMap(std::unique_ptr<MobilityOcTree> tree, MapParams params, const Eigen::Matrix3d& R_map_world)
+    : params_(params), R_map_world_(R_map_world), tree_(std::move(tree)) {
+  validate(params_);
+  if (!tree_) tree_ = std::make_unique<MobilityOcTree>(params_.resolution_m);
+  params_.resolution_m = tree_->getResolution();
+  tree_->setProbHit(params_.prob_hit);
+  tree_->setProbMiss(params_.prob_miss);
+  tree_->setClampingThresMin(params_.clamp_min);
+  tree_->setClampingThresMax(params_.clamp_max);
+}
+
+void MobilityMap::integrate(const perception::FrameResult& frame, const mrpt::poses::CPose3D& pose,
+                            const perception::DepthImage* depth, const perception::PinholeIntrinsics* k) {
+  mrpt::math::CMatrixDouble44 m;
+  pose.getHomogeneousMatrix(m);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.matrix() = m.asEigen();
+  integrate(frame, T, depth, k);
+}
+
+void MobilityMap::integrate(const perception::FrameResult& frame, const Eigen::Isometry3d& T_world_camera,
+                            const perception::DepthImage* depth, const perception::PinholeIntrinsics* k) {
+  Eigen::Isometry3d T_map_camera = T_world_camera;
+  T_map_camera.linear() = R_map_world_ * T_world_camera.linear();
+  T_map_camera.translation() = R_map_world_ * T_world_camera.translation();
+
+  // One update per voxel per frame. Where several segments share a voxel the least
+  // mobile one wins: the conservative reading of an edge between floor and obstacle.
+  struct Hit {
+    int segment = -1;
+    double range = 0.0;
+  };
+  std::unordered_map<octomap::OcTreeKey, Hit, octomap::OcTreeKey::KeyHash> hits;
+  hits.reserve(frame.points.size());
+  const double max_range2 = params_.max_range_m * params_.max_range_m;
+  for (std::size_t i = 0; i < frame.points.size(); ++i) {
+    const Eigen::Vector3d pc = frame.points[i].cast<double>();
+    const double r2 = pc.squaredNorm();
+    if (r2 > max_range2) continue;
+    octomap::OcTreeKey key;
+    if (!tree_->coordToKeyChecked(toOcto(T_map_camera * pc), key)) continue;
+    const int seg = frame.segment_of_point.empty() ? -1 : frame.segment_of_point[i];
+    auto [it, inserted] = hits.try_emplace(key, Hit{seg, std::sqrt(r2)});
+    if (inserted) continue;
+    Hit& h = it->second;
+    if (seg >= 0 && (h.segment < 0 || frame.segments[static_cast<std::size_t>(seg)].mobility <
+                                          frame.segments[static_cast<std::size_t>(h.segment)].mobility)) {
+      h.segment = seg;
+    }
+    h.range = std::min(h.range, std::sqrt(r2));
+  }
+  for (const auto& [key, h] : hits) {
+    MobilityOcTreeNode* node = tree_->updateNode(key, true, true);
+    if (h.segment < 0 || !node) continue;
+    const auto& s = frame.segments[static_cast<std::size_t>(h.segment)];
+    node->fuse(s.mobility, s.variance + params_.range_variance_per_m2 * h.range * h.range, params_.max_weight);
+  }
+  if (depth && k) {
+    clearSeenThrough(T_map_camera, *depth, *k);
+    if (params_.free_space_ray_stride_px > 0) castFreeRays(T_map_camera, *depth, *k);
+  }
+  ++frames_;
+}
+
+void MobilityMap::clearSeenThrough(const Eigen::Isometry3d& T_map_camera, const perception::DepthImage& depth,
+                                   const perception::PinholeIntrinsics& k) {
+  // Axis-aligned box around the view frustum up to max range.
+  const Eigen::Isometry3d T_camera_map = T_map_camera.inverse();
+  Eigen::Vector3d lo = T_map_camera.translation(), hi = lo;
+  const double r = params_.max_range_m;
+  for (double u : {0.0, static_cast<double>(k.width - 1)}) {
+    for (double v : {0.0, static_cast<double>(k.height - 1)}) {
+      const Eigen::Vector3d dir = perception::pixelRay(k, u, v).normalized();
+      const Eigen::Vector3d far = T_map_camera * (dir * r);
+      lo = lo.cwiseMin(far);
+      hi = hi.cwiseMax(far);
+    }
+  }
+  const double res = tree_->getResolution();
+  const double base_margin = std::max(params_.free_space_margin_m, 3.0 * res);
+  std::vector<octomap::OcTreeKey> seen_through;
+  for (auto it = tree_->begin_leafs_bbx(toOcto(lo), toOcto(hi)), end = tree_->end_leafs_bbx(); it != end; ++it) {
+    if (!tree_->isNodeOccupied(*it)) continue;
+    const Eigen::Vector3d c(it.getX(), it.getY(), it.getZ());
+    const Eigen::Vector3d pc = T_camera_map * c;
+    if (pc.z() < 0.1) continue;
+    const double u = k.fx * pc.x() / pc.z() + k.cx, v = k.fy * pc.y() / pc.z() + k.cy;
+    const int ui = static_cast<int>(std::lround(u)), vi = static_cast<int>(std::lround(v));
+    if (ui < 0 || vi < 0 || ui >= k.width || vi >= k.height) continue;
+    const float d = depth.at(ui, vi);
+    if (!(d > 0.f) || !std::isfinite(d)) continue;
+    // Depth noise grows with the square of the distance (Kinect: ~1.5 mm at 1 m,
+    // quantisation ~2.3 mm): 1 cm/m^2 keeps the test clear of it.
+    const double margin = base_margin + 0.01 * pc.z() * pc.z();
+    if (d > pc.z() + margin) seen_through.push_back(it.getKey());
+  }
+  for (const auto& key : seen_through) tree_->updateNode(key, false, true);
+}
+
+void MobilityMap::castFreeRays(const Eigen::Isometry3d& T_map_camera, const perception::DepthImage& depth,
+                               const perception::PinholeIntrinsics& k) {
+  const int stride = params_.free_space_ray_stride_px;
+  const double res = tree_->getResolution();
+  const octomap::point3d origin = toOcto(T_map_camera.translation());
+  octomap::KeySet free;
+  octomap::KeyRay ray;
+  for (int v = stride / 2; v < k.height; v += stride) {
+    for (int u = stride / 2; u < k.width; u += stride) {
+      const float d = depth.at(u, v);
+      if (!(d > 0.f) || !std::isfinite(d)) continue;
+      const Eigen::Vector3d pc = perception::backProject(k, u, v, d);
+      const double range = pc.norm();
+      // Stop short of the surface so its own voxel (and noise around it) is not freed.
+      const double reach = std::min(range - std::max(params_.free_space_margin_m, 3 * res), params_.max_range_m);
+      if (reach <= res) continue;
+      const Eigen::Vector3d end = T_map_camera * (pc * (reach / range));
+      if (!tree_->computeRayKeys(origin, toOcto(end), ray)) continue;
+      free.insert(ray.begin(), ray.end());
+    }
+  }
+  for (const auto& key : free) tree_->updateNode(key, false, true);
+}
+
+void MobilityMap::finalize() {
+  tree_->updateInnerOccupancy();
+  tree_->prune();
+}
+
+PointQuery MobilityMap::describe(const octomap::OcTreeKey& key, const MobilityOcTreeNode* node, unsigned int depth) const {
+  PointQuery q;
+  const octomap::point3d c = tree_->keyToCoord(key, depth);
+  q.centre = Eigen::Vector3d(c.x(), c.y(), c.z());
+  q.size_m = tree_->getNodeSize(depth);
+  if (!node) return q;
+  q.occupancy = node->getOccupancy();
+  q.state = tree_->isNodeOccupied(node) ? VoxelState::kSurface : VoxelState::kFree;
+  q.has_mobility = node->hasMobility();
+  q.mobility = q.has_mobility ? node->mobility() : 0.0;
+  q.variance = node->variance();
+  q.count = node->count();
+  return q;
+}
+
+PointQuery MobilityMap::query(const Eigen::Vector3d& p) const {
+  octomap::OcTreeKey key;
+  PointQuery unknown;
+  unknown.size_m = tree_->getResolution();
+  if (!p.allFinite() || !tree_->coordToKeyChecked(toOcto(p), key)) {
+    unknown.centre = p;
+    return unknown;
+  }
+  // Descend by hand to learn the depth of the (possibly pruned) leaf.
+  const unsigned int max_depth = tree_->getTreeDepth();
+  const MobilityOcTreeNode* node = tree_->getRoot();
+  unsigned int depth = 0;
+  while (node && depth < max_depth && tree_->nodeHasChildren(node)) {
+    const unsigned int pos = octomap::computeChildIdx(key, static_cast<int>(max_depth - 1 - depth));
+    node = tree_->nodeChildExists(node, pos) ? tree_->getNodeChild(node, pos) : nullptr;
+    ++depth;
+  }
+  return describe(key, node, node ? depth : max_depth);
+}
+
+std::optional<PointQuery> MobilityMap::snapDown(const Eigen::Vector3d& p, double max_drop_m) const {
+  const double res = tree_->getResolution();
+  for (double dz = 0.0; dz <= max_drop_m + 1e-9; dz += res) {
+    const PointQuery q = query(p - Eigen::Vector3d(0, 0, dz));
+    if (q.state == VoxelState::kSurface) return q;
+  }
+  return std::nullopt;
+}
+
+FootprintQuery MobilityMap::footprint(const Foot& f, double search_up_m, double search_down_m) const {
+  FootprintQuery out;
+  const double res = tree_->getResolution();
+  const int nl = std::max(1, static_cast<int>(std::ceil(f.length / res)));
+  const int nw = std::max(1, static_cast<int>(std::ceil(f.width / res)));
+  const double c = std::cos(f.yaw), s = std::sin(f.yaw);
+  double sum = 0.0, zmin = std::numeric_limits<double>::infinity(), zmax = -zmin;
+  int known = 0;
+  out.min_mobility = 1.0;
+  for (int i = 0; i < nl; ++i) {
+    for (int j = 0; j < nw; ++j) {
+      const double a = (i + 0.5) * f.length / nl - 0.5 * f.length;
+      const double b = (j + 0.5) * f.width / nw - 0.5 * f.width;
+      const Eigen::Vector3d p(f.x + c * a - s * b, f.y + s * a + c * b, f.z + search_up_m);
+      ++out.samples;
+      const auto q = snapDown(p, search_up_m + search_down_m);
+      if (!q) continue;
+      zmin = std::min(zmin, q->centre.z());
+      zmax = std::max(zmax, q->centre.z());
+      if (!q->has_mobility) continue;
+      ++known;
+      sum += q->mobility;
+      out.min_mobility = std::min(out.min_mobility, q->mobility);
+    }
+  }
+  out.known_fraction = out.samples ? static_cast<double>(known) / out.samples : 0.0;
+  out.mean_mobility = known ? sum / known : 0.0;
+  if (!known) out.min_mobility = 0.0;
+  out.max_height_difference_m = std::isfinite(zmin) ? zmax - zmin : 0.0;
+  return out;
+}
+
+}  // namespace mobmap::mapping

@@ -1,0 +1,171 @@
+#include "mobmap/mapping/mobility_octree.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace mobmap::mapping {
+namespace {
+
+constexpr std::uint32_t kMobilityMax = 0x3fffu;  // 14 bits
+constexpr std::uint32_t kWeightMax = 0x3ffu;     // 10 bits
+constexpr double kWeightStepsPerOctave = 32.0;   // log2 step 1/32: 2.2 % relative
+constexpr double kWeightLog2Min = -16.0;         // code 0 <-> 2^-16, code 1023 <-> ~2^16
+
+std::uint32_t pack(std::uint32_t m, std::uint32_t w, std::uint32_t c) { return (m << 18) | (w << 8) | c; }
+std::uint32_t mobilityCode(std::uint32_t p) { return p >> 18; }
+std::uint32_t weightCode(std::uint32_t p) { return (p >> 8) & kWeightMax; }
+
+// A uniform number in [0,1) from the voxel's state and the observation: stochastic
+// rounding that is reproducible run to run.
+double dither(std::uint32_t payload, double m) {
+  std::uint64_t x = (static_cast<std::uint64_t>(payload) << 32) ^ static_cast<std::uint64_t>(m * 4294967295.0);
+  x += 0x9E3779B97F4A7C15ULL;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
+  x ^= x >> 31;
+  return static_cast<double>(x >> 11) * 0x1.0p-53;
+}
+
+}  // namespace
+
+std::uint32_t MobilityOcTreeNode::encodeMobility(double m) {
+  return static_cast<std::uint32_t>(std::lround(std::clamp(m, 0.0, 1.0) * kMobilityMax));
+}
+double MobilityOcTreeNode::decodeMobility(std::uint32_t code) { return static_cast<double>(code) / kMobilityMax; }
+
+std::uint32_t MobilityOcTreeNode::encodeWeight(double w) {
+  if (!(w > 0)) return 0;
+  const double code = std::round((std::log2(w) - kWeightLog2Min) * kWeightStepsPerOctave);
+  return static_cast<std::uint32_t>(std::clamp(code, 0.0, static_cast<double>(kWeightMax)));
+}
+double MobilityOcTreeNode::decodeWeight(std::uint32_t code) {
+  return std::exp2(static_cast<double>(code) / kWeightStepsPerOctave + kWeightLog2Min);
+}
+
+double MobilityOcTreeNode::mobility() const { return decodeMobility(mobilityCode(payload_)); }
+double MobilityOcTreeNode::weight() const { return hasMobility() ? decodeWeight(weightCode(payload_)) : 0.0; }
+double MobilityOcTreeNode::variance() const {
+  return hasMobility() ? 1.0 / decodeWeight(weightCode(payload_)) : std::numeric_limits<double>::infinity();
+}
+
+void MobilityOcTreeNode::setMobility(double m, double w, int count) {
+  const auto c = static_cast<std::uint32_t>(std::clamp(count, 1, 255));
+  payload_ = pack(encodeMobility(m), encodeWeight(w), c);
+}
+
+void MobilityOcTreeNode::fuse(double m, double variance, double max_weight) {
+  const double w = 1.0 / std::max(variance, 1e-12);
+  if (!hasMobility()) {
+    setMobility(m, std::min(w, max_weight), 1);
+    return;
+  }
+  const double old_w = weight();
+  const double fused = std::clamp((old_w * mobility() + w * m) / (old_w + w), 0.0, 1.0);
+  const double scaled = fused * kMobilityMax;
+  const auto code = static_cast<std::uint32_t>(std::min<double>(kMobilityMax, std::floor(scaled + dither(payload_, m))));
+  payload_ = pack(code, encodeWeight(std::min(old_w + w, max_weight)),
+                  static_cast<std::uint32_t>(std::min(count() + 1, 255)));
+}
+
+void MobilityOcTreeNode::updateMobilityChildren() {
+  if (!children) return;
+  std::uint32_t best = 0;  // payload of the child with the lowest known mobility
+  int count = 0;
+  bool any = false;
+  for (unsigned int i = 0; i < 8; ++i) {
+    if (!children[i]) continue;
+    const auto* child = static_cast<const MobilityOcTreeNode*>(children[i]);
+    if (!child->hasMobility()) continue;
+    count += child->count();
+    if (!any || mobilityCode(child->payload_) < mobilityCode(best)) best = child->payload_;
+    any = true;
+  }
+  payload_ = any ? pack(mobilityCode(best), weightCode(best), static_cast<std::uint32_t>(std::min(count, 255))) : 0;
+}
+
+std::istream& MobilityOcTreeNode::readData(std::istream& s) {
+  s.read(reinterpret_cast<char*>(&value), sizeof(value));  // occupancy first, as OcTreeNode
+  s.read(reinterpret_cast<char*>(&payload_), sizeof(payload_));
+  return s;
+}
+
+std::ostream& MobilityOcTreeNode::writeData(std::ostream& s) const {
+  s.write(reinterpret_cast<const char*>(&value), sizeof(value));
+  s.write(reinterpret_cast<const char*>(&payload_), sizeof(payload_));
+  return s;
+}
+
+MobilityOcTree::StaticMemberInitializer MobilityOcTree::mobility_octree_member_init_;
+
+MobilityOcTree::StaticMemberInitializer::StaticMemberInitializer() {
+  auto* tree = new MobilityOcTree(0.1);  // the factory prototype; owned by OctoMap's registry
+  tree->clearKeyRays();
+  octomap::AbstractOcTree::registerTreeType(tree);
+}
+
+MobilityOcTree::MobilityOcTree(double resolution) : OccupancyOcTreeBase<MobilityOcTreeNode>(resolution) {
+  mobility_octree_member_init_.ensureLinking();
+}
+
+bool MobilityOcTree::isNodeCollapsible(const MobilityOcTreeNode* node) const {
+  if (!nodeChildExists(node, 0)) return false;
+  const MobilityOcTreeNode* first = getNodeChild(node, 0);
+  if (nodeHasChildren(first)) return false;
+  for (unsigned int i = 1; i < 8; ++i) {
+    if (!nodeChildExists(node, i)) return false;
+    const MobilityOcTreeNode* child = getNodeChild(node, i);
+    if (nodeHasChildren(child) || !(*child == *first)) return false;
+  }
+  return true;
+}
+
+void MobilityOcTree::updateInnerOccupancy() {
+  if (root) updateInnerOccupancyRecurs(root, 0);
+}
+
+void MobilityOcTree::updateInnerOccupancyRecurs(MobilityOcTreeNode* node, unsigned int depth) {
+  if (!nodeHasChildren(node)) return;
+  if (depth < tree_depth) {
+    for (unsigned int i = 0; i < 8; ++i) {
+      if (nodeChildExists(node, i)) updateInnerOccupancyRecurs(getNodeChild(node, i), depth + 1);
+    }
+  }
+  node->updateOccupancyChildren();
+  node->updateMobilityChildren();
+}
+
+std::string MobilityOcTree::readDataChecked(std::istream& s, std::size_t max_nodes) {
+  if (root) return "tree is not empty";
+  if (max_nodes == 0) return {};
+  root = new MobilityOcTreeNode();
+  tree_size = 1;  // createNodeChild() counts the rest
+  std::size_t read = 0;
+  if (!readNodesChecked(root, s, max_nodes, read, 0)) {
+    clear();
+    return read >= max_nodes ? "more nodes than the header declares (corrupt file)"
+                             : "file ends before the tree does (truncated?)";
+  }
+  size_changed = true;
+  return {};
+}
+
+bool MobilityOcTree::readNodesChecked(MobilityOcTreeNode* node, std::istream& s, std::size_t max_nodes,
+                                      std::size_t& read, unsigned int depth) {
+  if (++read > max_nodes) return false;
+  node->readData(s);
+  char children_char = 0;
+  s.read(&children_char, 1);
+  if (!s) return false;
+  const auto children = static_cast<unsigned char>(children_char);
+  if (children != 0 && depth >= tree_depth) return false;  // leaves at the finest level have no children
+  for (unsigned int i = 0; i < 8; ++i) {
+    if ((children >> i) & 1u) {
+      MobilityOcTreeNode* child = createNodeChild(node, i);
+      if (!readNodesChecked(child, s, max_nodes, read, depth + 1)) return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace mobmap::mapping

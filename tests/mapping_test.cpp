@@ -1,0 +1,411 @@
+// The MobilityOcTree and MobilityMap: storage, fusion, files, queries.
+#include "mobmap/mapping/gravity.hpp"
+#include "mobmap/mapping/mobility_map.hpp"
+#include "mobmap/mapping/mobility_octree.hpp"
+#include "mobmap/sim/corridor_scene.hpp"
+
+#include <mrpt/poses/CPose3D.h>
+#include <octomap/ColorOcTree.h>
+#include <octomap/OcTree.h>
+
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <set>
+#include <thread>
+
+namespace mobmap::mapping {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string tempPath(const std::string& name) {
+  const auto dir = fs::temp_directory_path() / ("mobmap-mapping-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  return (dir / name).string();
+}
+
+TEST(MobilityOcTreeNode, IsNoLargerThanAnOcTreeNode) {
+  static_assert(sizeof(MobilityOcTreeNode) <= sizeof(octomap::OcTreeNode), "payload must fit the padding");
+  EXPECT_EQ(sizeof(MobilityOcTreeNode), sizeof(octomap::OcTreeNode));
+}
+
+TEST(MobilityOcTreeNode, QuantisationErrorIsFarBelowTheBound) {
+  double worst = 0;
+  for (int i = 0; i <= 100000; ++i) {
+    const double m = i / 100000.0;
+    worst = std::max(worst, std::abs(MobilityOcTreeNode::decodeMobility(MobilityOcTreeNode::encodeMobility(m)) - m));
+  }
+  EXPECT_LT(worst, 0.005);            // the requirement
+  EXPECT_LE(worst, 0.5 / 16383 + 1e-12);  // what 14 bits give
+  for (double w : {1e-3, 0.7, 12.0, 523.0, 19999.0}) {
+    const double back = MobilityOcTreeNode::decodeWeight(MobilityOcTreeNode::encodeWeight(w));
+    EXPECT_NEAR(back / w, 1.0, 0.011) << w;  // half a 2^(1/32) step
+  }
+}
+
+TEST(MobilityOcTreeNode, UnknownIsDistinctFromUntraversable) {
+  MobilityOcTreeNode n;
+  EXPECT_FALSE(n.hasMobility());
+  EXPECT_TRUE(std::isinf(n.variance()));
+  n.fuse(0.0, 0.01, 1e9);
+  EXPECT_TRUE(n.hasMobility());
+  EXPECT_EQ(n.mobility(), 0.0);
+  EXPECT_EQ(n.count(), 1);
+}
+
+TEST(MobilityOcTreeNode, InverseVarianceFusionWeighsConfidentObservationsMore) {
+  MobilityOcTreeNode n;
+  n.fuse(0.2, 0.01, 1e9);  // confident
+  n.fuse(0.8, 0.04, 1e9);  // noisy
+  // The stored weight of the first observation is within 1.1 % of 100 (log2 steps of
+  // 1/32), which moves the fused value by at most ~0.001.
+  EXPECT_NEAR(n.mobility(), (0.2 * 100 + 0.8 * 25) / 125.0, 0.0015);
+  EXPECT_NEAR(n.variance(), 1.0 / 125.0, 0.025 / 125.0);
+  EXPECT_EQ(n.count(), 2);
+}
+
+TEST(MobilityOcTreeNode, LongFusionTracksADoublePrecisionReference) {
+  // The same capped inverse-variance recursion in double precision is the oracle; the
+  // node's 16-bit, stochastically rounded storage must stay within 0.005 of it.
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> m(0, 1), logvar(-6, -1);
+  const double cap = 20000;
+  for (int trial = 0; trial < 50; ++trial) {
+    MobilityOcTreeNode n;
+    double ref = 0, w_ref = 0;
+    const double base = m(rng);
+    for (int i = 0; i < 2000; ++i) {
+      const double x = std::clamp(base + 0.2 * (m(rng) - 0.5), 0.0, 1.0);
+      const double var = std::exp(logvar(rng));
+      const double w = 1 / var;
+      n.fuse(x, var, cap);
+      ref = w_ref == 0 ? x : (w_ref * ref + w * x) / (w_ref + w);
+      w_ref = std::min(w_ref + w, cap);
+      // The node's weight is quantised (9 % steps), so its recursion uses slightly
+      // different weights; follow its weight to isolate the mobility storage error.
+      w_ref = n.weight();
+      ASSERT_NEAR(n.mobility(), ref, 0.005) << "trial " << trial << " step " << i;
+    }
+  }
+}
+
+TEST(MobilityOcTree, PrunesOnlyIdenticalChildrenAndKeepsTheMinimumAbove) {
+  MobilityOcTree tree(0.05);
+  octomap::OcTreeKey base = tree.coordToKey(octomap::point3d(0.01f, 0.01f, 0.01f), 15);  // a depth-15 cell
+  auto child_key = [&](int i) {
+    return octomap::OcTreeKey(static_cast<octomap::key_type>(base[0] + (i & 1)), static_cast<octomap::key_type>(base[1] + ((i >> 1) & 1)),
+                              static_cast<octomap::key_type>(base[2] + ((i >> 2) & 1)));
+  };
+  base = tree.coordToKey(tree.keyToCoord(base, 15) - octomap::point3d(0.025f, 0.025f, 0.025f));
+  for (int i = 0; i < 8; ++i) {
+    auto* n = tree.updateNode(child_key(i), true);
+    n->setMobility(0.8, 100, 3);
+  }
+  tree.updateInnerOccupancy();
+  tree.prune();
+  EXPECT_EQ(tree.getNumLeafNodes(), 1u);  // identical: merged
+  // Now one child differs by a single quantisation step: never merged.
+  tree.clear();
+  for (int i = 0; i < 8; ++i) {
+    auto* n = tree.updateNode(child_key(i), true);
+    n->setMobility(i == 5 ? 0.8 + 1.0 / 16383 : 0.8, 100, 3);
+  }
+  tree.updateInnerOccupancy();
+  tree.prune();
+  EXPECT_EQ(tree.getNumLeafNodes(), 8u);
+  // The inner node above holds the minimum known mobility of its children.
+  tree.updateNode(child_key(2), true)->setMobility(0.1, 5, 1);
+  tree.updateInnerOccupancy();
+  const MobilityOcTreeNode* parent = tree.search(child_key(0), 15);
+  ASSERT_NE(parent, nullptr);
+  EXPECT_NEAR(parent->mobility(), 0.1, 1e-4);
+}
+
+// A small scored "frame": a floor patch (mobility 1) and a wall (0) seen from 1.2 m.
+// Surfaces sit mid-voxel (z = 0.01, x = 1.61) so float rounding cannot move them
+// across a voxel boundary.
+perception::FrameResult syntheticFrame() {
+  perception::FrameResult r;
+  perception::Segment floor, wall;
+  floor.mobility = 1.0;
+  floor.variance = 0.002;
+  wall.mobility = 0.0;
+  wall.variance = 0.002;
+  for (int i = -30; i <= 30; ++i) {
+    for (int j = 0; j < 60; ++j) {
+      r.points.emplace_back(i * 0.01f, 1.19f, 1.0f + j * 0.01f);  // camera frame: floor 1.19 m below
+      r.segment_of_point.push_back(0);
+      floor.points.push_back(static_cast<int>(r.points.size() - 1));
+      r.points.emplace_back(i * 0.01f, 1.19f - j * 0.01f, 1.61f);  // wall 1.61 m ahead
+      r.segment_of_point.push_back(1);
+      wall.points.push_back(static_cast<int>(r.points.size() - 1));
+    }
+  }
+  r.segments = {floor, wall};
+  return r;
+}
+
+Eigen::Isometry3d cameraLookingForward() {
+  // Camera axes (x right, y down, z forward) in a z-up world, at 1.2 m height.
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  Eigen::Matrix3d r;
+  r.col(0) = Eigen::Vector3d(0, -1, 0);
+  r.col(1) = Eigen::Vector3d(0, 0, -1);
+  r.col(2) = Eigen::Vector3d(1, 0, 0);
+  T.linear() = r;
+  T.translation() = Eigen::Vector3d(0, 0, 1.2);
+  return T;
+}
+
+MobilityMap builtMap() {
+  MobilityMap map;
+  const auto frame = syntheticFrame();
+  for (int i = 0; i < 3; ++i) map.integrate(frame, cameraLookingForward());
+  map.finalize();
+  return map;
+}
+
+TEST(MobilityMap, SurfacesGetTheirSegmentsMobilityInTheGravityAlignedFrame) {
+  const MobilityMap map = builtMap();
+  const PointQuery floor = map.query({1.3, 0.0, 0.01});
+  EXPECT_EQ(floor.state, VoxelState::kSurface);
+  ASSERT_TRUE(floor.has_mobility);
+  EXPECT_NEAR(floor.mobility, 1.0, 1e-3);
+  EXPECT_EQ(floor.count, 3);
+  const PointQuery wall = map.query({1.61, 0.0, 0.31});
+  EXPECT_EQ(wall.state, VoxelState::kSurface);
+  EXPECT_NEAR(wall.mobility, 0.0, 1e-3);
+  EXPECT_EQ(map.query({5, 5, 5}).state, VoxelState::kUnknown);
+}
+
+TEST(MobilityMap, MrptPoseGivesTheSameMapAsEigen) {
+  MobilityMap a, b;
+  const auto frame = syntheticFrame();
+  const Eigen::Isometry3d T = cameraLookingForward();
+  a.integrate(frame, T);
+  mrpt::math::CMatrixDouble44 m;
+  m.asEigen() = T.matrix();
+  b.integrate(frame, mrpt::poses::CPose3D(m));
+  EXPECT_EQ(a.tree().size(), b.tree().size());
+  const auto q = b.query({1.3, 0.1, 0.005});
+  EXPECT_EQ(q.state, VoxelState::kSurface);
+}
+
+TEST(MobilityMap, SnapAndFootprintQueries) {
+  const MobilityMap map = builtMap();
+  const auto snapped = map.snapDown({1.3, 0.0, 0.3}, 0.5);
+  ASSERT_TRUE(snapped);
+  EXPECT_NEAR(snapped->centre.z(), 0.01, 1e-6);  // the floor voxel [0, 0.02)
+  EXPECT_FALSE(map.snapDown({1.3, 0.0, 0.3}, 0.1));
+  const FootprintQuery flat = map.footprint({1.3, 0.0, 0.0, 0.3, 0.2, 0.1});
+  EXPECT_NEAR(flat.min_mobility, 1.0, 1e-3);
+  EXPECT_NEAR(flat.known_fraction, 1.0, 1e-9);
+  EXPECT_LE(flat.max_height_difference_m, 1e-6);
+  // A sole across the foot of the wall touches untraversable voxels.
+  const FootprintQuery edge = map.footprint({1.61, 0.0, 0.0, 0.0, 0.2, 0.1}, 0.3, 0.1);
+  EXPECT_NEAR(edge.min_mobility, 0.0, 1e-3);
+  EXPECT_GT(edge.max_height_difference_m, 0.2);
+}
+
+TEST(MobilityMap, SeenThroughVoxelsBecomeFreeSoMovedObstaclesDisappear) {
+  MapParams p;
+  p.free_space_ray_stride_px = 4;
+  MobilityMap map(p);
+  const auto frame = syntheticFrame();
+  const Eigen::Isometry3d T = cameraLookingForward();
+  for (int i = 0; i < 3; ++i) map.integrate(frame, T);
+  ASSERT_EQ(map.query({1.61, 0.0, 0.31}).state, VoxelState::kSurface);
+  // The wall is gone: render what the camera now sees, the floor alone (at z = 0.01,
+  // the mid-voxel height of the frame's floor), with a wide 160x120 camera
+  // (+-53 x +-45 degrees) so the whole wall's place is in view.
+  perception::PinholeIntrinsics k{160, 120, 60, 60, 80, 60};
+  const std::vector<sim::Triangle> floor_only = {{{-5, -5, 0.01}, {9, -5, 0.01}, {9, 5, 0.01}, 1},
+                                                 {{-5, -5, 0.01}, {9, 5, 0.01}, {-5, 5, 0.01}, 1}};
+  const perception::DepthImage depth = sim::castRays(floor_only, k, T).depth;
+  perception::FrameResult empty;
+  // Three hits (+0.85 log-odds each) need seven misses (-0.41 each) to go free.
+  for (int i = 0; i < 10; ++i) map.integrate(empty, T, &depth, &k);
+  map.finalize();
+  EXPECT_EQ(map.query({1.61, 0.0, 0.31}).state, VoxelState::kFree);
+  // On the ray of pixel (82, 78), one of the stride-4 rays, which meets the floor 4 m
+  // away: free space 1 m ahead.
+  EXPECT_EQ(map.query({1.0, -2.0 / 60, 1.2 - 18.0 / 60}).state, VoxelState::kFree);
+  // The floor below the camera's view is untouched.
+  EXPECT_EQ(map.query({1.3, 0.0, 0.01}).state, VoxelState::kSurface);
+}
+
+TEST(MobilityMap, QueriesFromSeveralThreadsEqualSingleThreadedAnswers) {
+  const MobilityMap map = builtMap();
+  std::vector<Eigen::Vector3d> pts;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-0.5, 2.0);
+  for (int i = 0; i < 20000; ++i) pts.emplace_back(u(rng), u(rng) * 0.3, u(rng) * 0.5);
+  std::vector<PointQuery> single(pts.size());
+  for (std::size_t i = 0; i < pts.size(); ++i) single[i] = map.query(pts[i]);
+  std::vector<std::vector<PointQuery>> per_thread(4, std::vector<PointQuery>(pts.size()));
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t) {
+    threads.emplace_back([&, t] {
+      for (std::size_t i = 0; i < pts.size(); ++i) per_thread[static_cast<std::size_t>(t)][i] = map.query(pts[i]);
+    });
+  }
+  for (auto& th : threads) th.join();
+  for (const auto& answers : per_thread) {
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      ASSERT_EQ(answers[i].state, single[i].state);
+      ASSERT_EQ(answers[i].mobility, single[i].mobility);
+      ASSERT_EQ(answers[i].centre, single[i].centre);
+    }
+  }
+}
+
+TEST(MapFiles, OtRoundTripIsExact) {
+  const MobilityMap map = builtMap();
+  const std::string path = tempPath("round.ot");
+  saveMobilityMap(map.tree(), path);
+  const auto back = loadMobilityMap(path);
+  ASSERT_EQ(back->size(), map.tree().size());
+  EXPECT_EQ(back->getResolution(), map.tree().getResolution());
+  auto a = map.tree().begin_tree(), b = back->begin_tree();
+  for (; a != map.tree().end_tree(); ++a, ++b) {
+    ASSERT_NE(b, back->end_tree());
+    ASSERT_EQ(a.getKey(), b.getKey());
+    ASSERT_EQ(a.getDepth(), b.getDepth());
+    ASSERT_EQ(a->getValue(), b->getValue());
+    ASSERT_EQ(a->payload(), b->payload());
+  }
+  EXPECT_EQ(b, back->end_tree());
+}
+
+std::string loadError(const std::string& path) {
+  try {
+    (void)loadMobilityMap(path);
+  } catch (const MapIoError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(MapFiles, HostileFilesGiveClearErrors) {
+  const MobilityMap map = builtMap();
+  const std::string good = tempPath("good.ot");
+  saveMobilityMap(map.tree(), good);
+  std::string bytes;
+  {
+    std::ifstream in(good, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  for (double frac : {0.99, 0.7, 0.3}) {
+    const std::string cut = tempPath("cut.ot");
+    std::ofstream(cut, std::ios::binary) << bytes.substr(0, static_cast<std::size_t>(bytes.size() * frac));
+    const std::string e = loadError(cut);
+    EXPECT_NE(e.find("cut.ot: "), std::string::npos) << e;
+    EXPECT_NE(e.find("truncated"), std::string::npos) << e;
+  }
+  EXPECT_NE(loadError(tempPath("missing.ot")).find("no such file"), std::string::npos);
+  const std::string junk = tempPath("junk.ot");
+  std::ofstream(junk) << "hello\n";
+  EXPECT_NE(loadError(junk).find("not an OctoMap .ot file"), std::string::npos);
+  // A stock OcTree and a .bt are recognised as such.
+  octomap::OcTree plain(0.1);
+  plain.updateNode(octomap::point3d(0, 0, 0), true);
+  const std::string other = tempPath("plain.ot");
+  plain.write(other);
+  EXPECT_NE(loadError(other).find("holds an OctoMap 'OcTree'"), std::string::npos) << loadError(other);
+  const std::string bt = tempPath("occ.bt");
+  saveOccupancyBt(map.tree(), bt);
+  EXPECT_NE(loadError(bt).find(".bt"), std::string::npos);
+  // A map from a future layout.
+  std::string future = bytes;
+  future.replace(future.find("MobilityOcTree_v1"), 17, "MobilityOcTree_v9");
+  const std::string fut = tempPath("future.ot");
+  std::ofstream(fut, std::ios::binary) << future;
+  EXPECT_NE(loadError(fut).find("another version"), std::string::npos);
+}
+
+TEST(MapFiles, BtAndOctovisExportLoadInStockOctomapWithTheSameOccupiedVoxels) {
+  const MobilityMap map = builtMap();
+  std::set<octomap::OcTreeKey, bool (*)(const octomap::OcTreeKey&, const octomap::OcTreeKey&)> ours(
+      [](const octomap::OcTreeKey& a, const octomap::OcTreeKey& b) {
+        return std::tie(a[0], a[1], a[2]) < std::tie(b[0], b[1], b[2]);
+      });
+  for (auto it = map.tree().begin_leafs(); it != map.tree().end_leafs(); ++it) {
+    if (map.tree().isNodeOccupied(*it)) ours.insert(it.getKey());
+  }
+  ASSERT_GT(ours.size(), 1000u);
+  const std::string bt = tempPath("map.bt");
+  saveOccupancyBt(map.tree(), bt);
+  octomap::OcTree stock(0.1);
+  ASSERT_TRUE(stock.readBinary(bt));
+  EXPECT_DOUBLE_EQ(stock.getResolution(), map.tree().getResolution());
+  std::size_t occupied = 0;
+  for (auto it = stock.begin_leafs(); it != stock.end_leafs(); ++it) {
+    if (!stock.isNodeOccupied(*it)) continue;
+    ++occupied;
+    EXPECT_TRUE(ours.count(it.getKey())) << "extra occupied voxel";
+  }
+  EXPECT_EQ(occupied, ours.size());
+
+  const std::string ov = tempPath("map.octovis.ot");
+  saveOctovisColorTree(map.tree(), ov);
+  std::unique_ptr<octomap::AbstractOcTree> abstract(octomap::AbstractOcTree::read(ov));
+  auto* colour = dynamic_cast<octomap::ColorOcTree*>(abstract.get());
+  ASSERT_NE(colour, nullptr);
+  std::size_t coloured = 0;
+  for (auto it = colour->begin_leafs(); it != colour->end_leafs(); ++it) {
+    if (!colour->isNodeOccupied(*it)) continue;
+    ++coloured;
+    ASSERT_TRUE(ours.count(it.getKey()));
+    const auto q = map.query(Eigen::Vector3d(it.getX(), it.getY(), it.getZ()));
+    const auto c = it->getColor();
+    if (q.mobility > 0.99) EXPECT_GT(c.g, 200);  // green
+    if (q.mobility < 0.01) EXPECT_EQ(c.g, 0);    // red
+  }
+  EXPECT_EQ(coloured, ours.size());
+}
+
+TEST(MapParams, RejectsAbsurdValuesNamingTheField) {
+  MapParams p;
+  p.resolution_m = -0.02;
+  try {
+    MobilityMap{p};
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("resolution_m"), std::string::npos);
+  }
+  p = {};
+  p.prob_hit = 0.4;
+  EXPECT_THROW(MobilityMap{p}, std::invalid_argument);
+}
+
+TEST(Gravity, AlignmentSendsGravityToMinusZAndIsIdentityForZUp) {
+  const Eigen::Vector3d g(-0.0089, 0.9044, 0.4265);  // 7-Scenes redkitchen
+  const Eigen::Matrix3d r = gravityAlignment(g);
+  EXPECT_LT((r * g.normalized() - Eigen::Vector3d(0, 0, -1)).norm(), 1e-12);
+  EXPECT_NEAR(r.determinant(), 1.0, 1e-12);
+  EXPECT_LT((gravityAlignment({0, 0, -3}) - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+  EXPECT_LT((gravityAlignment({0, 0, 1}) * Eigen::Vector3d(0, 0, 1) - Eigen::Vector3d(0, 0, -1)).norm(), 1e-12);
+  EXPECT_THROW(gravityAlignment(Eigen::Vector3d::Zero()), std::invalid_argument);
+}
+
+TEST(Gravity, CheckRigidNamesTheProblem) {
+  Eigen::Matrix4d t = Eigen::Matrix4d::Identity();
+  EXPECT_FALSE(checkRigid(t));
+  t(0, 0) = 1.1;
+  EXPECT_NE(checkRigid(t)->find("orthonormal"), std::string::npos);
+  t = Eigen::Matrix4d::Identity();
+  t(3, 0) = 1;
+  EXPECT_NE(checkRigid(t)->find("bottom row"), std::string::npos);
+  t = Eigen::Matrix4d::Identity();
+  t(1, 1) = std::nan("");
+  EXPECT_NE(checkRigid(t)->find("NaN"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace mobmap::mapping
