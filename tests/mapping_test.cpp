@@ -215,7 +215,7 @@ TEST(MobilityMap, SnapAndFootprintQueries) {
 
 TEST(MobilityMap, SeenThroughVoxelsBecomeFreeSoMovedObstaclesDisappear) {
   MapParams p;
-  p.free_space_ray_stride_px = 4;
+  p.free_space_ray_stride_px = 4;  // rays are off by default
   MobilityMap map(p);
   const auto frame = syntheticFrame();
   const Eigen::Isometry3d T = cameraLookingForward();

@@ -1,4 +1,6 @@
 #include "commands.hpp"
+#include "ground_truth.hpp"
+#include "map_files.hpp"
 #include "mobility_plot.hpp"
 #include "progress.hpp"
 #include "simulation_writer.hpp"
@@ -13,19 +15,23 @@
 
 namespace mobmap::app {
 
+int runSubcommand(CLI::App& app, const std::vector<std::string>& args);
+
 Command addDemoCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand(
-      "demo", "Run the embedded default: simulate the corridor and score its surfaces (writes under --out)");
+      "demo", "Run the embedded default: simulate the corridor, build its mobility map, compare with the truth");
   struct Options {
     std::string out = "maps/demo";
     int frames = sim::CorridorParams{}.frames;
+    int step = 3;
     bool quiet = false;
   };
   auto o = std::make_shared<Options>();
   cmd->add_option("--out", o->out, "Output directory")->capture_default_str();
   cmd->add_option("--frames", o->frames, "Frames to simulate")->check(CLI::Range(1, 100000))->capture_default_str();
+  cmd->add_option("--step", o->step, "Fuse every STEP-th frame")->check(CLI::Range(1, 1000))->capture_default_str();
   cmd->add_flag("--quiet,-q", o->quiet, "No progress output");
-  return [o]() {
+  return [o, &app]() {
     namespace fs = std::filesystem;
     const std::string seq = (fs::path(o->out) / "corridor").string();
     sim::CorridorParams p;
@@ -38,27 +44,42 @@ Command addDemoCommand(CLI::App& app) {
     const int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
     writeSimulation(scene, seq, threads, [&](int done) { progress.update(done); });
 
-    // Score every ground-truth surface from its true slope and roughness.
     const gp::MobilityModel model;
-    std::printf("\n%-3s %-26s %-11s %8s %9s %9s %12s\n", "id", "surface", "kind", "slope", "roughness",
-                "rule", "GP (+- std)");
-    for (const auto& s : scene.surfaces()) {
-      const auto e = model.predict(s.slope_deg, s.roughness);
-      std::printf("%-3d %-26s %-11s %7.1f° %9.3f %9.2f %6.2f +- %.2f\n", s.id, s.name.c_str(),
-                  sim::toString(s.kind), s.slope_deg, s.roughness, s.expected_mobility, e.mobility,
-                  std::sqrt(std::max(0.0, e.variance)));
-    }
     const std::string plot = (fs::path(o->out) / "mobility_surface.png").string();
     plotMobilitySurface(model).save(plot);
 
+    // Build the map with the same code path as `mobmap build`.
+    const std::string map_path = (fs::path(o->out) / "corridor.ot").string();
+    std::vector<std::string> args = {"build", seq, "--out", map_path, "--force",
+                                     "--frames", "0:" + std::to_string(p.frames - 1) + ":" + std::to_string(o->step)};
+    if (o->quiet) args.push_back("--quiet");
+    std::printf("\nmobmap build %s --out %s --frames 0:%d:%d\n", seq.c_str(), map_path.c_str(), p.frames - 1, o->step);
+    const int rc = runSubcommand(app, args);
+    if (rc != 0) return rc;
+
+    const mapping::MobilityMap map = loadMap(map_path);
+    const GroundTruth truth = loadGroundTruth((fs::path(seq) / "ground_truth.json").string());
+    const Evaluation ev = evaluateMap(map, truth, 3, 0.04);
+    std::printf("\nMap vs ground truth (voxels seen >= 3 times):\n%-24s %8s %7s %10s\n", "surface", "expected", "voxels", "mean |err|");
+    for (const auto& s : ev.surfaces) {
+      if (s.voxels < 200) continue;  // the well-observed surfaces; `mobmap evaluate` lists all
+      std::printf("%-24s %8.2f %7d %10.3f\n", s.surface->name.c_str(), s.surface->expected_mobility, s.voxels, s.mean_abs_error);
+    }
+    const int total = ev.true_traversable + ev.false_traversable + ev.true_untraversable + ev.false_untraversable;
+    if (total) {
+      std::printf("right side of 0.5: %.1f %% of %d voxels\n", 100.0 * (ev.true_traversable + ev.true_untraversable) / total, total);
+    }
+    const std::string stem = mapStem(map_path);
     std::cout << "\nFiles:\n"
-              << "  " << seq << "/  " << p.frames
-              << " frames in the 7-Scenes layout (depth/colour/label PNGs, poses, intrinsics)\n"
+              << "  " << seq << "/  " << p.frames << " frames in the 7-Scenes layout (depth/colour/label PNGs, poses, intrinsics)\n"
               << "  " << seq << "/ground_truth.json  every surface with slope, roughness and expected mobility\n"
+              << "  " << map_path << "  the mobility OctoMap (MobilityOcTree)\n"
+              << "  " << stem << ".octovis.ot  the same as a ColorOcTree: red 0 ... green 1\n"
+              << "  " << stem << ".bt  occupancy only;  " << stem << ".json  metadata\n"
               << "  " << plot << "  the GP mobility surface (paper Fig. 3)\n"
-              << "View the PNGs with any image viewer, e.g. `xdg-open " << plot << "`.\n"
-              << "Not yet in this version: per-frame perception (segments, slope, roughness from depth)\n"
-              << "and the mobility OctoMap; the demo will build and save the map once they land.\n";
+              << "View: octovis " << stem << ".octovis.ot   (Debian package octovis)\n"
+              << "Ask:  mobmap query " << map_path << " 1.0 0.0 0.3 --snap 0.5\n"
+              << "      mobmap evaluate " << map_path << " --truth " << seq << "/ground_truth.json\n";
     return 0;
   };
 }

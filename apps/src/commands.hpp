@@ -14,5 +14,9 @@ Command addSimulateCommand(CLI::App& app);
 Command addScoreCommand(CLI::App& app);
 Command addDemoCommand(CLI::App& app);
 Command addAnalyzeCommand(CLI::App& app);
+Command addBuildCommand(CLI::App& app);
+Command addQueryCommand(CLI::App& app);
+Command addInfoCommand(CLI::App& app);
+Command addEvaluateCommand(CLI::App& app);
 
 }  // namespace mobmap::app

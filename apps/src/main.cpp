@@ -11,16 +11,35 @@
 #define MOBMAP_VERSION "unknown"
 #endif
 
+namespace {
+std::map<std::string, mobmap::app::Command>* g_commands = nullptr;
+}
+
+namespace mobmap::app {
+// Runs another subcommand of the same app (used by `demo` to run `build`).
+int runSubcommand(CLI::App& app, const std::vector<std::string>& args) {
+  std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 parses a reversed vector
+  app.parse(reversed);
+  for (auto* sub : app.get_subcommands()) return g_commands->at(sub->get_name())();
+  return 2;
+}
+}  // namespace mobmap::app
+
 int main(int argc, char** argv) {
   CLI::App app{"mobmap " MOBMAP_VERSION
                ": mobility maps for legged robots from RGB-D depth frames (Genesio et al.)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", MOBMAP_VERSION);
   std::map<std::string, mobmap::app::Command> commands;
+  g_commands = &commands;
   commands["simulate"] = mobmap::app::addSimulateCommand(app);
   commands["score"] = mobmap::app::addScoreCommand(app);
   commands["demo"] = mobmap::app::addDemoCommand(app);
   commands["analyze"] = mobmap::app::addAnalyzeCommand(app);
+  commands["build"] = mobmap::app::addBuildCommand(app);
+  commands["query"] = mobmap::app::addQueryCommand(app);
+  commands["info"] = mobmap::app::addInfoCommand(app);
+  commands["evaluate"] = mobmap::app::addEvaluateCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -60,6 +60,22 @@ MobilityMap::MobilityMap(std::unique_ptr<MobilityOcTree> tree, MapParams params,
   tree_->setProbMiss(params_.prob_miss);
   tree_->setClampingThresMin(params_.clamp_min);
   tree_->setClampingThresMax(params_.clamp_max);
+  // A loaded tree: index its occupied voxels (a pruned leaf stands for all its voxels).
+  const unsigned int depth = tree_->getTreeDepth();
+  for (auto it = tree_->begin_leafs(), end = tree_->end_leafs(); it != end; ++it) {
+    if (!tree_->isNodeOccupied(*it)) continue;
+    const unsigned int span = 1u << (depth - it.getDepth());
+    const octomap::OcTreeKey base = it.getIndexKey();
+    for (unsigned int dx = 0; dx < span; ++dx) {
+      for (unsigned int dy = 0; dy < span; ++dy) {
+        for (unsigned int dz = 0; dz < span; ++dz) {
+          occupied_.insert(octomap::OcTreeKey(static_cast<octomap::key_type>(base[0] + dx),
+                                              static_cast<octomap::key_type>(base[1] + dy),
+                                              static_cast<octomap::key_type>(base[2] + dz)));
+        }
+      }
+    }
+  }
 }
 
 void MobilityMap::integrate(const perception::FrameResult& frame, const mrpt::poses::CPose3D& pose,
@@ -104,7 +120,9 @@ void MobilityMap::integrate(const perception::FrameResult& frame, const Eigen::I
   }
   for (const auto& [key, h] : hits) {
     MobilityOcTreeNode* node = tree_->updateNode(key, true, true);
-    if (h.segment < 0 || !node) continue;
+    if (!node) continue;
+    if (tree_->isNodeOccupied(node)) occupied_.insert(key);
+    if (h.segment < 0) continue;
     const auto& s = frame.segments[static_cast<std::size_t>(h.segment)];
     node->fuse(s.mobility, s.variance + params_.range_variance_per_m2 * h.range * h.range, params_.max_weight);
   }
@@ -117,37 +135,36 @@ void MobilityMap::integrate(const perception::FrameResult& frame, const Eigen::I
 
 void MobilityMap::clearSeenThrough(const Eigen::Isometry3d& T_map_camera, const perception::DepthImage& depth,
                                    const perception::PinholeIntrinsics& k) {
-  // Axis-aligned box around the view frustum up to max range.
   const Eigen::Isometry3d T_camera_map = T_map_camera.inverse();
-  Eigen::Vector3d lo = T_map_camera.translation(), hi = lo;
-  const double r = params_.max_range_m;
-  for (double u : {0.0, static_cast<double>(k.width - 1)}) {
-    for (double v : {0.0, static_cast<double>(k.height - 1)}) {
-      const Eigen::Vector3d dir = perception::pixelRay(k, u, v).normalized();
-      const Eigen::Vector3d far = T_map_camera * (dir * r);
-      lo = lo.cwiseMin(far);
-      hi = hi.cwiseMax(far);
-    }
-  }
+  const Eigen::Matrix3f R = T_camera_map.linear().cast<float>();
+  const Eigen::Vector3f t = T_camera_map.translation().cast<float>();
   const double res = tree_->getResolution();
-  const double base_margin = std::max(params_.free_space_margin_m, 3.0 * res);
+  const float base_margin = static_cast<float>(std::max(params_.free_space_margin_m, 1.5 * res));
+  const float max_range = static_cast<float>(params_.max_range_m);
+  const float fx = static_cast<float>(k.fx), fy = static_cast<float>(k.fy);
+  const float cx = static_cast<float>(k.cx), cy = static_cast<float>(k.cy);
   std::vector<octomap::OcTreeKey> seen_through;
-  for (auto it = tree_->begin_leafs_bbx(toOcto(lo), toOcto(hi)), end = tree_->end_leafs_bbx(); it != end; ++it) {
-    if (!tree_->isNodeOccupied(*it)) continue;
-    const Eigen::Vector3d c(it.getX(), it.getY(), it.getZ());
-    const Eigen::Vector3d pc = T_camera_map * c;
-    if (pc.z() < 0.1) continue;
-    const double u = k.fx * pc.x() / pc.z() + k.cx, v = k.fy * pc.y() / pc.z() + k.cy;
-    const int ui = static_cast<int>(std::lround(u)), vi = static_cast<int>(std::lround(v));
+  for (const auto& key : occupied_) {
+    const octomap::point3d c = tree_->keyToCoord(key);
+    const Eigen::Vector3f pc = R * Eigen::Vector3f(c.x(), c.y(), c.z()) + t;
+    if (pc.z() < 0.1f || pc.z() > max_range) continue;
+    const int ui = static_cast<int>(std::lround(fx * pc.x() / pc.z() + cx));
+    const int vi = static_cast<int>(std::lround(fy * pc.y() / pc.z() + cy));
     if (ui < 0 || vi < 0 || ui >= k.width || vi >= k.height) continue;
     const float d = depth.at(ui, vi);
     if (!(d > 0.f) || !std::isfinite(d)) continue;
-    // Depth noise grows with the square of the distance (Kinect: ~1.5 mm at 1 m,
-    // quantisation ~2.3 mm): 1 cm/m^2 keeps the test clear of it.
-    const double margin = base_margin + 0.01 * pc.z() * pc.z();
-    if (d > pc.z() + margin) seen_through.push_back(it.getKey());
+    // Depth noise grows with the square of the distance (Kinect: ~1.5 mm at 1 m plus
+    // quantisation ~2.3 mm): 0.5 cm/m^2 is several sigma.
+    const float margin = base_margin + 0.005f * pc.z() * pc.z();
+    if (d > pc.z() + margin) seen_through.push_back(key);
   }
-  for (const auto& key : seen_through) tree_->updateNode(key, false, true);
+  for (const auto& key : seen_through) {
+    MobilityOcTreeNode* node = tree_->updateNode(key, false, true);
+    if (node && !tree_->isNodeOccupied(node)) {
+      occupied_.erase(key);
+      node->clearMobility();  // no longer a surface: its mobility described what was there
+    }
+  }
 }
 
 void MobilityMap::castFreeRays(const Eigen::Isometry3d& T_map_camera, const perception::DepthImage& depth,

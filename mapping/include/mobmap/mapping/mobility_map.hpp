@@ -11,6 +11,7 @@
 
 #include <memory>
 #include <optional>
+#include <unordered_set>
 #include <stdexcept>
 #include <string>
 
@@ -20,25 +21,31 @@ class CPose3D;
 
 namespace mobmap::mapping {
 
-/// Map parameters, units in the names. OctoMap's own sensor-model defaults.
+/// Map parameters, units in the names. OctoMap's sensor model (hit 0.7, miss 0.4) with
+/// a lower upper clamp than OctoMap's 0.97: at 0.9 a voxel needs ~5 misses instead of
+/// ~9 to turn free, so obstacles that move away clear while they are still in view.
 struct MapParams {
   double resolution_m = 0.02;
   double max_range_m = 4.0;      ///< points beyond this range from the camera are ignored
   double prob_hit = 0.7;         ///< occupancy update of a surface voxel
   double prob_miss = 0.4;        ///< occupancy update of a voxel seen through
   double clamp_min = 0.12;
-  double clamp_max = 0.97;
+  double clamp_max = 0.9;
   double max_weight = 20000.0;   ///< cap on a voxel's summed 1/variance (~40 confident observations)
   /// Observation variance = segment variance + range_variance_per_m2 * range^2, so a
   /// far (noisier) observation weighs less than a near one.
   double range_variance_per_m2 = 0.002;
   /// Free space: a mapped voxel whose projection into the depth image lies more than
-  /// this (or 3 voxels, whichever is larger) in front of the measured depth is seen
-  /// through and gets a miss.
-  double free_space_margin_m = 0.06;
-  /// Free space for unmapped space: one ray per this many pixels (each way) from the
-  /// camera to just before the measured surface. 0 disables the rays.
-  int free_space_ray_stride_px = 16;
+  /// max(this, 1.5 voxels) + 0.5 cm/m^2 * depth^2 in front of the measured depth is seen
+  /// through and gets a miss (the depth term covers Kinect noise, ~1 cm at 2 m). A
+  /// voxel closer than that to the surface behind it cannot be cleared this way: at
+  /// 2 m and 40 degrees down, objects lower than ~4 cm leave a trace.
+  double free_space_margin_m = 0.03;
+  /// Free space for never-mapped space: one ray per this many pixels (each way) from
+  /// the camera to just before the measured surface; 0 (default) disables the rays.
+  /// Clearing of mapped voxels (above) does not need them. Rays cost time and memory:
+  /// stride 16 on VGA adds ~100 ms and ~10x the nodes per frame (docs/PERFORMANCE.md).
+  int free_space_ray_stride_px = 0;
 };
 
 /// Throws std::invalid_argument "MapParams: <field> is <value> (<rule>)".
@@ -130,6 +137,9 @@ class MobilityMap {
   MapParams params_;
   Eigen::Matrix3d R_map_world_;
   std::unique_ptr<MobilityOcTree> tree_;
+  /// Keys (finest level) of occupied voxels: free-space clearing visits these instead
+  /// of every leaf in the view.
+  std::unordered_set<octomap::OcTreeKey, octomap::OcTreeKey::KeyHash> occupied_;
   int frames_ = 0;
 };
 

@@ -1,0 +1,237 @@
+#include "commands.hpp"
+#include "dataset.hpp"
+#include "files.hpp"
+#include "frame_source.hpp"
+#include "io_error.hpp"
+#include "map_files.hpp"
+#include "progress.hpp"
+
+#include "mobmap/mapping/gravity.hpp"
+#include "mobmap/mapping/mobility_map.hpp"
+#include "mobmap/perception/pipeline.hpp"
+
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <deque>
+#include <filesystem>
+#include <future>
+#include <iostream>
+#include <map>
+#include <memory>
+
+namespace mobmap::app {
+namespace {
+
+std::atomic<bool> g_interrupted{false};
+extern "C" void onSigint(int) { g_interrupted.store(true); }
+
+struct FrameRange {
+  int first = 0, last = -1, step = 1;
+};
+
+FrameRange parseRange(const std::string& spec) {
+  FrameRange r;
+  if (spec.empty()) return r;
+  std::vector<std::string> parts;
+  std::stringstream in(spec);
+  std::string part;
+  while (std::getline(in, part, ':')) parts.push_back(part);
+  try {
+    if (parts.size() >= 1 && !parts[0].empty()) r.first = std::stoi(parts[0]);
+    if (parts.size() >= 2 && !parts[1].empty()) r.last = std::stoi(parts[1]);
+    if (parts.size() >= 3 && !parts[2].empty()) r.step = std::stoi(parts[2]);
+  } catch (const std::exception&) {
+    throw UsageError("--frames must be FIRST:LAST:STEP, got '" + spec + "'");
+  }
+  if (parts.empty() || parts.size() > 3 || r.first < 0 || r.step < 1 || (r.last >= 0 && r.last < r.first)) {
+    throw UsageError("--frames must be FIRST:LAST:STEP with 0 <= FIRST <= LAST and STEP >= 1, got '" + spec + "'");
+  }
+  return r;
+}
+
+// One frame after perception, ready to fuse.
+struct Scored {
+  int number = 0;
+  perception::FrameResult result;
+  perception::DepthImage depth;
+  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
+  double read_ms = 0.0;
+};
+
+}  // namespace
+
+Command addBuildCommand(CLI::App& app) {
+  auto* cmd = app.add_subcommand("build", "Build a mobility map from a sequence of posed depth frames");
+  struct Options {
+    std::string input;
+    std::string out;
+    std::string frames;
+    double max_range = 3.0;
+    double resolution = 0.02;
+    std::string gravity;
+    bool force = false;
+    bool quiet = false;
+    bool no_free_space = false;
+  };
+  auto o = std::make_shared<Options>();
+  cmd->add_option("INPUT", o->input, "A 7-Scenes / 3DMatch layout directory (frame-NNNNNN.depth.png + .pose.txt), or one .pcd frame")->required();
+  cmd->add_option("--out", o->out, "Map file to write (MAP.ot; MAP.bt, MAP.octovis.ot and MAP.json go beside it)")->required();
+  cmd->add_option("--frames", o->frames, "FIRST:LAST:STEP of the frame numbers to use (default: all)");
+  cmd->add_option("--max-range", o->max_range, "Maximum range of points, metres")->capture_default_str();
+  cmd->add_option("--resolution", o->resolution, "Voxel size of the map, metres")->capture_default_str();
+  cmd->add_option("--gravity", o->gravity, "Gravity (down) in the data's world frame X,Y,Z (default: gravity-direction.txt, else -z)");
+  cmd->add_flag("--force", o->force, "Overwrite an existing map");
+  cmd->add_flag("--no-free-space", o->no_free_space, "Skip free-space updates (faster; moved obstacles stay)");
+  cmd->add_flag("--quiet,-q", o->quiet, "No progress output");
+  return [o]() {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    if (fs::path(o->out).extension() != ".ot") throw UsageError("--out must end in .ot, got '" + o->out + "'");
+    if (!o->force && fs::exists(o->out, ec)) throw UsageError(o->out + " exists; pass --force to overwrite it");
+    perception::PerceptionParams pp;
+    pp.max_range_m = o->max_range;
+    mapping::MapParams mp;
+    mp.resolution_m = o->resolution;
+    mp.max_range_m = o->max_range;
+    if (o->no_free_space) {
+      mp.free_space_ray_stride_px = 0;
+    }
+    try {
+      perception::validate(pp);
+      mapping::validate(mp);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
+    const perception::FramePipeline pipeline(pp);
+
+    // Inputs: a directory in the 7-Scenes layout, or a single PCD frame in its camera frame.
+    std::unique_ptr<SevenScenesDirectory> dir;
+    std::vector<int> frames;
+    std::optional<Eigen::Vector3d> gravity_world;
+    LoadedFrame single;
+    const bool is_dir = fs::is_directory(o->input, ec);
+    if (is_dir) {
+      dir = std::make_unique<SevenScenesDirectory>(o->input);
+      const FrameRange range = parseRange(o->frames);
+      for (int f : dir->frameNumbers()) {
+        if (f >= range.first && (range.last < 0 || f <= range.last) && (f - range.first) % range.step == 0) frames.push_back(f);
+      }
+      if (frames.empty()) throw UsageError("--frames " + o->frames + " selects none of the frames in " + o->input);
+      gravity_world = dir->gravityDown();
+      // Every frame needs a pose: check them all before the long run starts.
+      for (int f : frames) {
+        if (!fs::exists(dir->posePath(f), ec)) throw IoError(dir->posePath(f), "missing: every frame needs a pose");
+      }
+    } else {
+      single = loadSingleFrame(o->input, -1, "");
+      frames.push_back(0);
+      if (!o->frames.empty()) throw UsageError("--frames needs a directory input");
+    }
+    if (!o->gravity.empty()) gravity_world = parseVector3(o->gravity, "--gravity").cast<double>();
+    if (!is_dir && !gravity_world) {
+      // A single frame is mapped in its camera frame; without --gravity, "down" is the
+      // normal of the ground plane the pipeline finds, else the camera's +y axis.
+      const auto probe = single.height > 1 ? pipeline.processOrganized(single.points, single.width, single.height)
+                                           : pipeline.process(single.points);
+      gravity_world = probe.ground_plane ? Eigen::Vector3d(-probe.ground_plane->head<3>().cast<double>())
+                                         : Eigen::Vector3d(0, 1, 0);
+    }
+    const Eigen::Vector3d g_world = gravity_world.value_or(Eigen::Vector3d(0, 0, -1));
+    const Eigen::Matrix3d R_map_world = mapping::gravityAlignment(g_world);
+    mapping::MobilityMap map(mp, R_map_world);
+
+    auto process = [&](int number) {
+      Scored s;
+      s.number = number;
+      const auto t0 = std::chrono::steady_clock::now();
+      std::optional<Eigen::Vector3f> g_cam;
+      if (is_dir) {
+        s.depth = dir->readDepth(number);
+        s.T_world_camera.matrix() = dir->readPose(number);
+        s.T_world_camera.linear() = mapping::nearestRotation(s.T_world_camera.linear());
+        s.read_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        g_cam = (s.T_world_camera.linear().transpose() * g_world).cast<float>();
+        s.result = pipeline.process(s.depth, dir->intrinsics(), g_cam);
+      } else {
+        g_cam = g_world.cast<float>();  // the camera frame is the world frame
+        s.result = single.height > 1 ? pipeline.processOrganized(single.points, single.width, single.height, g_cam)
+                                     : pipeline.process(single.points, g_cam);
+      }
+      return s;
+    };
+
+    std::signal(SIGINT, onSigint);
+    Progress progress("build", static_cast<int>(frames.size()), o->quiet);
+    std::map<std::string, double> stage_ms;
+    std::size_t points = 0;
+    int used = 0, no_ground = 0;
+    double read_ms = 0, fuse_ms = 0;
+    // Two frames in perception at once (both cores), fused strictly in order.
+    std::deque<std::future<Scored>> in_flight;
+    std::size_t next = 0;
+    auto launch = [&] {
+      if (next < frames.size()) in_flight.push_back(std::async(std::launch::async, process, frames[next++]));
+    };
+    launch();
+    launch();
+    while (!in_flight.empty() && !g_interrupted.load()) {
+      Scored s = in_flight.front().get();
+      in_flight.pop_front();
+      launch();
+      const auto t0 = std::chrono::steady_clock::now();
+      map.integrate(s.result, s.T_world_camera, is_dir ? &s.depth : nullptr, is_dir ? &dir->intrinsics() : nullptr);
+      fuse_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      for (const auto& st : s.result.stages) stage_ms[st.name] += st.milliseconds;
+      read_ms += s.read_ms;
+      points += s.result.points.size();
+      no_ground += !s.result.ground_plane;
+      ++used;
+      progress.update(used, "map " + std::to_string(map.tree().size()) + " nodes");
+    }
+    for (auto& f : in_flight) f.wait();  // let started frames finish before saving
+    std::signal(SIGINT, SIG_DFL);
+
+    map.finalize();
+    const std::string stem = mapStem(o->out);
+    mapping::saveMobilityMap(map.tree(), o->out);
+    mapping::saveOccupancyBt(map.tree(), stem + ".bt");
+    mapping::saveOctovisColorTree(map.tree(), stem + ".octovis.ot");
+    nlohmann::json meta;
+    meta["format"] = "mobmap-map-metadata";
+    meta["tool"] = std::string("mobmap ") + MOBMAP_VERSION_STRING;
+    meta["tree_type"] = mapping::MobilityOcTree::kTreeType;
+    meta["input"] = fs::absolute(o->input, ec).string();
+    meta["frames"] = used;
+    meta["frames_selected"] = frames.size();
+    meta["frame_numbers"] = {frames.front(), frames[static_cast<std::size_t>(std::max(0, used - 1))]};
+    meta["interrupted"] = g_interrupted.load();
+    meta["resolution_m"] = map.tree().getResolution();
+    meta["gravity_down_world"] = {g_world.x(), g_world.y(), g_world.z()};
+    meta["R_map_world"] = {{R_map_world(0, 0), R_map_world(0, 1), R_map_world(0, 2)},
+                           {R_map_world(1, 0), R_map_world(1, 1), R_map_world(1, 2)},
+                           {R_map_world(2, 0), R_map_world(2, 1), R_map_world(2, 2)}};
+    meta["perception"] = {{"max_range_m", pp.max_range_m}, {"voxel_size_m", pp.voxel_size_m},
+                          {"normal_k", pp.normal_k}, {"outlier_k", pp.outlier_k}, {"colour_threshold", pp.colour_threshold}};
+    meta["mapping"] = {{"resolution_m", mp.resolution_m}, {"max_range_m", mp.max_range_m},
+                       {"free_space_ray_stride_px", mp.free_space_ray_stride_px}, {"max_weight", mp.max_weight}};
+    meta["model"] = "gp (paper rule table, SE kernel, sf 1, l 0.1)";
+    writeTextFileAtomically(stem + ".json", meta.dump(1) + "\n");
+
+    std::printf("\n%d of %zu frames fused (%d without a ground plane)%s, %zu points, %zu map nodes (%zu leaves)\n", used,
+                frames.size(), no_ground, g_interrupted.load() ? ", INTERRUPTED" : "", points, map.tree().size(),
+                map.tree().getNumLeafNodes());
+    std::printf("time per frame (ms): read %.1f", used ? read_ms / used : 0.0);
+    for (const auto& [name, ms] : stage_ms) std::printf(", %s %.1f", name.c_str(), ms / std::max(1, used));
+    std::printf(", fusion %.1f\n", used ? fuse_ms / used : 0.0);
+    std::printf("wrote %s, %s.bt, %s.octovis.ot (view: octovis %s.octovis.ot), %s.json\n", o->out.c_str(), stem.c_str(),
+                stem.c_str(), stem.c_str(), stem.c_str());
+    if (g_interrupted.load()) {
+      std::fprintf(stderr, "interrupted: saved the map of the first %d frames\n", used);
+      return 130;
+    }
+    return 0;
+  };
+}
+
+}  // namespace mobmap::app

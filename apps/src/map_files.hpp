@@ -1,0 +1,24 @@
+#pragma once
+// The files of a built map: MAP.ot (+ .bt, .octovis.ot, .json metadata).
+
+#include "mobmap/mapping/mobility_map.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+
+namespace mobmap::app {
+
+/// "maps/x.ot" -> "maps/x" (the stem the other files share).
+std::string mapStem(const std::string& ot_path);
+
+/// Metadata written beside a map as STEM.json.
+nlohmann::json readMapMetadata(const std::string& ot_path);  ///< empty object if absent
+
+/// R_map_world recorded in the metadata (identity if absent).
+Eigen::Matrix3d rotationFromMetadata(const nlohmann::json& meta);
+
+/// Loads MAP.ot and its metadata into a MobilityMap.
+mapping::MobilityMap loadMap(const std::string& ot_path);
+
+}  // namespace mobmap::app

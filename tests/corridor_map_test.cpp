@@ -1,0 +1,125 @@
+// End to end on the synthetic corridor with Kinect noise: render, perceive, fuse,
+// and compare the map with the exact ground truth.
+#include "ground_truth.hpp"
+#include "simulation_writer.hpp"
+
+#include "mobmap/mapping/mobility_map.hpp"
+#include "mobmap/perception/pipeline.hpp"
+
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <set>
+
+namespace mobmap {
+namespace {
+
+// ctest runs each TEST in its own process, so the (expensive) map is built once, in
+// one TEST, and checked in three parts.
+struct CorridorMap {
+  CorridorMap() {
+    sim::CorridorParams p;
+    p.noise = sim::NoiseModel::kKinect;
+    scene_ = new sim::CorridorScene(p);
+    map_ = new mapping::MobilityMap();
+    const perception::FramePipeline pipeline;
+    // Every third frame: the moving box's old front face is in view for only ~30
+    // frames after it leaves, and clamped occupancy needs ~9 misses to turn free.
+    for (int f = 0; f < p.frames; f += 3) {
+      const auto r = scene_->render(f);
+      const Eigen::Vector3f g = (r.T_world_camera.linear().transpose() * scene_->gravityDown()).cast<float>();
+      const auto result = pipeline.process(r.depth, p.intrinsics, g);
+      map_->integrate(result, r.T_world_camera, &r.depth, &p.intrinsics);
+    }
+    map_->finalize();
+    const std::string path = (std::filesystem::temp_directory_path() / ("mobmap-truth-" + std::to_string(::getpid()) + ".json")).string();
+    std::ofstream(path) << app::groundTruthJson(*scene_).dump();
+    truth_ = new app::GroundTruth(app::loadGroundTruth(path));
+    std::filesystem::remove(path);
+  }
+  ~CorridorMap() {
+    delete truth_;
+    delete map_;
+    delete scene_;
+  }
+  sim::CorridorScene* scene_ = nullptr;
+  mapping::MobilityMap* map_ = nullptr;
+  app::GroundTruth* truth_ = nullptr;
+
+  void walkableAndUntraversableSurfacesScoreAsTheTableSays() const;
+  void theMovingBoxLeavesNoSurfaceAtItsOldPlace() const;
+  void footprintsOnFloorAndAcrossTheStairs() const;
+};
+
+void CorridorMap::walkableAndUntraversableSurfacesScoreAsTheTableSays() const {
+  const app::Evaluation ev = app::evaluateMap(*map_, *truth_, 3, 0.04);
+  // Surfaces the pipeline gets right today; the 25 and 35 degree ramps and the rough
+  // patch are known gaps (docs/MAPPING.md) and are reported, not asserted.
+  const std::set<std::string> checked = {"floor", "ramp 5 deg", "ramp 15 deg", "ramp 45 deg", "box -x face",
+                                         "stair tread 1", "stair tread 2", "stair tread 3", "stair tread 4",
+                                         "stair riser 1", "stair riser 2", "stair riser 3", "stair riser 4"};
+  int right = 0, total = 0;
+  for (const auto& s : ev.surfaces) {
+    if (!checked.count(s.surface->name)) continue;
+    ASSERT_GE(s.voxels, 100) << s.surface->name << " was hardly observed";
+    EXPECT_LE(s.mean_abs_error, 0.1) << s.surface->name;
+    EXPECT_GE(s.right_side, 0.85) << s.surface->name;
+    right += static_cast<int>(std::lround(s.right_side * s.voxels));
+    total += s.voxels;
+  }
+  EXPECT_GE(static_cast<double>(right) / total, 0.95);
+  std::printf("[ info ] right side of 0.5 over the checked surfaces: %.1f %% of %d voxels\n", 100.0 * right / total, total);
+}
+
+void CorridorMap::theMovingBoxLeavesNoSurfaceAtItsOldPlace() const {
+  const auto& box = scene_->movingObstacle();
+  int surface = 0, probed = 0;
+  // Probe the old box volume above the floor voxels.
+  for (double x = box.from.x() - 0.18; x <= box.from.x() + 0.18; x += 0.04) {
+    for (double y = box.from.y() - 0.18; y <= box.from.y() + 0.18; y += 0.04) {
+      for (double z = 0.05; z <= box.size.z(); z += 0.04) {
+        ++probed;
+        surface += map_->query({x, y, z}).state == mapping::VoxelState::kSurface;
+      }
+    }
+  }
+  EXPECT_GT(probed, 1000);
+  EXPECT_EQ(surface, 0);
+  // The floor where it stood was seen and is walkable.
+  const auto floor = map_->snapDown({box.from.x(), box.from.y(), 0.1}, 0.2);
+  ASSERT_TRUE(floor);
+  EXPECT_GT(floor->mobility, 0.75);
+}
+
+void CorridorMap::footprintsOnFloorAndAcrossTheStairs() const {
+  const auto flat = map_->footprint({1.0, 0.0, 0.0, 0.0, 0.25, 0.12});
+  EXPECT_GT(flat.min_mobility, 0.75);
+  EXPECT_GT(flat.known_fraction, 0.9);
+  EXPECT_LT(flat.max_height_difference_m, 0.03);
+  // A sole straddling the first riser (x = 6.0) spans a 17 cm step.
+  const auto step = map_->footprint({6.0, 0.9, 0.1, 0.0, 0.25, 0.12}, 0.15, 0.15);
+  EXPECT_GT(step.max_height_difference_m, 0.12);
+  EXPECT_LT(step.min_mobility, 0.5);
+}
+
+TEST(CorridorMap, FusedKinectSequenceMatchesTheGroundTruth) {
+  const CorridorMap m;
+  {
+    SCOPED_TRACE("surface scores");
+    m.walkableAndUntraversableSurfacesScoreAsTheTableSays();
+  }
+  {
+    SCOPED_TRACE("moving box");
+    m.theMovingBoxLeavesNoSurfaceAtItsOldPlace();
+  }
+  {
+    SCOPED_TRACE("footprints");
+    m.footprintsOnFloorAndAcrossTheStairs();
+  }
+}
+
+}  // namespace
+}  // namespace mobmap
