@@ -166,6 +166,7 @@ Command addBuildCommand(CLI::App& app) {
     std::map<std::string, double> stage_ms;
     std::size_t points = 0;
     int used = 0, no_ground = 0;
+    nlohmann::json trajectory = nlohmann::json::array();  // camera positions, map frame
     double read_ms = 0, fuse_ms = 0;
     // Two frames in perception at once (both cores), fused strictly in order.
     std::deque<std::future<Scored>> in_flight;
@@ -183,6 +184,8 @@ Command addBuildCommand(CLI::App& app) {
       map.integrate(s.result, s.T_world_camera, is_dir ? &s.depth : nullptr, is_dir ? &dir->intrinsics() : nullptr);
       fuse_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       for (const auto& st : s.result.stages) stage_ms[st.name] += st.milliseconds;
+      const Eigen::Vector3d c = R_map_world * s.T_world_camera.translation();
+      trajectory.push_back({c.x(), c.y(), c.z()});
       read_ms += s.read_ms;
       points += s.result.points.size();
       no_ground += !s.result.ground_plane;
@@ -216,6 +219,7 @@ Command addBuildCommand(CLI::App& app) {
     meta["mapping"] = {{"resolution_m", mp.resolution_m}, {"max_range_m", mp.max_range_m},
                        {"free_space_ray_stride_px", mp.free_space_ray_stride_px}, {"max_weight", mp.max_weight}};
     meta["model"] = "gp (paper rule table, SE kernel, sf 1, l 0.1)";
+    meta["trajectory_map"] = trajectory;
     writeTextFileAtomically(stem + ".json", meta.dump(1) + "\n");
 
     std::printf("\n%d of %zu frames fused (%d without a ground plane)%s, %zu points, %zu map nodes (%zu leaves)\n", used,

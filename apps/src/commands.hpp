@@ -18,5 +18,7 @@ Command addBuildCommand(CLI::App& app);
 Command addQueryCommand(CLI::App& app);
 Command addInfoCommand(CLI::App& app);
 Command addEvaluateCommand(CLI::App& app);
+Command addExportCommand(CLI::App& app);
+Command addOverlayCommand(CLI::App& app);
 
 }  // namespace mobmap::app

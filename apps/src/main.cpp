@@ -40,6 +40,8 @@ int main(int argc, char** argv) {
   commands["query"] = mobmap::app::addQueryCommand(app);
   commands["info"] = mobmap::app::addInfoCommand(app);
   commands["evaluate"] = mobmap::app::addEvaluateCommand(app);
+  commands["export"] = mobmap::app::addExportCommand(app);
+  commands["overlay"] = mobmap::app::addOverlayCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

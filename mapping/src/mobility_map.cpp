@@ -219,14 +219,20 @@ PointQuery MobilityMap::query(const Eigen::Vector3d& p) const {
     unknown.centre = p;
     return unknown;
   }
-  // Descend by hand to learn the depth of the (possibly pruned) leaf.
+  // Descend by hand to learn the depth of the (possibly pruned) leaf; like
+  // OcTree::search, test for children only where the path ends.
   const unsigned int max_depth = tree_->getTreeDepth();
   const MobilityOcTreeNode* node = tree_->getRoot();
   unsigned int depth = 0;
-  while (node && depth < max_depth && tree_->nodeHasChildren(node)) {
+  while (node && depth < max_depth) {
     const unsigned int pos = octomap::computeChildIdx(key, static_cast<int>(max_depth - 1 - depth));
-    node = tree_->nodeChildExists(node, pos) ? tree_->getNodeChild(node, pos) : nullptr;
-    ++depth;
+    if (tree_->nodeChildExists(node, pos)) {
+      node = tree_->getNodeChild(node, pos);
+      ++depth;
+    } else {
+      if (tree_->nodeHasChildren(node)) node = nullptr;  // an unknown octant of a known parent
+      break;
+    }
   }
   return describe(key, node, node ? depth : max_depth);
 }
