@@ -120,7 +120,73 @@ TEST(Cli, SimulateWritesTheSevenScenesLayoutAndRefusesToOverwrite) {
 TEST(Cli, HelpListsTheSubcommands) {
   const Result r = run("--help");
   EXPECT_EQ(r.code, 0);
-  for (const char* c : {"simulate", "score", "demo"}) EXPECT_NE(r.out.find(c), std::string::npos) << c;
+  for (const char* c : {"simulate", "score", "demo", "analyze", "build", "query", "info", "evaluate", "export", "overlay", "config"}) {
+    EXPECT_NE(r.out.find(c), std::string::npos) << c;
+  }
+}
+
+// simulate -> build -> query/info/evaluate/export/overlay, as a user chains them.
+TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
+  const std::string dir = tempDir("chain");
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 4 --noise none --quiet").code, 0);
+  const std::string map = dir + "/m.ot";
+  const Result b = run("build " + dir + "/seq --out " + map + " --quiet");
+  ASSERT_EQ(b.code, 0) << b.out;
+  for (const char* f : {"/m.ot", "/m.bt", "/m.octovis.ot", "/m.json"}) EXPECT_TRUE(fs::exists(dir + f)) << f;
+  const Result again = run("build " + dir + "/seq --out " + map + " --quiet");
+  EXPECT_EQ(again.code, 2);
+  EXPECT_NE(again.out.find("--force"), std::string::npos);
+  // The floor 2 m ahead of the first camera position: walkable.
+  const Result q = run("query " + map + " 2.0 0.0 0.3 --snap 0.5 --json");
+  ASSERT_EQ(q.code, 0) << q.out;
+  const auto j = nlohmann::json::parse(q.out);
+  EXPECT_EQ(j["state"], "surface");
+  EXPECT_NEAR(j["voxel_centre"][2].get<double>(), 0.0, 0.02);
+  EXPECT_GT(j["mobility"].get<double>(), 0.9);
+  const Result stdin_q = run("query " + map + " --json < /dev/null");
+  EXPECT_EQ(stdin_q.code, 0);
+  const Result foot = run("query " + map + " --foot 2.0 0 0 0 0.25 0.12 --json");
+  ASSERT_EQ(foot.code, 0) << foot.out;
+  EXPECT_GT(nlohmann::json::parse(foot.out)["min_mobility"].get<double>(), 0.9);
+  const Result info = run("info " + map);
+  EXPECT_EQ(info.code, 0);
+  EXPECT_NE(info.out.find("MobilityOcTree_v1, resolution 0.020 m"), std::string::npos) << info.out;
+  const Result ev = run("evaluate " + map + " --truth " + dir + "/seq/ground_truth.json --min-count 1 --json");
+  ASSERT_EQ(ev.code, 0) << ev.out;
+  EXPECT_GT(nlohmann::json::parse(ev.out)["surfaces"][0]["voxels"].get<int>(), 100);  // the floor
+  EXPECT_EQ(run("export " + map + " --png " + dir + "/top.png --pcd " + dir + "/s.pcd").code, 0);
+  EXPECT_TRUE(fs::exists(dir + "/top.png"));
+  EXPECT_EQ(run("overlay " + map + " --frame " + dir + "/seq:2 --out " + dir + "/ov.png").code, 0);
+  EXPECT_TRUE(fs::exists(dir + "/ov.png"));
+  fs::remove_all(dir);
+}
+
+TEST(Cli, BadSequencesAndMapsGiveErrorsNamingTheFile) {
+  const std::string dir = tempDir("bad");
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 3 --noise none --quiet").code, 0);
+  // A pose that is not a rigid transform.
+  std::ofstream(dir + "/seq/frame-000001.pose.txt") << "2 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
+  const Result scaled = run("build " + dir + "/seq --out " + dir + "/m.ot --quiet");
+  EXPECT_EQ(scaled.code, 1);
+  EXPECT_NE(scaled.out.find("frame-000001.pose.txt: not a rigid transform"), std::string::npos) << scaled.out;
+  EXPECT_FALSE(fs::exists(dir + "/m.ot"));  // no partial map left behind
+  // Fewer poses than frames.
+  fs::remove(dir + "/seq/frame-000001.pose.txt");
+  const Result missing = run("build " + dir + "/seq --out " + dir + "/m.ot --quiet");
+  EXPECT_EQ(missing.code, 1);
+  EXPECT_NE(missing.out.find("frame-000001.pose.txt: missing"), std::string::npos) << missing.out;
+  // Not a map.
+  std::ofstream(dir + "/junk.ot") << "junk";
+  const Result junk = run("info " + dir + "/junk.ot");
+  EXPECT_EQ(junk.code, 1);
+  EXPECT_NE(junk.out.find("junk.ot: not an OctoMap .ot file"), std::string::npos) << junk.out;
+  // A bad configuration file.
+  std::ofstream(dir + "/c.yaml") << "mapping:\n  resolutoin_m: 0.05\n";
+  const Result cfg = run("config --check " + dir + "/c.yaml");
+  EXPECT_EQ(cfg.code, 1);
+  EXPECT_NE(cfg.out.find("c.yaml: mapping.resolutoin_m: unknown key"), std::string::npos) << cfg.out;
+  EXPECT_EQ(run("config --print-default").code, 0);
+  fs::remove_all(dir);
 }
 
 }  // namespace

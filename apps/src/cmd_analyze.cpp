@@ -1,5 +1,6 @@
 #include "canvas.hpp"
 #include "commands.hpp"
+#include "config.hpp"
 #include "files.hpp"
 #include "frame_source.hpp"
 #include "io_error.hpp"
@@ -115,6 +116,7 @@ Command addAnalyzeCommand(CLI::App& app) {
     std::string segments;
     std::string overlay;
     double max_range = -1;
+    std::string config;
   };
   auto o = std::make_shared<Options>();
   cmd->add_option("INPUT", o->input, "A .pcd, a 16-bit depth .png (millimetres) or a 7-Scenes layout directory")->required();
@@ -122,15 +124,21 @@ Command addAnalyzeCommand(CLI::App& app) {
   cmd->add_option("--gravity", o->gravity, "Gravity (down) in the camera frame, X,Y,Z (default: from the pose and gravity-direction.txt if present)");
   cmd->add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy or a camera-intrinsics.txt file (required for a PNG)");
   cmd->add_option("--max-range", o->max_range, "Maximum range in metres (default 3)");
+  cmd->add_option("--config", o->config, "YAML file with any of the parameters of `mobmap config --print-default`");
   cmd->add_flag("--json", o->json, "Print one JSON object instead of tables");
   cmd->add_option("--segments", o->segments, "Write the segmented points as PCD (x y z rgb segment mobility)");
   cmd->add_option("--overlay", o->overlay, "Write a PNG of the frame coloured by mobility (red 0, green 1)");
   return [o]() {
     LoadedFrame f = loadSingleFrame(o->input, o->frame, o->intrinsics);
     if (!o->gravity.empty()) f.gravity_camera = parseVector3(o->gravity, "--gravity");
-    perception::PerceptionParams params;
-    if (o->max_range > 0) params.max_range_m = o->max_range;
-    const perception::FramePipeline pipeline(params);
+    Config config = o->config.empty() ? Config{} : loadConfig(o->config);
+    if (o->max_range > 0) config.perception.max_range_m = o->max_range;
+    try {
+      perception::validate(config.perception);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
+    const perception::FramePipeline pipeline(config.perception, makeModel(config));
     perception::FrameResult r;
     int width = 0, height = 0;
     if (f.depth) {

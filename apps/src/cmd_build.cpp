@@ -1,4 +1,5 @@
 #include "commands.hpp"
+#include "config.hpp"
 #include "dataset.hpp"
 #include "files.hpp"
 #include "frame_source.hpp"
@@ -73,37 +74,38 @@ Command addBuildCommand(CLI::App& app) {
     bool force = false;
     bool quiet = false;
     bool no_free_space = false;
+    std::string config;
   };
   auto o = std::make_shared<Options>();
   cmd->add_option("INPUT", o->input, "A 7-Scenes / 3DMatch layout directory (frame-NNNNNN.depth.png + .pose.txt), or one .pcd frame")->required();
   cmd->add_option("--out", o->out, "Map file to write (MAP.ot; MAP.bt, MAP.octovis.ot and MAP.json go beside it)")->required();
   cmd->add_option("--frames", o->frames, "FIRST:LAST:STEP of the frame numbers to use (default: all)");
-  cmd->add_option("--max-range", o->max_range, "Maximum range of points, metres")->capture_default_str();
-  cmd->add_option("--resolution", o->resolution, "Voxel size of the map, metres")->capture_default_str();
+  auto* max_range = cmd->add_option("--max-range", o->max_range, "Maximum range of points, metres")->capture_default_str();
+  auto* resolution = cmd->add_option("--resolution", o->resolution, "Voxel size of the map, metres")->capture_default_str();
+  cmd->add_option("--config", o->config, "YAML file with any of the parameters of `mobmap config --print-default`");
   cmd->add_option("--gravity", o->gravity, "Gravity (down) in the data's world frame X,Y,Z (default: gravity-direction.txt, else -z)");
   cmd->add_flag("--force", o->force, "Overwrite an existing map");
   cmd->add_flag("--no-free-space", o->no_free_space, "Skip free-space updates (faster; moved obstacles stay)");
   cmd->add_flag("--quiet,-q", o->quiet, "No progress output");
-  return [o]() {
+  return [o, max_range, resolution]() {
     namespace fs = std::filesystem;
     std::error_code ec;
     if (fs::path(o->out).extension() != ".ot") throw UsageError("--out must end in .ot, got '" + o->out + "'");
     if (!o->force && fs::exists(o->out, ec)) throw UsageError(o->out + " exists; pass --force to overwrite it");
-    perception::PerceptionParams pp;
-    pp.max_range_m = o->max_range;
-    mapping::MapParams mp;
-    mp.resolution_m = o->resolution;
-    mp.max_range_m = o->max_range;
-    if (o->no_free_space) {
-      mp.free_space_ray_stride_px = 0;
-    }
+    Config config = o->config.empty() ? Config{} : loadConfig(o->config);
+    perception::PerceptionParams& pp = config.perception;
+    mapping::MapParams& mp = config.mapping;
+    if (o->config.empty() || max_range->count() > 0) pp.max_range_m = o->max_range;
+    if (o->config.empty() || resolution->count() > 0) mp.resolution_m = o->resolution;
+    if (!config.mapping_max_range_set || max_range->count() > 0) mp.max_range_m = pp.max_range_m;
+    if (o->no_free_space) mp.free_space_ray_stride_px = 0;
     try {
       perception::validate(pp);
       mapping::validate(mp);
     } catch (const std::invalid_argument& e) {
       throw UsageError(e.what());
     }
-    const perception::FramePipeline pipeline(pp);
+    const perception::FramePipeline pipeline(pp, makeModel(config));
 
     // Inputs: a directory in the 7-Scenes layout, or a single PCD frame in its camera frame.
     std::unique_ptr<SevenScenesDirectory> dir;
@@ -218,7 +220,11 @@ Command addBuildCommand(CLI::App& app) {
                           {"normal_k", pp.normal_k}, {"outlier_k", pp.outlier_k}, {"colour_threshold", pp.colour_threshold}};
     meta["mapping"] = {{"resolution_m", mp.resolution_m}, {"max_range_m", mp.max_range_m},
                        {"free_space_ray_stride_px", mp.free_space_ray_stride_px}, {"max_weight", mp.max_weight}};
-    meta["model"] = "gp (paper rule table, SE kernel, sf 1, l 0.1)";
+    meta["model"] = {{"kind", config.model.model == gp::ModelKind::kGaussianProcess ? "gp" : "rule"},
+                     {"table", config.table_path.empty() ? "paper" : config.table_path},
+                     {"signal_std", config.model.signal_std}, {"length_scale", config.model.length_scale},
+                     {"noise_std", config.model.noise_std}};
+    if (!o->config.empty()) meta["config"] = fs::absolute(o->config, ec).string();
     meta["trajectory_map"] = trajectory;
     writeTextFileAtomically(stem + ".json", meta.dump(1) + "\n");
 

@@ -20,5 +20,6 @@ Command addInfoCommand(CLI::App& app);
 Command addEvaluateCommand(CLI::App& app);
 Command addExportCommand(CLI::App& app);
 Command addOverlayCommand(CLI::App& app);
+Command addConfigCommand(CLI::App& app);
 
 }  // namespace mobmap::app

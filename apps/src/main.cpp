@@ -42,6 +42,7 @@ int main(int argc, char** argv) {
   commands["evaluate"] = mobmap::app::addEvaluateCommand(app);
   commands["export"] = mobmap::app::addExportCommand(app);
   commands["overlay"] = mobmap::app::addOverlayCommand(app);
+  commands["config"] = mobmap::app::addConfigCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
