@@ -6,6 +6,7 @@
 #include "io_error.hpp"
 #include "map_files.hpp"
 #include "progress.hpp"
+#include "sequence.hpp"
 
 #include "mobmap/mapping/gravity.hpp"
 #include "mobmap/mapping/mobility_map.hpp"
@@ -75,9 +76,16 @@ Command addBuildCommand(CLI::App& app) {
     bool quiet = false;
     bool no_free_space = false;
     std::string config;
+    std::string intrinsics;
+    double max_pose_gap = 0.05;
   };
   auto o = std::make_shared<Options>();
-  cmd->add_option("INPUT", o->input, "A 7-Scenes / 3DMatch layout directory (frame-NNNNNN.depth.png + .pose.txt), or one .pcd frame")->required();
+  cmd->add_option("INPUT", o->input,
+                  "A 7-Scenes / 3DMatch layout directory (frame-NNNNNN.depth.png + .pose.txt), a TUM RGB-D directory "
+                  "(depth.txt + groundtruth.txt), or one .pcd frame")->required();
+  cmd->add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy or a camera-intrinsics.txt file (TUM default 525,525,319.5,239.5)");
+  cmd->add_option("--max-pose-gap", o->max_pose_gap, "TUM: skip depth frames whose ground-truth neighbours are farther apart in time (s)")
+      ->capture_default_str();
   cmd->add_option("--out", o->out, "Map file to write (MAP.ot; MAP.bt, MAP.octovis.ot and MAP.json go beside it)")->required();
   cmd->add_option("--frames", o->frames, "FIRST:LAST:STEP of the frame numbers to use (default: all)");
   auto* max_range = cmd->add_option("--max-range", o->max_range, "Maximum range of points, metres")->capture_default_str();
@@ -108,23 +116,23 @@ Command addBuildCommand(CLI::App& app) {
     const perception::FramePipeline pipeline(pp, makeModel(config));
 
     // Inputs: a directory in the 7-Scenes layout, or a single PCD frame in its camera frame.
-    std::unique_ptr<SevenScenesDirectory> dir;
+    std::unique_ptr<Sequence> dir;
     std::vector<int> frames;
     std::optional<Eigen::Vector3d> gravity_world;
     LoadedFrame single;
     const bool is_dir = fs::is_directory(o->input, ec);
     if (is_dir) {
-      dir = std::make_unique<SevenScenesDirectory>(o->input);
+      dir = openSequence(o->input, o->intrinsics, o->max_pose_gap);
       const FrameRange range = parseRange(o->frames);
-      for (int f : dir->frameNumbers()) {
+      for (int f : dir->frames()) {
         if (f >= range.first && (range.last < 0 || f <= range.last) && (f - range.first) % range.step == 0) frames.push_back(f);
       }
       if (frames.empty()) throw UsageError("--frames " + o->frames + " selects none of the frames in " + o->input);
       gravity_world = dir->gravityDown();
       // Every frame needs a pose: check them all before the long run starts.
-      for (int f : frames) {
-        if (!fs::exists(dir->posePath(f), ec)) throw IoError(dir->posePath(f), "missing: every frame needs a pose");
-      }
+      for (int f : frames) dir->check(f);
+      if (!o->quiet) std::fprintf(stderr, "%s\n", dir->describe().c_str());
+      if (!dir->skipped().empty()) std::fprintf(stderr, "note: %s\n", dir->skipped().c_str());
     } else {
       single = loadSingleFrame(o->input, -1, "");
       frames.push_back(0);
@@ -149,9 +157,9 @@ Command addBuildCommand(CLI::App& app) {
       const auto t0 = std::chrono::steady_clock::now();
       std::optional<Eigen::Vector3f> g_cam;
       if (is_dir) {
-        s.depth = dir->readDepth(number);
-        s.T_world_camera.matrix() = dir->readPose(number);
-        s.T_world_camera.linear() = mapping::nearestRotation(s.T_world_camera.linear());
+        SequenceFrame f = dir->load(number);
+        s.depth = std::move(f.depth);
+        s.T_world_camera = f.T_world_camera;
         s.read_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
         g_cam = (s.T_world_camera.linear().transpose() * g_world).cast<float>();
         s.result = pipeline.process(s.depth, dir->intrinsics(), g_cam);
@@ -209,6 +217,7 @@ Command addBuildCommand(CLI::App& app) {
     meta["input"] = fs::absolute(o->input, ec).string();
     meta["frames"] = used;
     meta["frames_selected"] = frames.size();
+    if (is_dir && !dir->skipped().empty()) meta["skipped"] = dir->skipped();
     meta["frame_numbers"] = {frames.front(), frames[static_cast<std::size_t>(std::max(0, used - 1))]};
     meta["interrupted"] = g_interrupted.load();
     meta["resolution_m"] = map.tree().getResolution();

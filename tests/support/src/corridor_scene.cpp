@@ -317,7 +317,10 @@ Eigen::Isometry3d CorridorScene::cameraPose(int frame) const {
     throw std::out_of_range("CorridorScene::cameraPose: frame " + std::to_string(frame) +
                             " outside 0.." + std::to_string(params_.frames - 1));
   }
-  const double t = frame / params_.frame_rate_hz;
+  return cameraPoseAt(frame / params_.frame_rate_hz);
+}
+
+Eigen::Isometry3d CorridorScene::cameraPoseAt(double t) const {
   const double phase = 2.0 * kPi * params_.step_frequency_hz * t;
   const Eigen::Vector3d position(params_.speed_mps * t, 0.03 * std::sin(0.5 * phase),
                                  params_.camera_height_m + params_.bob_m * std::sin(phase));

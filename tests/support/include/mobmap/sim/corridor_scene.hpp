@@ -126,6 +126,9 @@ class CorridorScene {
 
   /// Camera-to-world pose of a frame (0-based).
   [[nodiscard]] Eigen::Isometry3d cameraPose(int frame) const;
+  /// The continuous camera path at `t_seconds` after frame 0 (any t, for
+  /// ground-truth trajectories sampled at other rates than the frames).
+  [[nodiscard]] Eigen::Isometry3d cameraPoseAt(double t_seconds) const;
   /// All triangles with the moving obstacle where it is at `frame`.
   [[nodiscard]] std::vector<Triangle> trianglesAt(int frame) const;
   /// Renders frame `frame`: exact ray casting, then the noise model.
