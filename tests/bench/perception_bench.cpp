@@ -1,0 +1,211 @@
+// The per-frame pipeline (a) against a reference built from stock PCL classes
+// configured as the paper's original code (b), on the same VGA frames, in one run.
+// Prints per-frame times and the medians of (a), (b) and (b)/(a). Release builds only.
+//
+//   perception_bench [SHARED_DATA_DIR] [--all]
+//
+// Without --all, every 50th frame of 7scenes-redkitchen is used (the reference takes
+// seconds per frame); all other VGA frames of the data folder are always used.
+#include "dataset.hpp"
+#include "frame_source.hpp"
+
+#include "mobmap/perception/pipeline.hpp"
+#include "mobmap/perception/stages.hpp"
+
+#include <pcl/features/normal_3d.h>
+#include <pcl/filters/extract_indices.h>
+#include <pcl/filters/statistical_outlier_removal.h>
+#include <pcl/filters/uniform_sampling.h>
+#include <pcl/point_types.h>
+#include <pcl/search/kdtree.h>
+#include <pcl/segmentation/region_growing_rgb.h>
+#include <pcl/segmentation/sac_segmentation.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+using namespace mobmap;
+using Clock = std::chrono::steady_clock;
+namespace fs = std::filesystem;
+
+namespace {
+
+double ms(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double, std::milli>(b - a).count(); }
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0 : v[v.size() / 2];
+}
+
+struct Input {
+  std::string name;
+  std::vector<Eigen::Vector3f> organized;  // width x height, NaN = invalid
+  int width = 0, height = 0;
+};
+
+Input fromDepth(const std::string& name, const perception::DepthImage& d, const perception::PinholeIntrinsics& k) {
+  Input in{name, {}, d.width, d.height};
+  in.organized.resize(d.depth_m.size(), Eigen::Vector3f::Constant(NAN));
+  for (int v = 0; v < d.height; ++v) {
+    for (int u = 0; u < d.width; ++u) {
+      const float z = d.at(u, v);
+      if (z > 0) in.organized[static_cast<std::size_t>(v) * d.width + u] = perception::backProject(k, u, v, z).cast<float>();
+    }
+  }
+  return in;
+}
+
+// (b): the paper's original configuration of stock PCL classes.
+double reference(const Input& in, double max_range, std::vector<double>& stage_ms) {
+  const auto t0 = Clock::now();
+  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+  for (const auto& p : in.organized) {
+    if (p.allFinite() && p.norm() <= max_range && p.norm() >= 0.3) cloud->push_back({p.x(), p.y(), p.z()});
+  }
+  pcl::PointCloud<pcl::PointXYZ>::Ptr reduced(new pcl::PointCloud<pcl::PointXYZ>);
+  pcl::UniformSampling<pcl::PointXYZ> us;
+  us.setInputCloud(cloud);
+  us.setRadiusSearch(0.01);
+  us.filter(*reduced);
+  const auto t1 = Clock::now();
+  pcl::PointCloud<pcl::PointXYZ>::Ptr clean(new pcl::PointCloud<pcl::PointXYZ>);
+  pcl::StatisticalOutlierRemoval<pcl::PointXYZ> sor;
+  sor.setInputCloud(reduced);
+  sor.setMeanK(50);
+  sor.setStddevMulThresh(1.0);
+  sor.filter(*clean);
+  const auto t2 = Clock::now();
+  pcl::PointCloud<pcl::Normal>::Ptr normals(new pcl::PointCloud<pcl::Normal>);
+  pcl::NormalEstimation<pcl::PointXYZ, pcl::Normal> ne;
+  pcl::search::KdTree<pcl::PointXYZ>::Ptr tree(new pcl::search::KdTree<pcl::PointXYZ>);
+  ne.setInputCloud(clean);
+  ne.setSearchMethod(tree);
+  ne.setRadiusSearch(0.06);
+  ne.setViewPoint(0, 0, 0);
+  ne.compute(*normals);
+  const auto t3 = Clock::now();
+  pcl::SACSegmentation<pcl::PointXYZ> sac;
+  sac.setModelType(pcl::SACMODEL_PLANE);
+  sac.setMethodType(pcl::SAC_RANSAC);
+  sac.setDistanceThreshold(0.02);
+  sac.setInputCloud(clean);
+  pcl::PointIndices::Ptr ground(new pcl::PointIndices);
+  pcl::ModelCoefficients coeff;
+  sac.segment(*ground, coeff);
+  const auto t4 = Clock::now();
+  // RGB-N colours (eq. 5) on the non-ground points, then RegionGrowingRGB.
+  std::vector<Eigen::Vector3f> n3;
+  for (const auto& n : normals->points) n3.emplace_back(std::isfinite(n.normal_x) ? Eigen::Vector3f(n.normal_x, n.normal_y, n.normal_z) : Eigen::Vector3f::Zero());
+  const auto colours = perception::normalColours(n3);
+  std::vector<bool> is_ground(clean->size(), false);
+  for (int i : ground->indices) is_ground[static_cast<std::size_t>(i)] = true;
+  pcl::PointCloud<pcl::PointXYZRGB>::Ptr rgb(new pcl::PointCloud<pcl::PointXYZRGB>);
+  for (std::size_t i = 0; i < clean->size(); ++i) {
+    if (is_ground[i]) continue;
+    pcl::PointXYZRGB q;
+    q.x = (*clean)[i].x;
+    q.y = (*clean)[i].y;
+    q.z = (*clean)[i].z;
+    q.r = colours[i][0];
+    q.g = colours[i][1];
+    q.b = colours[i][2];
+    rgb->push_back(q);
+  }
+  std::vector<pcl::PointIndices> clusters;
+  if (rgb->size() > 50) {
+    pcl::RegionGrowingRGB<pcl::PointXYZRGB> rg;
+    pcl::search::KdTree<pcl::PointXYZRGB>::Ptr rtree(new pcl::search::KdTree<pcl::PointXYZRGB>);
+    rg.setInputCloud(rgb);
+    rg.setSearchMethod(rtree);
+    rg.setDistanceThreshold(0.025f);
+    rg.setPointColorThreshold(6);
+    rg.setRegionColorThreshold(5);
+    rg.setMinClusterSize(50);
+    rg.extract(clusters);
+  }
+  const auto t5 = Clock::now();
+  // Per segment: least-squares plane and CGAL Delaunay areas.
+  std::vector<Eigen::Vector3f> pts;
+  for (const auto& p : rgb->points) pts.emplace_back(p.x, p.y, p.z);
+  for (const auto& c : clusters) {
+    const std::vector<int> idx(c.indices.begin(), c.indices.end());
+    (void)perception::delaunayRoughness(pts, idx, perception::leastSquaresPlane(pts, idx), 0.05);
+  }
+  const auto t6 = Clock::now();
+  stage_ms = {ms(t0, t1), ms(t1, t2), ms(t2, t3), ms(t3, t4), ms(t4, t5), ms(t5, t6)};
+  return ms(t0, t6);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+#ifndef NDEBUG
+  std::fprintf(stderr, "warning: this is not a Release build; the numbers mean little\n");
+#endif
+  std::string data = "../shared/data";
+  bool all = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--all") all = true;
+    else data = a;
+  }
+  if (!fs::exists(data)) {
+    std::fprintf(stderr, "no data folder at %s (pass the path to shared/data)\n", data.c_str());
+    return 1;
+  }
+  std::vector<Input> inputs;
+  for (const auto& name : {"five_people.pcd", "milk_cartoon_all_small_clorox.pcd", "table_scene_mug_stereo_textured.pcd"}) {
+    const auto f = app::loadPcd(data + "/pcl-kinect/" + name);
+    if (f.width == 640 && f.height == 480) inputs.push_back({name, f.points, f.width, f.height});
+  }
+  for (const auto& e : fs::directory_iterator(data + "/pcl-kinect/grabber_sequences")) {
+    const auto f = app::loadPcd(e.path().string());
+    if (f.width == 640 && f.height == 480) inputs.push_back({e.path().filename().string(), f.points, f.width, f.height});
+  }
+  {
+    const app::SevenScenesDirectory d(data + "/7scenes-redkitchen");
+    for (std::size_t i = 0; i < d.frameNumbers().size(); i += all ? 1 : 50) {
+      const int n = d.frameNumbers()[i];
+      inputs.push_back(fromDepth("redkitchen " + std::to_string(n), d.readDepth(n), d.intrinsics()));
+    }
+    const app::SevenScenesDirectory l(data + "/3dmatch-lounge/seq-01");
+    for (int n : l.frameNumbers()) inputs.push_back(fromDepth("lounge " + std::to_string(n), l.readDepth(n), l.intrinsics()));
+  }
+  for (int n : {1, 2}) {
+    const auto d = app::readDepthPng(data + "/realsense-person/depth_image_" + std::to_string(n) + ".png");
+    const auto k = app::readIntrinsicsFile(data + "/realsense-person/camera-intrinsics.txt", d.width, d.height);
+    inputs.push_back(fromDepth("realsense " + std::to_string(n), d, k));
+  }
+  const perception::FramePipeline pipeline;  // 3 m range, one thread
+  std::printf("%-40s %10s %10s %8s\n", "frame (VGA)", "(a) ms", "(b) ms", "(b)/(a)");
+  std::vector<double> a_all, b_all, ratio;
+  std::vector<std::vector<double>> b_stages(6);
+  std::map<std::string, std::vector<double>> a_stages;
+  for (const auto& in : inputs) {
+    const auto t0 = Clock::now();
+    const auto r = pipeline.processOrganized(in.organized, in.width, in.height);
+    const double a = ms(t0, Clock::now());
+    for (const auto& s : r.stages) a_stages[s.name].push_back(s.milliseconds);
+    std::vector<double> st;
+    const double b = reference(in, 3.0, st);
+    for (std::size_t i = 0; i < st.size(); ++i) b_stages[i].push_back(st[i]);
+    a_all.push_back(a);
+    b_all.push_back(b);
+    ratio.push_back(b / a);
+    std::printf("%-40s %10.1f %10.1f %8.1f\n", in.name.c_str(), a, b, b / a);
+    std::fflush(stdout);
+  }
+  std::printf("\nmedians over %zu frames: (a) %.1f ms, (b) %.1f ms, per-frame ratio (b)/(a) %.1f\n", inputs.size(), median(a_all),
+              median(b_all), median(ratio));
+  std::printf("(a) per stage:");
+  for (const auto& [name, v] : a_stages) std::printf(" %s %.1f", name.c_str(), median(v));
+  const char* names[] = {"uniform sampling", "SOR k=50", "normals r=6cm", "RANSAC ground", "RGB-N + RegionGrowingRGB", "Delaunay"};
+  std::printf("\n(b) per stage:");
+  for (int i = 0; i < 6; ++i) std::printf(" %s %.1f", names[i], median(b_stages[static_cast<std::size_t>(i)]));
+  std::printf("\n");
+  return 0;
+}
