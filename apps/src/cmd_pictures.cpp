@@ -61,6 +61,16 @@ Command addExportCommand(CLI::App& app) {
       y1 = std::max(y1, it.getY());
     }
     if (x1 < x0) throw IoError(o->map, "has no surface voxels to draw");
+    // The camera path may run outside the mapped surfaces: draw all of it.
+    const auto meta = readMapMetadata(o->map);
+    if (meta.contains("trajectory_map")) {
+      for (const auto& p : meta["trajectory_map"]) {
+        x0 = std::min(x0, p[0].get<double>());
+        x1 = std::max(x1, p[0].get<double>());
+        y0 = std::min(y0, p[1].get<double>());
+        y1 = std::max(y1, p[1].get<double>());
+      }
+    }
     const double res = t.getResolution();
     const double extent = std::max(x1 - x0, y1 - y0) + res;
     const int ppv = std::max(1, static_cast<int>(o->max_pixels * res / extent));  // pixels per voxel
@@ -97,7 +107,6 @@ Command addExportCommand(CLI::App& app) {
     }
     c.rect(margin - 1, margin - 1, margin + w, margin + h, {0, 0, 0});
     // Camera path, from the metadata.
-    const auto meta = readMapMetadata(o->map);
     auto toPixel = [&](double x, double y) {
       return std::make_pair(margin + static_cast<int>((x - x0) / res * ppv + ppv / 2),
                             margin + static_cast<int>((h / ppv - 1 - (y - y0) / res) * ppv + ppv / 2));
