@@ -1,13 +1,19 @@
 // The per-frame pipeline on real Kinect frames from ../shared/data (skipped when the
 // folder is absent). Asserts geometric facts of the scenes, not segment counts.
+#include "dataset.hpp"
 #include "frame_source.hpp"
+
+#include "mobmap/mapping/gravity.hpp"
+#include "mobmap/mapping/mobility_map.hpp"
 
 #include "mobmap/perception/pipeline.hpp"
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 
 namespace mobmap {
 namespace {
@@ -75,6 +81,60 @@ TEST(RealFrames, MilkCartonCarpetIsAbout0_46MetresAwayAndBottlesAreSeparateObsta
   const auto objects = standingObstacles(r, 0.08f, 100);
   ASSERT_GE(objects.size(), 2u);
   for (const auto& o : objects) EXPECT_LT(o.mobility, 0.5);
+}
+
+TEST(RealFrames, RedkitchenFloorIsWalkableTableTopFlatAndFrontsUntraversable) {
+  const std::string dir = dataFile("7scenes-redkitchen");
+  SKIP_WITHOUT(dir);
+  const app::SevenScenesDirectory d(dir);
+  ASSERT_TRUE(d.gravityDown());
+  const Eigen::Vector3d g = *d.gravityDown();
+  mapping::MobilityMap map(mapping::MapParams{}, mapping::gravityAlignment(g));
+  const perception::FramePipeline pipeline;
+  for (int n = 40; n <= 100; n += 3) {  // the frames that show most floor (data README)
+    const auto depth = d.readDepth(n);
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.matrix() = d.readPose(n);
+    T.linear() = mapping::nearestRotation(T.linear());
+    const auto r = pipeline.process(depth, d.intrinsics(), (T.linear().transpose() * g).cast<float>());
+    map.integrate(r, T, &depth, &d.intrinsics());
+  }
+  map.finalize();
+  // Map frame: z up, world origin at 0, so the floor is at z = -1.47 and the table top
+  // at -0.77 (data README). Bands of +-5 cm around them; obstacles in between.
+  // Vertical surfaces cross every height, so the table top is judged by the top voxel
+  // of each column: a column whose highest surface is in the table band is table top.
+  int floor = 0, floor_good = 0, table = 0, table_good = 0, middle = 0, middle_bad = 0;
+  const auto& t = map.tree();
+  std::map<std::pair<int, int>, std::pair<double, double>> top;  // column -> (z, mobility)
+  for (auto it = t.begin_leafs(); it != t.end_leafs(); ++it) {
+    if (!t.isNodeOccupied(*it) || !it->hasMobility()) continue;
+    const double z = it.getZ(), m = it->mobility();
+    const auto col = std::make_pair(static_cast<int>(std::floor(it.getX() / 0.02)), static_cast<int>(std::floor(it.getY() / 0.02)));
+    auto [entry, fresh] = top.try_emplace(col, z, m);
+    if (!fresh && z > entry->second.first) entry->second = {z, m};
+    if (std::abs(z + 1.47) < 0.05) {
+      ++floor;
+      floor_good += m >= 0.75;
+    } else if (z > -1.30 && z < -0.90) {
+      ++middle;
+      middle_bad += m < 0.5;
+    }
+  }
+  for (const auto& [col, zm] : top) {
+    if (std::abs(zm.first + 0.77) >= 0.05) continue;
+    ++table;
+    table_good += zm.second >= 0.75;
+  }
+  std::printf("[ info ] floor band %d voxels, %.1f %% >= 0.75; table band %d, %.1f %% >= 0.75; between %d, %.1f %% < 0.5\n",
+              floor, 100.0 * floor_good / std::max(1, floor), table, 100.0 * table_good / std::max(1, table), middle,
+              100.0 * middle_bad / std::max(1, middle));
+  ASSERT_GT(floor, 2000);
+  EXPECT_GT(static_cast<double>(floor_good) / floor, 0.75);  // "mostly mobility >= 0.75"
+  ASSERT_GT(table, 500);                                     // a flat surface 0.7 m above the floor
+  EXPECT_GT(static_cast<double>(table_good) / table, 0.75);
+  ASSERT_GT(middle, 500);
+  EXPECT_GT(static_cast<double>(middle_bad) / middle, 0.8);  // fronts, legs, chair backs
 }
 
 TEST(RealFrames, CorruptAndMissingPcdFilesGiveErrorsNamingTheFile) {
