@@ -35,17 +35,9 @@ Eigen::MatrixXd readMatrixFile(const std::string& path, int rows, int cols) {
     int col = 0;
     while (ls >> token) {
       if (col == cols) throw IoError(path, "line " + std::to_string(line_no) + ": more than " + std::to_string(cols) + " numbers");
-      std::size_t used = 0;
-      double v = NAN;
-      try {
-        v = std::stod(token, &used);
-      } catch (const std::exception&) {
-        used = 0;
-      }
-      if (used != token.size() || !std::isfinite(v)) {
-        throw IoError(path, "line " + std::to_string(line_no) + ": '" + token + "' is not a finite number");
-      }
-      m(row, col++) = v;
+      const auto v = parseFiniteNumber(token);
+      if (!v) throw IoError(path, "line " + std::to_string(line_no) + ": '" + token + "' is not a finite number");
+      m(row, col++) = *v;
     }
     if (col != cols) {
       throw IoError(path, "line " + std::to_string(line_no) + ": expected " + std::to_string(cols) +
@@ -104,15 +96,9 @@ Eigen::Vector3d readGravityFile(const std::string& path) {
   for (int i = 0; i < 3; ++i) {
     std::string token;
     if (!(in >> token)) throw IoError(path, "expected 3 numbers, found " + std::to_string(i));
-    std::size_t used = 0;
-    double v = NAN;
-    try {
-      v = std::stod(token, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used != token.size() || !std::isfinite(v)) throw IoError(path, "'" + token + "' is not a finite number");
-    g(i) = v;
+    const auto v = parseFiniteNumber(token);
+    if (!v) throw IoError(path, "'" + token + "' is not a finite number");
+    g(i) = *v;
   }
   std::string extra;
   if (in >> extra) throw IoError(path, "more than 3 numbers");

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -48,6 +49,18 @@ void writeAtomically(const std::string& path, const std::function<void(const std
     std::filesystem::remove(tmp, ec);
     throw IoError(path, "cannot rename the temporary file into place: " + reason);
   }
+}
+
+std::optional<double> parseFiniteNumber(const std::string& token) {
+  std::size_t used = 0;
+  double v = 0.0;
+  try {
+    v = std::stod(token, &used);
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+  if (used == 0 || used != token.size() || !std::isfinite(v)) return std::nullopt;
+  return v;
 }
 
 void writeTextFileAtomically(const std::string& path, const std::string& text) {

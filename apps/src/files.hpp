@@ -2,6 +2,7 @@
 // Small file helpers: whole-file reads and atomic writes (temporary file + rename).
 
 #include <functional>
+#include <optional>
 #include <string>
 
 namespace mobmap::app {
@@ -16,5 +17,8 @@ void writeAtomically(const std::string& path, const std::function<void(const std
 
 /// writeAtomically() for text.
 void writeTextFileAtomically(const std::string& path, const std::string& text);
+
+/// The whole of `token` as a finite number, else nullopt ("1e3" yes; "1x", "", "nan" no).
+std::optional<double> parseFiniteNumber(const std::string& token);
 
 }  // namespace mobmap::app

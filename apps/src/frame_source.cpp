@@ -1,6 +1,7 @@
 #include "frame_source.hpp"
 
 #include "dataset.hpp"
+#include "files.hpp"
 #include "io_error.hpp"
 
 #include <pcl/console/print.h>
@@ -20,15 +21,9 @@ std::vector<double> splitNumbers(const std::string& spec) {
   std::stringstream in(spec);
   std::string cell;
   while (std::getline(in, cell, ',')) {
-    std::size_t used = 0;
-    double v = NAN;
-    try {
-      v = std::stod(cell, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != cell.size() || !std::isfinite(v)) return {};
-    out.push_back(v);
+    const auto v = parseFiniteNumber(cell);
+    if (!v) return {};
+    out.push_back(*v);
   }
   return out;
 }

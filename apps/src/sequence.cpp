@@ -60,19 +60,13 @@ std::vector<std::pair<double, std::vector<std::string>>> readTimestamped(const s
     ls >> t_str;
     std::vector<std::string> rest;
     for (std::string v; ls >> v;) rest.push_back(v);
-    std::size_t used = 0;
-    double t = NAN;
-    try {
-      t = std::stod(t_str, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used != t_str.size() || !std::isfinite(t)) throw IoError(path, "line " + std::to_string(line_no) + ": '" + t_str + "' is not a timestamp");
+    const auto t = parseFiniteNumber(t_str);
+    if (!t) throw IoError(path, "line " + std::to_string(line_no) + ": '" + t_str + "' is not a timestamp");
     if (rest.size() != fields) {
       throw IoError(path, "line " + std::to_string(line_no) + ": expected " + std::to_string(fields + 1) + " columns, found " +
                               std::to_string(rest.size() + 1));
     }
-    out.emplace_back(t, std::move(rest));
+    out.emplace_back(*t, std::move(rest));
   }
   return out;
 }
@@ -88,15 +82,11 @@ class TumSequence : public Sequence {
       ++line;
       double x[7];
       for (int i = 0; i < 7; ++i) {
-        std::size_t used = 0;
-        try {
-          x[i] = std::stod(v[static_cast<std::size_t>(i)], &used);
-        } catch (const std::exception&) {
-          used = 0;
-        }
-        if (used != v[static_cast<std::size_t>(i)].size() || !std::isfinite(x[i])) {
+        const auto value = parseFiniteNumber(v[static_cast<std::size_t>(i)]);
+        if (!value) {
           throw IoError(gt_path, "pose " + std::to_string(line) + ": '" + v[static_cast<std::size_t>(i)] + "' is not a finite number");
         }
+        x[i] = *value;
       }
       const Eigen::Quaterniond q(x[6], x[3], x[4], x[5]);  // file order qx qy qz qw
       if (std::abs(q.norm() - 1.0) > 1e-3) {
