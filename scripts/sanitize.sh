@@ -12,4 +12,6 @@ cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo "${launcher[@]}" \
 cmake --build build-asan -j2
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1
 export UBSAN_OPTIONS=print_stacktrace=1
-ctest --test-dir build-asan --output-on-failure -j2 "$@"
+# The find_package consumer test is left out: it builds an uninstrumented project
+# against these instrumented static libraries, which cannot link.
+ctest --test-dir build-asan --output-on-failure -j2 -E "Install.ConsumerProject" "$@"
