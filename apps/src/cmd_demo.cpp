@@ -70,6 +70,12 @@ Command addDemoCommand(CLI::App& app) {
       std::printf("right side of 0.5: %.1f %% of %d voxels\n", 100.0 * (ev.true_traversable + ev.true_untraversable) / total, total);
     }
     const std::string stem = mapStem(map_path);
+    // The executable as the user can type it (build/apps/mobmap before `cmake --install`).
+    std::error_code ec;
+    std::string exe = fs::read_symlink("/proc/self/exe", ec).string();
+    if (ec) exe = "mobmap";
+    const fs::path rel = fs::relative(exe, fs::current_path(), ec);
+    if (!ec && !rel.empty() && rel.string().rfind("..", 0) != 0) exe = "./" + rel.string();
     std::cout << "\nFiles:\n"
               << "  " << seq << "/  " << p.frames << " frames in the 7-Scenes layout (depth/colour/label PNGs, poses, intrinsics)\n"
               << "  " << seq << "/ground_truth.json  every surface with slope, roughness and expected mobility\n"
@@ -78,8 +84,9 @@ Command addDemoCommand(CLI::App& app) {
               << "  " << stem << ".bt  occupancy only;  " << stem << ".json  metadata\n"
               << "  " << plot << "  the GP mobility surface (paper Fig. 3)\n"
               << "View: octovis " << stem << ".octovis.ot   (Debian package octovis)\n"
-              << "Ask:  mobmap query " << map_path << " 1.0 0.0 0.3 --snap 0.5\n"
-              << "      mobmap evaluate " << map_path << " --truth " << seq << "/ground_truth.json\n";
+              << "Ask:  " << exe << " query " << map_path << " 1.0 0.0 0.3 --snap 0.5\n"
+              << "      " << exe << " evaluate " << map_path << " --truth " << seq << "/ground_truth.json\n"
+              << "      " << exe << " export " << map_path << " --png " << o->out << "/top.png\n";
     return 0;
   };
 }
