@@ -63,7 +63,7 @@ Config parseConfig(const std::string& text, const std::string& origin) {
          {"ground_normal_tolerance_deg", bind(p.ground_normal_tolerance_deg)}, {"ground_min_points", bind(p.ground_min_points)},
          {"colour_threshold", bind(p.colour_threshold)}, {"neighbour_distance_m", bind(p.neighbour_distance_m)},
          {"min_segment_points", bind(p.min_segment_points)}, {"plane_ransac_distance_m", bind(p.plane_ransac_distance_m)},
-         {"max_triangle_edge_m", bind(p.max_triangle_edge_m)}, {"roughness_smoothing", bind(p.roughness_smoothing)},
+         {"max_triangle_edge_m", bind(p.max_triangle_edge_m)}, {"roughness_smoothing", bind(p.roughness_smoothing)}, {"roughness_smoothing_passes", bind(p.roughness_smoothing_passes)},
          {"random_seed", bind(p.random_seed)}},
         origin);
   auto& m = c.mapping;

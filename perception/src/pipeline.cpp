@@ -68,6 +68,7 @@ void validate(const PerceptionParams& p) {
   if (!(p.colour_threshold > 0) || !std::isfinite(p.colour_threshold)) fail("colour_threshold", p.colour_threshold, "must be finite and > 0");
   if (!(p.neighbour_distance_m > 0) || !std::isfinite(p.neighbour_distance_m)) fail("neighbour_distance_m", p.neighbour_distance_m, "must be finite and > 0");
   if (p.min_segment_points < 3) fail("min_segment_points", p.min_segment_points, "must be >= 3");
+  if (p.roughness_smoothing_passes < 1 || p.roughness_smoothing_passes > 10) fail("roughness_smoothing_passes", p.roughness_smoothing_passes, "must be 1..10");
   if (!(p.plane_ransac_distance_m > 0) || !std::isfinite(p.plane_ransac_distance_m)) fail("plane_ransac_distance_m", p.plane_ransac_distance_m, "must be finite and > 0");
   if (!(p.max_triangle_edge_m > 0) || !std::isfinite(p.max_triangle_edge_m)) fail("max_triangle_edge_m", p.max_triangle_edge_m, "must be finite and > 0");
 }
@@ -205,6 +206,12 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
   std::vector<Eigen::Vector3f> smoothed;
   estimateNormals(out.points, graph, Eigen::Vector3f::Zero(), out.normals, out.curvature,
                   p.roughness_smoothing ? &smoothed : nullptr);
+  for (int pass = 1; p.roughness_smoothing && pass < p.roughness_smoothing_passes; ++pass) {
+    std::vector<Eigen::Vector3f> n_tmp, next;
+    std::vector<float> c_tmp;
+    estimateNormals(smoothed, graph, Eigen::Vector3f::Zero(), n_tmp, c_tmp, &next);
+    smoothed.swap(next);
+  }
   clock.stop("normals", n, n);
 
   // 4. RGB-N colours.

@@ -50,6 +50,9 @@ struct PerceptionParams {
   /// neighbourhood's scale, which otherwise inflates A/A' with range; false follows the
   /// paper literally.
   bool roughness_smoothing = true;
+  /// How many times the projection is applied (each pass re-fits the planes on the
+  /// previous pass's points with the same neighbours, widening the smoothing scale).
+  int roughness_smoothing_passes = 3;
   std::uint32_t random_seed = 42;         ///< RANSAC sampling (results are deterministic)
 };
 
