@@ -15,8 +15,6 @@
 
 namespace mobmap::app {
 
-int runSubcommand(CLI::App& app, const std::vector<std::string>& args);
-
 Command addDemoCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "demo", "Run the embedded default: simulate the corridor, build its mobility map, compare with the truth");

@@ -1,4 +1,5 @@
 #include "commands.hpp"
+#include "config.hpp"
 #include "files.hpp"
 #include "io_error.hpp"
 #include "mobility_plot.hpp"
@@ -13,7 +14,6 @@
 
 namespace mobmap::app {
 
-/// Loads a rule table CSV, putting the path into parse errors.
 gp::RuleTable loadRuleTable(const std::string& path) {
   if (path.empty()) return gp::RuleTable::paper();
   const std::string text = readTextFile(path, 1 << 20);

@@ -5,10 +5,16 @@
 #include <CLI/CLI.hpp>
 
 #include <functional>
+#include <string>
+#include <vector>
 
 namespace mobmap::app {
 
 using Command = std::function<int()>;
+
+/// Parses `args` (a subcommand and its options) with `app` and runs it, as if typed;
+/// `demo` uses it to run `build`. Defined in main.cpp, which owns the command table.
+int runSubcommand(CLI::App& app, const std::vector<std::string>& args);
 
 Command addSimulateCommand(CLI::App& app);
 Command addScoreCommand(CLI::App& app);

@@ -10,8 +10,6 @@
 
 namespace mobmap::app {
 
-gp::RuleTable loadRuleTable(const std::string& path);  // cmd_score.cpp
-
 namespace {
 
 using Setter = std::function<void(const YAML::Node&)>;

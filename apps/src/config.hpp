@@ -24,6 +24,8 @@ Config loadConfig(const std::string& path);
 Config parseConfig(const std::string& text, const std::string& origin);
 /// The shipped apps/default.yaml, embedded at build time.
 const std::string& defaultConfigYaml();
+/// Reads a rule table CSV; "" gives the paper's table. IoError names the file and line.
+gp::RuleTable loadRuleTable(const std::string& path);
 /// Builds the scorer the configuration describes (reads model.table if set).
 gp::MobilityModel makeModel(const Config& c);
 
