@@ -82,6 +82,9 @@ TEST(Config, BadFilesNameTheFileAndTheKey) {
   EXPECT_NE(errorOf("model:\n  kind: magic\n").find("model.kind: 'magic' must be gp or rule"), std::string::npos);
   EXPECT_NE(errorOf("perception: [1, 2\n").find("not valid YAML"), std::string::npos);
   EXPECT_NE(errorOf("perception:\n  normal_k: [1, 2]\n").find("expected a single value"), std::string::npos);
+  // Found by fuzzing (tests/fuzz): mappings used as keys threw yaml-cpp's own exception.
+  EXPECT_NE(errorOf("{{}}").find("test.yaml: section names must be plain names"), std::string::npos) << errorOf("{{}}");
+  EXPECT_NE(errorOf("perception:\n  {a: 1}: 2\n").find("test.yaml: perception: keys must be plain names"), std::string::npos);
 }
 
 }  // namespace

@@ -14,16 +14,6 @@
 
 namespace mobmap::app {
 
-gp::RuleTable loadRuleTable(const std::string& path) {
-  if (path.empty()) return gp::RuleTable::paper();
-  const std::string text = readTextFile(path, 1 << 20);
-  try {
-    return gp::RuleTable::parseCsv(text);
-  } catch (const std::invalid_argument& e) {
-    throw IoError(path, e.what());
-  }
-}
-
 Command addScoreCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "score", "Mobility of a surface from its slope and roughness (rule table or Gaussian process)");

@@ -24,6 +24,7 @@ void apply(const YAML::Node& section, const std::string& name, const std::map<st
   if (!section) return;
   if (!section.IsMap()) throw IoError(origin, name + ": expected a mapping of keys to values");
   for (const auto& kv : section) {
+    if (!kv.first.IsScalar()) throw IoError(origin, name + ": keys must be plain names");
     const std::string key = kv.first.as<std::string>();
     const auto it = fields.find(key);
     if (it == fields.end()) throw IoError(origin, name + "." + key + ": unknown key");
@@ -38,7 +39,7 @@ void apply(const YAML::Node& section, const std::string& name, const std::map<st
 
 }  // namespace
 
-Config parseConfig(const std::string& text, const std::string& origin) {
+static Config parseConfigUnchecked(const std::string& text, const std::string& origin) {
   Config c;
   YAML::Node root;
   try {
@@ -49,6 +50,7 @@ Config parseConfig(const std::string& text, const std::string& origin) {
   if (root.IsNull()) return c;
   if (!root.IsMap()) throw IoError(origin, "expected sections perception:, mapping:, model:");
   for (const auto& kv : root) {
+    if (!kv.first.IsScalar()) throw IoError(origin, "section names must be plain names");
     const std::string key = kv.first.as<std::string>();
     if (key != "perception" && key != "mapping" && key != "model") throw IoError(origin, key + ": unknown section");
   }
@@ -98,6 +100,16 @@ Config parseConfig(const std::string& text, const std::string& origin) {
   return c;
 }
 
+Config parseConfig(const std::string& text, const std::string& origin) {
+  // yaml-cpp throws its own exceptions for shapes we did not anticipate (found by
+  // fuzzing: a mapping used as a key); every one of them becomes an error naming the file.
+  try {
+    return parseConfigUnchecked(text, origin);
+  } catch (const YAML::Exception& e) {
+    throw IoError(origin, std::string("invalid configuration: ") + e.what());
+  }
+}
+
 Config loadConfig(const std::string& path) { return parseConfig(readTextFile(path, 1 << 20), path); }
 
 const std::string& defaultConfigYaml() {
@@ -105,6 +117,16 @@ const std::string& defaultConfigYaml() {
 #include "default_yaml.inc"
       ;
   return text;
+}
+
+gp::RuleTable loadRuleTable(const std::string& path) {
+  if (path.empty()) return gp::RuleTable::paper();
+  const std::string text = readTextFile(path, 1 << 20);
+  try {
+    return gp::RuleTable::parseCsv(text);
+  } catch (const std::invalid_argument& e) {
+    throw IoError(path, e.what());
+  }
 }
 
 gp::MobilityModel makeModel(const Config& c) { return gp::MobilityModel(loadRuleTable(c.table_path), c.model); }
