@@ -91,7 +91,7 @@ Command addBuildCommand(CLI::App& app) {
   auto* max_range = cmd->add_option("--max-range", o->max_range, "Maximum range of points, metres")->capture_default_str();
   auto* resolution = cmd->add_option("--resolution", o->resolution, "Voxel size of the map, metres")->capture_default_str();
   cmd->add_option("--config", o->config, "YAML file with any of the parameters of `mobmap config --print-default`");
-  cmd->add_option("--gravity", o->gravity, "Gravity (down) in the data's world frame X,Y,Z (default: gravity-direction.txt, else -z)");
+  cmd->add_option("--gravity", o->gravity, "Gravity (down) in the data's world frame X,Y,Z (default: gravity-direction.txt, else -z; for a single PCD: the ground plane's normal)");
   cmd->add_flag("--force", o->force, "Overwrite an existing map");
   cmd->add_flag("--no-free-space", o->no_free_space, "Skip free-space updates (faster; moved obstacles stay)");
   cmd->add_flag("--quiet,-q", o->quiet, "No progress output");
@@ -139,13 +139,15 @@ Command addBuildCommand(CLI::App& app) {
       if (!o->frames.empty()) throw UsageError("--frames needs a directory input");
     }
     if (!o->gravity.empty()) gravity_world = parseVector3(o->gravity, "--gravity").cast<double>();
+    // A single frame is mapped in its camera frame; without --gravity, "down" is the
+    // normal of the ground plane the pipeline finds, else the camera's +y axis. That run
+    // measured slopes against the same ground normal, so its result is the frame's.
+    std::optional<perception::FrameResult> single_result;
     if (!is_dir && !gravity_world) {
-      // A single frame is mapped in its camera frame; without --gravity, "down" is the
-      // normal of the ground plane the pipeline finds, else the camera's +y axis.
-      const auto probe = single.height > 1 ? pipeline.processOrganized(single.points, single.width, single.height)
-                                           : pipeline.process(single.points);
-      gravity_world = probe.ground_plane ? Eigen::Vector3d(-probe.ground_plane->head<3>().cast<double>())
-                                         : Eigen::Vector3d(0, 1, 0);
+      single_result = single.height > 1 ? pipeline.processOrganized(single.points, single.width, single.height)
+                                        : pipeline.process(single.points);
+      gravity_world = single_result->ground_plane ? Eigen::Vector3d(-single_result->ground_plane->head<3>().cast<double>())
+                                                  : Eigen::Vector3d(0, 1, 0);
     }
     const Eigen::Vector3d g_world = gravity_world.value_or(Eigen::Vector3d(0, 0, -1));
     const Eigen::Matrix3d R_map_world = mapping::gravityAlignment(g_world);
@@ -163,6 +165,8 @@ Command addBuildCommand(CLI::App& app) {
         s.read_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
         g_cam = (s.T_world_camera.linear().transpose() * g_world).cast<float>();
         s.result = pipeline.process(s.depth, dir->intrinsics(), g_cam);
+      } else if (single_result) {
+        s.result = std::move(*single_result);
       } else {
         g_cam = g_world.cast<float>();  // the camera frame is the world frame
         s.result = single.height > 1 ? pipeline.processOrganized(single.points, single.width, single.height, g_cam)
