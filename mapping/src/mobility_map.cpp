@@ -109,14 +109,15 @@ void MobilityMap::integrate(const perception::FrameResult& frame, const Eigen::I
     octomap::OcTreeKey key;
     if (!tree_->coordToKeyChecked(toOcto(T_map_camera * pc), key)) continue;
     const int seg = frame.segment_of_point.empty() ? -1 : frame.segment_of_point[i];
-    auto [it, inserted] = hits.try_emplace(key, Hit{seg, std::sqrt(r2)});
+    const double range = std::sqrt(r2);
+    auto [it, inserted] = hits.try_emplace(key, Hit{seg, range});
     if (inserted) continue;
     Hit& h = it->second;
     if (seg >= 0 && (h.segment < 0 || frame.segments[static_cast<std::size_t>(seg)].mobility <
                                           frame.segments[static_cast<std::size_t>(h.segment)].mobility)) {
       h.segment = seg;
     }
-    h.range = std::min(h.range, std::sqrt(r2));
+    h.range = std::min(h.range, range);
   }
   for (const auto& [key, h] : hits) {
     MobilityOcTreeNode* node = tree_->updateNode(key, true, true);
