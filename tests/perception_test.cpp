@@ -50,6 +50,36 @@ TEST(Neighbours, MaxRadiusDropsFarNeighbours) {
   EXPECT_EQ(g.count[2], 0);
 }
 
+TEST(Neighbours, RestrictedGraphEqualsBruteForceOnTheKeptPoints) {
+  const auto pts = randomCloud(3000, 5);
+  const KnnGraph all = buildKnnGraph(pts, 30, 0.02f, 10.f);
+  // Drop every 7th point and a dense blob, so some rows lose many neighbours.
+  std::vector<bool> keep(pts.size(), true);
+  std::vector<Eigen::Vector3f> kept;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    keep[i] = i % 7 != 0 && (pts[i].head<2>() - Eigen::Vector2f(0.1f, 0.1f)).norm() > 0.05f;
+    if (keep[i]) kept.push_back(pts[i]);
+  }
+  for (int k : {16, 30}) {
+    std::size_t recomputed = 0;
+    const KnnGraph fast = restrictKnnGraph(all, pts, keep, k, 0.02f, 10.f, &recomputed);
+    const KnnGraph ref = bruteForceKnnGraph(kept, k);
+    EXPECT_EQ(fast.count, ref.count) << "k " << k;
+    EXPECT_EQ(fast.indices, ref.indices) << "k " << k;
+    EXPECT_EQ(fast.sq_dist, ref.sq_dist) << "k " << k;
+    EXPECT_GT(recomputed, 0u) << "k " << k;  // the test exercises the search-again path
+    EXPECT_LT(recomputed, kept.size()) << "k " << k;  // and the reuse path
+  }
+  EXPECT_THROW(restrictKnnGraph(all, pts, keep, 31, 0.02f, 10.f), std::invalid_argument);
+}
+
+TEST(OutlierRemoval, FirstKOfALargerGraphEqualsTheSmallerGraph) {
+  const auto pts = randomCloud(2000, 6);
+  const auto a = statisticalOutlierMask(bruteForceKnnGraph(pts, 30), 1.0, 8);
+  const auto b = statisticalOutlierMask(bruteForceKnnGraph(pts, 8), 1.0);
+  EXPECT_EQ(a, b);
+}
+
 TEST(VoxelReduce, CentroidsEqualBruteForceGrouping) {
   const auto pts = randomCloud(5000, 2);
   std::vector<int> voxel_of;
@@ -183,6 +213,56 @@ TEST(Ransac, AdaptiveIterationsFindThePlaneAndRespectGravity) {
   EXPECT_NEAR(std::abs(floor->plane(1)), 1.0, 1e-3);
   EXPECT_NEAR(std::abs(floor->plane(3)), 1.2, 1e-3);
   EXPECT_NEAR(static_cast<double>(floor->inliers.size()), 3000, 60);
+}
+
+TEST(GroundReclaim, TheFootOfAGentleRampGoesBackToTheRamp) {
+  // Floor z = 0 for x < 1, a 5 degree ramp from x = 1 to 1.6, sampled every cm.
+  const float t5 = static_cast<float>(std::tan(5 * kDeg));
+  std::vector<Eigen::Vector3f> pts;
+  for (int i = 0; i <= 160; ++i) {
+    for (int j = 0; j <= 60; ++j) {
+      const float x = 0.01f * static_cast<float>(i);
+      pts.emplace_back(x, 0.01f * static_cast<float>(j), x > 1.f ? (x - 1.f) * t5 : 0.f);
+    }
+  }
+  const KnnGraph g = buildKnnGraph(pts, 30, 0.04f, 0.2f);
+  const Eigen::Vector4f ground(0, 0, 1, 0);
+  std::vector<bool> is_ground(pts.size());
+  std::vector<int> labels(pts.size(), -1);
+  std::vector<int> ramp, fragment;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    is_ground[i] = pts[i].z() <= 0.02f;  // what RANSAC with a 2 cm threshold takes
+    if (!is_ground[i]) {
+      labels[i] = 0;
+      ramp.push_back(static_cast<int>(i));
+    }
+  }
+  // A second region lying on the floor itself: parallel to the ground, it takes nothing.
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    if (pts[i].x() < 0.1f) {
+      is_ground[i] = false;
+      labels[i] = 1;
+      fragment.push_back(static_cast<int>(i));
+    }
+  }
+  const std::vector<Eigen::Vector4f> planes = {leastSquaresPlane(pts, ramp), Eigen::Vector4f(0, 0, 1, 0)};
+  const std::size_t moved = reclaimGroundPoints(pts, g, 0.025, ground, planes, 3.0, 0.02, labels, is_ground);
+  std::size_t expected = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const float x = pts[i].x();
+    if (x < 0.1f) {
+      EXPECT_EQ(labels[i], 1) << i;
+    } else if (x > 1.005f) {  // every ramp point, including its foot
+      EXPECT_EQ(labels[i], 0) << "x " << x;
+      EXPECT_FALSE(is_ground[i]);
+      expected += pts[i].z() <= 0.02f;
+    } else {  // the floor stays ground
+      EXPECT_TRUE(is_ground[i]) << "x " << x;
+      EXPECT_EQ(labels[i], -1);
+    }
+  }
+  EXPECT_EQ(moved, expected);
+  EXPECT_GT(moved, 60u * 20);
 }
 
 TEST(Roughness, FlatAndCorrugatedSurfacesMatchTheirExactRatio) {

@@ -3,58 +3,50 @@
 #include "spatial_hash.hpp"
 
 #include <algorithm>
-#include <numeric>
+#include <cstring>
 #include <stdexcept>
+#include <string>
 
 namespace mobmap::perception {
 namespace {
 
-// Selects the k nearest of the candidates (distances d2, indices idx), sorted by
-// (distance, index) so ties do not depend on the order candidates were visited.
-class KSelect {
- public:
-  explicit KSelect(int k) : k_(static_cast<std::size_t>(k)) {}
-  void clear() {
-    d2_.clear();
-    idx_.clear();
+// A candidate as one 64-bit key: the squared distance's bit pattern (monotone for
+// non-negative floats) above the point index. Sorting keys orders by (distance,
+// index), so ties never depend on the order in which candidates were visited.
+std::uint64_t packKey(float d2, int index) {
+  std::uint32_t bits = 0;
+  std::memcpy(&bits, &d2, sizeof bits);
+  return (static_cast<std::uint64_t>(bits) << 32) | static_cast<std::uint32_t>(index);
+}
+float keyDistance(std::uint64_t key) {
+  const auto bits = static_cast<std::uint32_t>(key >> 32);
+  float d2 = 0.f;
+  std::memcpy(&d2, &bits, sizeof d2);
+  return d2;
+}
+int keyIndex(std::uint64_t key) { return static_cast<int>(static_cast<std::uint32_t>(key)); }
+
+// Keeps the k smallest keys, sorted. Candidate lists are short (tens of keys), where
+// a bounded insertion sort beats nth_element followed by sort.
+void selectSmallest(std::vector<std::uint64_t>& keys, std::size_t k) {
+  if (keys.size() > 4 * k + 64) {  // long lists (sparse regions, brute force)
+    std::nth_element(keys.begin(), keys.begin() + static_cast<std::ptrdiff_t>(k - 1), keys.end());
+    keys.resize(k);
+    std::sort(keys.begin(), keys.end());
+    return;
   }
-  void add(float d2, int index) {
-    d2_.push_back(d2);
-    idx_.push_back(index);
-  }
-  /// The selection; valid until the next clear().
-  const std::vector<std::pair<float, int>>& select() {
-    out_.clear();
-    if (d2_.size() > k_) {
-      scratch_.assign(d2_.begin(), d2_.end());
-      std::nth_element(scratch_.begin(), scratch_.begin() + static_cast<std::ptrdiff_t>(k_ - 1), scratch_.end());
-      const float thr = scratch_[k_ - 1];
-      for (std::size_t j = 0; j < d2_.size(); ++j) {
-        if (d2_[j] <= thr) out_.emplace_back(d2_[j], idx_[j]);
-      }
-    } else {
-      for (std::size_t j = 0; j < d2_.size(); ++j) out_.emplace_back(d2_[j], idx_[j]);
+  std::size_t n = 0;
+  for (std::size_t j = 0; j < keys.size(); ++j) {
+    const std::uint64_t key = keys[j];
+    if (n == k && key >= keys[k - 1]) continue;
+    std::size_t pos = n < k ? n++ : k - 1;  // the slot freed at the end
+    while (pos > 0 && keys[pos - 1] > key) {
+      keys[pos] = keys[pos - 1];
+      --pos;
     }
-    std::sort(out_.begin(), out_.end());  // pair order: distance, then index
-    if (out_.size() > k_) out_.resize(k_);
-    return out_;
+    keys[pos] = key;
   }
-  [[nodiscard]] std::size_t size() const { return d2_.size(); }
-
- private:
-  std::size_t k_;
-  std::vector<float> d2_, scratch_;
-  std::vector<int> idx_;
-  std::vector<std::pair<float, int>> out_;
-};
-
-void store(KnnGraph& g, int i, const std::vector<std::pair<float, int>>& cand) {
-  const std::size_t base = static_cast<std::size_t>(i) * static_cast<std::size_t>(g.k);
-  for (std::size_t j = 0; j < cand.size(); ++j) {
-    g.sq_dist[base + j] = cand[j].first;
-    g.indices[base + j] = cand[j].second;
-  }
-  g.count[static_cast<std::size_t>(i)] = static_cast<int>(cand.size());
+  keys.resize(n);
 }
 
 void allocate(KnnGraph& g, std::size_t n, int k) {
@@ -64,81 +56,180 @@ void allocate(KnnGraph& g, std::size_t n, int k) {
   g.count.assign(n, 0);
 }
 
-}  // namespace
+void storeKeys(KnnGraph& g, std::size_t row, const std::vector<std::uint64_t>& keys) {
+  const std::size_t base = row * static_cast<std::size_t>(g.k);
+  for (std::size_t j = 0; j < keys.size(); ++j) {
+    g.sq_dist[base + j] = keyDistance(keys[j]);
+    g.indices[base + j] = keyIndex(keys[j]);
+  }
+  g.count[row] = static_cast<int>(keys.size());
+}
 
-KnnGraph buildKnnGraph(const std::vector<Eigen::Vector3f>& points, int k, float cell_m, float max_radius_m) {
+void checkArguments(int k, float cell_m, float max_radius_m) {
   if (k < 1) throw std::invalid_argument("buildKnnGraph: k must be >= 1, got " + std::to_string(k));
   if (!(cell_m > 0.f) || !(max_radius_m > 0.f)) {
     throw std::invalid_argument("buildKnnGraph: cell_m and max_radius_m must be > 0");
   }
-  KnnGraph g;
-  allocate(g, points.size(), k);
-  if (points.empty()) return g;
-  const detail::CellBuckets buckets(points, cell_m);
-  const int max_ring = std::max(1, static_cast<int>(std::ceil(max_radius_m / cell_m)));
-  std::vector<int> block;  // candidates of the 3x3x3 block of the current cell
-  std::vector<Eigen::Vector3f> block_points;
-  KSelect sel(k);
-  const float max_r2 = max_radius_m * max_radius_m;
-  auto gather = [&](const Eigen::Vector3i& cc, int ring, std::vector<int>& out) {
-    out.clear();
+}
+
+// Exact kNN queries against a bucketed cloud. Queries are answered cell by cell so
+// the 3x3x3 block of candidates is gathered once per cell, not once per point.
+class GridSearch {
+ public:
+  GridSearch(const std::vector<Eigen::Vector3f>& points, int k, float cell_m, float max_radius_m)
+      : points_(points),
+        buckets_(points, cell_m),
+        k_(static_cast<std::size_t>(k)),
+        cell_(cell_m),
+        max_r2_(max_radius_m * max_radius_m),
+        max_ring_(std::max(1, static_cast<int>(std::ceil(max_radius_m / cell_m)))),
+        tight2_(0.9f * 0.9f * cell_m * cell_m) {}
+
+  // Answers the query for every point i with want(i), storing into row row_of(i) of g.
+  template <typename Want, typename RowOf>
+  void run(KnnGraph& g, Want want, RowOf row_of) {
+    for (std::size_t c = 0; c < buckets_.cells.size(); ++c) {
+      bool any = false;
+      for (int s = buckets_.start[c]; s < buckets_.start[c + 1] && !any; ++s) {
+        any = want(buckets_.order[static_cast<std::size_t>(s)]);
+      }
+      if (!any) continue;
+      const Eigen::Vector3i cc = buckets_.cells[c];
+      gather(cc, 1, block_idx_, block_pts_);
+      for (int s = buckets_.start[c]; s < buckets_.start[c + 1]; ++s) {
+        const int i = buckets_.order[static_cast<std::size_t>(s)];
+        if (!want(i)) continue;
+        const Eigen::Vector3f p = points_[static_cast<std::size_t>(i)];
+        // Within ring r the block holds every point closer than r * cell: if k of
+        // the candidates lie that close they are the k nearest.
+        // First try a tighter radius (most surface points have k neighbours well
+        // inside it, and fewer candidates make the selection cheaper), then the
+        // whole guaranteed radius of the block, then wider rings.
+        collect(i, p, block_idx_, block_pts_, std::min(tight2_, max_r2_));
+        if (keys_.size() < k_ && tight2_ < max_r2_) collect(i, p, block_idx_, block_pts_, std::min(cell_ * cell_, max_r2_));
+        int ring = 1;
+        while (keys_.size() < k_ && ring < max_ring_) {
+          ++ring;
+          gather(cc, ring, wide_idx_, wide_pts_);
+          const float r = static_cast<float>(ring) * cell_;
+          collect(i, p, wide_idx_, wide_pts_, std::min(r * r, max_r2_));
+        }
+        selectSmallest(keys_, k_);
+        storeKeys(g, static_cast<std::size_t>(row_of(i)), keys_);
+      }
+    }
+  }
+
+ private:
+  void gather(const Eigen::Vector3i& cc, int ring, std::vector<int>& idx, std::vector<Eigen::Vector3f>& pts) const {
+    idx.clear();
     for (int dx = -ring; dx <= ring; ++dx) {
       for (int dy = -ring; dy <= ring; ++dy) {
         for (int dz = -ring; dz <= ring; ++dz) {
-          const int nb = buckets.find(cc.x() + dx, cc.y() + dy, cc.z() + dz);
+          const int nb = buckets_.find(cc.x() + dx, cc.y() + dy, cc.z() + dz);
           if (nb < 0) continue;
-          out.insert(out.end(), buckets.order.begin() + buckets.start[static_cast<std::size_t>(nb)],
-                     buckets.order.begin() + buckets.start[static_cast<std::size_t>(nb) + 1]);
+          idx.insert(idx.end(), buckets_.order.begin() + buckets_.start[static_cast<std::size_t>(nb)],
+                     buckets_.order.begin() + buckets_.start[static_cast<std::size_t>(nb) + 1]);
         }
       }
     }
-  };
-  std::vector<int> wide;
-  for (std::size_t c = 0; c < buckets.cells.size(); ++c) {
-    const Eigen::Vector3i cc = buckets.cells[c];
-    gather(cc, 1, block);
-    block_points.resize(block.size());
-    for (std::size_t j = 0; j < block.size(); ++j) block_points[j] = points[static_cast<std::size_t>(block[j])];
-    for (int s = buckets.start[c]; s < buckets.start[c + 1]; ++s) {
-      const int i = buckets.order[static_cast<std::size_t>(s)];
-      const Eigen::Vector3f p = points[static_cast<std::size_t>(i)];
-      sel.clear();
-      for (std::size_t j = 0; j < block.size(); ++j) {
-        if (block[j] != i) sel.add((block_points[j] - p).squaredNorm(), block[j]);
-      }
-      const auto* chosen = &sel.select();
-      // Exact when there are k and the k-th lies within the guaranteed radius
-      // ring * cell_m; otherwise widen the block one ring at a time.
-      int ring = 1;
-      while ((static_cast<int>(chosen->size()) < k || chosen->back().first > (ring * cell_m) * (ring * cell_m)) &&
-             ring < max_ring) {
-        ++ring;
-        gather(cc, ring, wide);
-        sel.clear();
-        for (int j : wide) {
-          if (j != i) sel.add((points[static_cast<std::size_t>(j)] - p).squaredNorm(), j);
-        }
-        chosen = &sel.select();
-      }
-      // Beyond max_radius nothing counts as a neighbour.
-      std::size_t keep = chosen->size();
-      while (keep > 0 && (*chosen)[keep - 1].first > max_r2) --keep;
-      store(g, i, std::vector<std::pair<float, int>>(chosen->begin(), chosen->begin() + static_cast<std::ptrdiff_t>(keep)));
+    pts.resize(idx.size());
+    for (std::size_t j = 0; j < idx.size(); ++j) pts[j] = points_[static_cast<std::size_t>(idx[j])];
+  }
+  void collect(int self, const Eigen::Vector3f& p, const std::vector<int>& idx, const std::vector<Eigen::Vector3f>& pts,
+               float limit2) {
+    keys_.clear();
+    for (std::size_t j = 0; j < idx.size(); ++j) {
+      const float d2 = (pts[j] - p).squaredNorm();
+      if (d2 <= limit2 && idx[j] != self) keys_.push_back(packKey(d2, idx[j]));
     }
   }
+
+  const std::vector<Eigen::Vector3f>& points_;
+  detail::CellBuckets buckets_;
+  std::size_t k_;
+  float cell_, max_r2_;
+  int max_ring_;
+  float tight2_;
+  std::vector<int> block_idx_, wide_idx_;
+  std::vector<Eigen::Vector3f> block_pts_, wide_pts_;
+  std::vector<std::uint64_t> keys_;
+};
+
+}  // namespace
+
+KnnGraph buildKnnGraph(const std::vector<Eigen::Vector3f>& points, int k, float cell_m, float max_radius_m) {
+  checkArguments(k, cell_m, max_radius_m);
+  KnnGraph g;
+  allocate(g, points.size(), k);
+  if (points.empty()) return g;
+  GridSearch search(points, k, cell_m, max_radius_m);
+  search.run(g, [](int) { return true; }, [](int i) { return i; });
   return g;
+}
+
+KnnGraph restrictKnnGraph(const KnnGraph& g, const std::vector<Eigen::Vector3f>& points, const std::vector<bool>& keep,
+                          int k, float cell_m, float max_radius_m, std::size_t* recomputed) {
+  checkArguments(k, cell_m, max_radius_m);
+  if (k > g.k) throw std::invalid_argument("restrictKnnGraph: k exceeds the graph's k");
+  if (keep.size() != points.size() || g.count.size() != points.size()) {
+    throw std::invalid_argument("restrictKnnGraph: graph, points and mask sizes differ");
+  }
+  std::vector<int> new_index(points.size(), -1);
+  std::vector<Eigen::Vector3f> kept;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!keep[i]) continue;
+    new_index[i] = static_cast<int>(kept.size());
+    kept.push_back(points[i]);
+  }
+  KnnGraph out;
+  allocate(out, kept.size(), k);
+  std::vector<bool> redo(kept.size(), false);
+  std::size_t n_redo = 0;
+  const float max_r2 = max_radius_m * max_radius_m;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const int ni = new_index[i];
+    if (ni < 0) continue;
+    const std::size_t base = i * static_cast<std::size_t>(g.k);
+    const std::size_t obase = static_cast<std::size_t>(ni) * static_cast<std::size_t>(k);
+    int c = 0;
+    for (int j = 0; j < g.count[i] && c < k; ++j) {
+      const int nb = new_index[static_cast<std::size_t>(g.indices[base + static_cast<std::size_t>(j)])];
+      const float d2 = g.sq_dist[base + static_cast<std::size_t>(j)];
+      if (nb < 0 || d2 > max_r2) continue;
+      out.indices[obase + static_cast<std::size_t>(c)] = nb;
+      out.sq_dist[obase + static_cast<std::size_t>(c)] = d2;
+      ++c;
+    }
+    out.count[static_cast<std::size_t>(ni)] = c;
+    // The row is exact if it found k kept neighbours, or if the original row already
+    // held every point within the radius (it was not full). Otherwise removed points
+    // took places that farther kept points now fill: search again.
+    if (c < k && g.count[i] == g.k) {
+      redo[static_cast<std::size_t>(ni)] = true;
+      ++n_redo;
+    }
+  }
+  if (recomputed) *recomputed = n_redo;
+  if (n_redo > 0) {
+    GridSearch search(kept, k, cell_m, max_radius_m);
+    search.run(out, [&](int i) { return static_cast<bool>(redo[static_cast<std::size_t>(i)]); },
+               [](int i) { return i; });
+  }
+  return out;
 }
 
 KnnGraph bruteForceKnnGraph(const std::vector<Eigen::Vector3f>& points, int k) {
   KnnGraph g;
   allocate(g, points.size(), k);
-  KSelect sel(k);
+  std::vector<std::uint64_t> keys;
   for (std::size_t i = 0; i < points.size(); ++i) {
-    sel.clear();
+    keys.clear();
     for (std::size_t j = 0; j < points.size(); ++j) {
-      if (j != i) sel.add((points[j] - points[i]).squaredNorm(), static_cast<int>(j));
+      if (j != i) keys.push_back(packKey((points[j] - points[i]).squaredNorm(), static_cast<int>(j)));
     }
-    store(g, static_cast<int>(i), sel.select());
+    selectSmallest(keys, static_cast<std::size_t>(k));
+    storeKeys(g, i, keys);
   }
   return g;
 }

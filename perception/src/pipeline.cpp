@@ -64,6 +64,7 @@ void validate(const PerceptionParams& p) {
   if (p.ground_max_iterations < 1) fail("ground_max_iterations", p.ground_max_iterations, "must be >= 1");
   if (!(p.ground_max_tilt_deg >= 0 && p.ground_max_tilt_deg <= 90)) fail("ground_max_tilt_deg", p.ground_max_tilt_deg, "must be in [0, 90]");
   if (!(p.ground_normal_tolerance_deg > 0 && p.ground_normal_tolerance_deg <= 180)) fail("ground_normal_tolerance_deg", p.ground_normal_tolerance_deg, "must be in (0, 180]");
+  if (!(p.ground_reclaim_min_angle_deg >= 0 && p.ground_reclaim_min_angle_deg <= 90)) fail("ground_reclaim_min_angle_deg", p.ground_reclaim_min_angle_deg, "must be in [0, 90]");
   if (p.ground_min_points < 3) fail("ground_min_points", p.ground_min_points, "must be >= 3");
   if (!(p.colour_threshold > 0) || !std::isfinite(p.colour_threshold)) fail("colour_threshold", p.colour_threshold, "must be finite and > 0");
   if (!(p.neighbour_distance_m > 0) || !std::isfinite(p.neighbour_distance_m)) fail("neighbour_distance_m", p.neighbour_distance_m, "must be finite and > 0");
@@ -177,18 +178,21 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
   std::vector<Eigen::Vector3f> voxels = voxelReduce(raw, static_cast<float>(p.voxel_size_m), &voxel_of_raw);
   clock.stop("reduction", n_raw, voxels.size());
 
-  // 2. Statistical outlier removal.
+  // 2. Statistical outlier removal. One neighbour search serves both this stage and
+  // the normals: the graph holds max(outlier_k, normal_k) neighbours per voxel, SOR
+  // reads the first outlier_k, and the normals' graph over the kept points is derived
+  // from it (exactly; only points that lost neighbours to the removal search again).
   clock.start();
+  const int graph_k = std::max(p.outlier_k, p.normal_k);
+  const float cell = knnCell(p.voxel_size_m, graph_k);
+  const float max_radius = static_cast<float>(20 * p.voxel_size_m);
   std::vector<int> kept_index(voxels.size(), -1);
-  {
-    const KnnGraph g = buildKnnGraph(voxels, p.outlier_k, knnCell(p.voxel_size_m, p.outlier_k),
-                                     static_cast<float>(20 * p.voxel_size_m));
-    const std::vector<bool> keep = statisticalOutlierMask(g, p.outlier_alpha);
-    for (std::size_t i = 0; i < voxels.size(); ++i) {
-      if (!keep[i]) continue;
-      kept_index[i] = static_cast<int>(out.points.size());
-      out.points.push_back(voxels[i]);
-    }
+  const KnnGraph voxel_graph = buildKnnGraph(voxels, graph_k, cell, max_radius);
+  const std::vector<bool> keep = statisticalOutlierMask(voxel_graph, p.outlier_alpha, p.outlier_k);
+  for (std::size_t i = 0; i < voxels.size(); ++i) {
+    if (!keep[i]) continue;
+    kept_index[i] = static_cast<int>(out.points.size());
+    out.points.push_back(voxels[i]);
   }
   clock.stop("denoising", voxels.size(), out.points.size());
   if (pixels > 0) {
@@ -201,8 +205,7 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
 
   // 3. Normals.
   clock.start();
-  const KnnGraph graph = buildKnnGraph(out.points, p.normal_k, knnCell(p.voxel_size_m, p.normal_k),
-                                       static_cast<float>(20 * p.voxel_size_m));
+  const KnnGraph graph = restrictKnnGraph(voxel_graph, voxels, keep, p.normal_k, cell, max_radius);
   std::vector<Eigen::Vector3f> smoothed;
   estimateNormals(out.points, graph, Eigen::Vector3f::Zero(), out.normals, out.curvature,
                   p.roughness_smoothing ? &smoothed : nullptr);
@@ -249,8 +252,25 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
   // 6. Colour region growing on what is not ground.
   clock.start();
   int regions = 0;
-  const std::vector<int> labels = growRegions(out.points, out.colours, graph, eligible, p.colour_threshold,
-                                              p.neighbour_distance_m, p.min_segment_points, &regions);
+  std::vector<int> labels = growRegions(out.points, out.colours, graph, eligible, p.colour_threshold,
+                                        p.neighbour_distance_m, p.min_segment_points, &regions);
+  if (out.ground_plane && regions > 0 && p.ground_reclaim_min_angle_deg > 0) {
+    std::vector<std::vector<int>> region_points(static_cast<std::size_t>(regions));
+    for (std::size_t i = 0; i < n; ++i) {
+      if (labels[i] >= 0) region_points[static_cast<std::size_t>(labels[i])].push_back(static_cast<int>(i));
+    }
+    std::vector<Eigen::Vector4f> planes(region_points.size());
+    for (std::size_t r = 0; r < planes.size(); ++r) planes[r] = leastSquaresPlane(out.points, region_points[r]);
+    std::vector<bool> is_ground(n, false);
+    for (int i : ground_points) is_ground[static_cast<std::size_t>(i)] = true;
+    if (reclaimGroundPoints(out.points, graph, p.neighbour_distance_m, *out.ground_plane, planes,
+                            p.ground_reclaim_min_angle_deg, p.ground_distance_m, labels, is_ground) > 0) {
+      ground_points.clear();
+      for (std::size_t i = 0; i < n; ++i) {
+        if (is_ground[i]) ground_points.push_back(static_cast<int>(i));
+      }
+    }
+  }
   std::vector<std::vector<int>> members(static_cast<std::size_t>(regions));
   for (std::size_t i = 0; i < n; ++i) {
     if (labels[i] >= 0) members[static_cast<std::size_t>(labels[i])].push_back(static_cast<int>(i));
@@ -304,7 +324,7 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
     centroid /= static_cast<float>(seg.points.size());
     Eigen::Vector3f normal = plane.head<3>().normalized();
     if (normal.dot(-centroid) < 0) normal = -normal;  // towards the camera
-    plane << normal, -normal.dot(centroid);
+    plane = Eigen::Vector4f(normal.x(), normal.y(), normal.z(), -normal.dot(centroid));
     seg.centroid = centroid;
     seg.normal = normal;
     seg.slope_deg = std::acos(std::clamp(static_cast<double>(normal.dot(reference)), -1.0, 1.0)) * kRadToDeg;

@@ -37,17 +37,19 @@ std::vector<Eigen::Vector3f> voxelReduce(const std::vector<Eigen::Vector3f>& poi
   return out;
 }
 
-std::vector<bool> statisticalOutlierMask(const KnnGraph& g, double alpha) {
+std::vector<bool> statisticalOutlierMask(const KnnGraph& g, double alpha, int k) {
+  if (k <= 0) k = g.k;
+  if (k > g.k) throw std::invalid_argument("statisticalOutlierMask: k exceeds the graph's k");
   const std::size_t n = g.count.size();
   std::vector<double> mean_d(n, 0.0);
   std::vector<bool> keep(n, false);
   double sum = 0.0, sum2 = 0.0;
   std::size_t m = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    if (g.count[i] < g.k) continue;  // too isolated to have k neighbours: an outlier
+    if (g.count[i] < k) continue;  // too isolated to have k neighbours: an outlier
     double d = 0.0;
-    for (int j = 0; j < g.k; ++j) d += std::sqrt(g.sq_dist[i * static_cast<std::size_t>(g.k) + static_cast<std::size_t>(j)]);
-    mean_d[i] = d / g.k;
+    for (int j = 0; j < k; ++j) d += std::sqrt(g.sq_dist[i * static_cast<std::size_t>(g.k) + static_cast<std::size_t>(j)]);
+    mean_d[i] = d / k;
     sum += mean_d[i];
     sum2 += mean_d[i] * mean_d[i];
     ++m;
@@ -56,7 +58,7 @@ std::vector<bool> statisticalOutlierMask(const KnnGraph& g, double alpha) {
   const double mu = sum / static_cast<double>(m);
   const double sigma = std::sqrt(std::max(0.0, sum2 / static_cast<double>(m) - mu * mu));
   for (std::size_t i = 0; i < n; ++i) {
-    keep[i] = g.count[i] >= g.k && std::abs(mean_d[i] - mu) <= alpha * sigma + 1e-12;
+    keep[i] = g.count[i] >= k && std::abs(mean_d[i] - mu) <= alpha * sigma + 1e-12;
   }
   return keep;
 }
@@ -71,17 +73,23 @@ void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph&
   for (std::size_t i = 0; i < n; ++i) {
     const int c = g.count[i];
     if (c < 2) continue;  // with the point itself, 3 points make a plane
-    // Covariance about the mean, accumulated relative to the point for precision.
-    const Eigen::Vector3d p0 = points[i].cast<double>();
-    Eigen::Vector3d s = Eigen::Vector3d::Zero();
-    Eigen::Matrix3d ss = Eigen::Matrix3d::Zero();
+    // Covariance about the mean, accumulated relative to the point: offsets are a few
+    // centimetres, so single precision sums lose nothing that matters (relative error
+    // ~1e-7 of entries ~1e-4 m^2); the eigen-decomposition runs in double.
+    const Eigen::Vector3f pf = points[i];
+    const int* nb = &g.indices[i * static_cast<std::size_t>(g.k)];
+    float sx = 0, sy = 0, sz = 0, xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0;
     for (int j = 0; j < c; ++j) {
-      const Eigen::Vector3d d = points[static_cast<std::size_t>(g.indices[i * static_cast<std::size_t>(g.k) + static_cast<std::size_t>(j)])].cast<double>() - p0;
-      s += d;
-      ss += d * d.transpose();
+      const Eigen::Vector3f d = points[static_cast<std::size_t>(nb[j])] - pf;
+      sx += d.x(), sy += d.y(), sz += d.z();
+      xx += d.x() * d.x(), xy += d.x() * d.y(), xz += d.x() * d.z();
+      yy += d.y() * d.y(), yz += d.y() * d.z(), zz += d.z() * d.z();
     }
+    const Eigen::Vector3d p0 = pf.cast<double>();
     const double m = c + 1.0;  // the point itself contributes d = 0
-    const Eigen::Vector3d mean = s / m;
+    const Eigen::Vector3d mean = Eigen::Vector3d(sx, sy, sz) / m;
+    Eigen::Matrix3d ss;
+    ss << xx, xy, xz, xy, yy, yz, xz, yz, zz;
     const Eigen::Matrix3d cov = ss / m - mean * mean.transpose();
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
     es.computeDirect(cov);
@@ -151,10 +159,24 @@ std::optional<PlaneFit> ransacPlane(const std::vector<Eigen::Vector3f>& points, 
   Eigen::Vector4f best = Eigen::Vector4f::Zero();
   double needed = static_cast<double>(o.max_iterations);
   int it = 0;
+  // Hypotheses are scored on a random subset (partial Fisher-Yates shuffle).
+  std::vector<int> subset;
+  const bool sampled = o.score_sample > 0 && cand.size() > o.score_sample;
+  if (sampled) {
+    subset = cand;
+    for (std::size_t i = 0; i < o.score_sample; ++i) {
+      std::uniform_int_distribution<std::size_t> rest(i, subset.size() - 1);
+      std::swap(subset[i], subset[rest(rng)]);
+    }
+    subset.resize(o.score_sample);
+  }
+  const std::vector<int>& scoring = sampled ? subset : cand;
+  constexpr std::size_t kFinalists = 8;
+  std::vector<std::pair<std::size_t, Eigen::Vector4f>> finalists;
   auto countInliers = [&](const Eigen::Vector4f& pl, std::vector<int>* out) {
     std::size_t count = 0;
     const Eigen::Vector3f n = pl.head<3>();
-    for (int i : cand) {
+    for (int i : out ? cand : scoring) {
       const Eigen::Vector3f& p = points[static_cast<std::size_t>(i)];
       if (std::abs(n.dot(p) + pl(3)) > dist) continue;
       if (o.point_normals && std::abs(n.dot((*o.point_normals)[static_cast<std::size_t>(i)])) < cos_normal) continue;
@@ -172,22 +194,41 @@ std::optional<PlaneFit> ransacPlane(const std::vector<Eigen::Vector3f>& points, 
     if (len < 1e-9f) continue;  // degenerate sample
     n /= len;
     if (o.required_normal && std::abs(n.dot(*o.required_normal)) < cos_tilt) continue;
-    Eigen::Vector4f pl;
-    pl << n, -n.dot(a);
+    const Eigen::Vector4f pl(n.x(), n.y(), n.z(), -n.dot(a));
     const std::size_t count = countInliers(pl, nullptr);
+    if (sampled && count > 0) {
+      // Keep the best few by subset score; the full count decides among them, so
+      // sampling noise cannot pick a plane that only looks best on the subset.
+      finalists.emplace_back(count, pl);
+      std::sort(finalists.begin(), finalists.end(),
+                [](const auto& x, const auto& y) { return x.first > y.first; });
+      if (finalists.size() > kFinalists) finalists.pop_back();
+    }
     if (count > best_count) {
       best_count = count;
       best = pl;
       // Eq. 6 with the outlier ratio e = 1 - w updated from the best set so far.
-      const double w = static_cast<double>(count) / static_cast<double>(cand.size());
+      const double w = static_cast<double>(count) / static_cast<double>(scoring.size());
       const double denom = std::log(std::max(1e-12, 1.0 - w * w * w));
       needed = denom < 0 ? std::log(1.0 - o.probability) / denom : 0.0;
     }
   }
-  if (best_count < 3) return std::nullopt;
+  if (best_count == 0) return std::nullopt;
   PlaneFit fit;
   fit.iterations = it;
+  if (sampled) {
+    std::size_t best_full = 0;
+    std::vector<int> inliers;
+    for (const auto& f : finalists) {
+      inliers.clear();
+      if (countInliers(f.second, &inliers) > best_full) {
+        best_full = inliers.size();
+        best = f.second;
+      }
+    }
+  }
   countInliers(best, &fit.inliers);
+  if (fit.inliers.size() < 3) return std::nullopt;
   // Least-squares refit on the inliers, then the final inlier set of that plane.
   Eigen::Vector4f refined = leastSquaresPlane(points, fit.inliers);
   if (refined.head<3>().dot(best.head<3>()) < 0) refined = -refined;
@@ -243,6 +284,57 @@ std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
   for (auto& l : label) l = l < 0 ? -1 : l;
   if (regions) *regions = next;
   return label;
+}
+
+std::size_t reclaimGroundPoints(const std::vector<Eigen::Vector3f>& points, const KnnGraph& g,
+                                double max_neighbour_distance_m, const Eigen::Vector4f& ground_plane,
+                                const std::vector<Eigen::Vector4f>& region_planes, double min_angle_deg,
+                                double max_plane_distance_m, std::vector<int>& labels, std::vector<bool>& ground) {
+  const std::size_t n = points.size();
+  if (labels.size() != n || ground.size() != n || g.count.size() != n) {
+    throw std::invalid_argument("reclaimGroundPoints: points, graph, labels and ground mask sizes differ");
+  }
+  const Eigen::Vector3f gn = ground_plane.head<3>().normalized();
+  const float gd = ground_plane(3) / ground_plane.head<3>().norm();
+  const double cos_min = std::cos(min_angle_deg * M_PI / 180.0);
+  std::vector<bool> tilted(region_planes.size(), false);
+  std::vector<Eigen::Vector4f> unit(region_planes.size());
+  for (std::size_t r = 0; r < region_planes.size(); ++r) {
+    const float len = region_planes[r].head<3>().norm();
+    if (!(len > 0.f)) continue;
+    unit[r] = region_planes[r] / len;
+    tilted[r] = std::abs(static_cast<double>(unit[r].head<3>().dot(gn))) < cos_min;
+  }
+  const float max_d2 = static_cast<float>(max_neighbour_distance_m * max_neighbour_distance_m);
+  const float max_plane = static_cast<float>(max_plane_distance_m);
+  std::vector<int> queue;
+  for (std::size_t i = 0; i < n; ++i) {
+    const int r = labels[i];
+    if (r >= 0 && static_cast<std::size_t>(r) < tilted.size() && tilted[static_cast<std::size_t>(r)]) {
+      queue.push_back(static_cast<int>(i));
+    }
+  }
+  std::size_t moved = 0;
+  for (std::size_t head = 0; head < queue.size(); ++head) {
+    const auto i = static_cast<std::size_t>(queue[head]);
+    const auto r = static_cast<std::size_t>(labels[i]);
+    const Eigen::Vector4f& pl = unit[r];
+    const std::size_t base = i * static_cast<std::size_t>(g.k);
+    for (int j = 0; j < g.count[i]; ++j) {
+      if (g.sq_dist[base + static_cast<std::size_t>(j)] > max_d2) continue;
+      const auto nb = static_cast<std::size_t>(g.indices[base + static_cast<std::size_t>(j)]);
+      if (!ground[nb]) continue;
+      const Eigen::Vector3f& q = points[nb];
+      const float to_region = std::abs(pl.head<3>().dot(q) + pl(3));
+      const float to_ground = std::abs(gn.dot(q) + gd);
+      if (to_region >= to_ground || to_region > max_plane) continue;
+      ground[nb] = false;
+      labels[nb] = static_cast<int>(r);
+      queue.push_back(static_cast<int>(nb));
+      ++moved;
+    }
+  }
+  return moved;
 }
 
 }  // namespace mobmap::perception

@@ -29,6 +29,15 @@ struct KnnGraph {
 KnnGraph buildKnnGraph(const std::vector<Eigen::Vector3f>& points, int k, float cell_m,
                        float max_radius_m);
 
+/// The exact k-NN graph (k <= graph.k) of the points with keep[i], renumbered in
+/// their original order, derived from `graph` (the k-NN graph of all `points` built
+/// with the same max_radius_m). A kept point's row is the first k kept entries of its
+/// old row; only points that lost too many neighbours to the mask are searched again
+/// (their number goes to `recomputed`). Equal to buildKnnGraph on the kept points.
+KnnGraph restrictKnnGraph(const KnnGraph& graph, const std::vector<Eigen::Vector3f>& points,
+                          const std::vector<bool>& keep, int k, float cell_m, float max_radius_m,
+                          std::size_t* recomputed = nullptr);
+
 /// Reference: the same graph by brute force, O(n^2). For tests.
 KnnGraph bruteForceKnnGraph(const std::vector<Eigen::Vector3f>& points, int k);
 

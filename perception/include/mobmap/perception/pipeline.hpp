@@ -37,6 +37,9 @@ struct PerceptionParams {
   double ground_max_tilt_deg = 20.0;      ///< with gravity: plane normal within this of "up"
   double ground_normal_tolerance_deg = 25.0;  ///< inliers' own normals within this of the plane's
   int ground_min_points = 500;            ///< fewer inliers: "no floor in view"
+  /// Ground inliers that continue a region tilted at least this much from the floor
+  /// (the foot of a gentle ramp) go back to that region; 0 turns this off.
+  double ground_reclaim_min_angle_deg = 3.0;
   // 6. Region growing (paper Algorithm 1)
   double colour_threshold = 12.0;       ///< max YCrCb distance between neighbours (0-255 scale)
   double neighbour_distance_m = 0.025;  ///< neighbours farther apart are not connected

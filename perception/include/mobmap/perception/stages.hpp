@@ -24,7 +24,8 @@ std::vector<Eigen::Vector3f> voxelReduce(const std::vector<Eigen::Vector3f>& poi
 /// Statistical outlier removal (paper eq. 1): mean distance d_i to the k nearest
 /// neighbours; keep points with |d_i - mu| <= alpha sigma over the cloud. Returns the
 /// mask of kept points. Points without k neighbours within the graph are removed.
-std::vector<bool> statisticalOutlierMask(const KnnGraph& graph, double alpha);
+/// k defaults to graph.k; a smaller k uses the first k entries of each row.
+std::vector<bool> statisticalOutlierMask(const KnnGraph& graph, double alpha, int k = 0);
 
 /// PCA normals (paper eqs. 2-3): eigenvector of the smallest eigenvalue of the
 /// neighbourhood covariance (the point and its graph neighbours), oriented towards
@@ -60,11 +61,15 @@ struct RansacOptions {
   /// If normals are given, inliers must also have a normal within this angle of the plane's.
   const std::vector<Eigen::Vector3f>* point_normals = nullptr;
   double normal_tolerance_deg = 180.0;
+  /// Hypotheses are scored on a fixed random subset of this many candidates (0: all),
+  /// and w in eq. 6 is the inlier ratio on that subset; the winning plane's inliers
+  /// are then counted on all candidates. 4096 points estimate a ratio to about 1%.
+  std::size_t score_sample = 4096;
 };
 
 /// RANSAC plane among `candidates` (indices into points) with the adaptive number of
 /// iterations of paper eq. 6: N = log(1-p) / log(1-w^3), w the best inlier ratio so
-/// far. The returned plane is refitted by least squares to its inliers. nullopt if no
+/// far (estimated on `score_sample` points). The returned plane is refitted by least squares to its inliers. nullopt if no
 /// qualifying plane has 3 or more inliers.
 std::optional<PlaneFit> ransacPlane(const std::vector<Eigen::Vector3f>& points, const std::vector<int>& candidates,
                                     const RansacOptions& options, std::mt19937& rng);
@@ -83,6 +88,21 @@ std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
                              const std::vector<std::array<std::uint8_t, 3>>& colours, const KnnGraph& graph,
                              const std::vector<bool>& eligible, double colour_threshold, double max_distance_m,
                              int min_points, int* regions);
+
+/// Gives back to a tilted region the ground inliers that continue it. RANSAC takes
+/// every point within its distance of the floor plane, which includes the foot of a
+/// gentle ramp (a 5 degree ramp stays within 2 cm of the floor for its first 23 cm).
+/// Starting from each region whose plane (`region_planes[r]`) is at least
+/// `min_angle_deg` from the ground's, a breadth-first walk over graph neighbours
+/// within `max_neighbour_distance_m` moves a ground point into the region when it
+/// is closer to the region's plane than to the ground plane and within
+/// `max_plane_distance_m` of it. Updates `labels` (region per point, -1 none) and
+/// `ground` (ground mask); returns how many points moved.
+std::size_t reclaimGroundPoints(const std::vector<Eigen::Vector3f>& points, const KnnGraph& graph,
+                                double max_neighbour_distance_m, const Eigen::Vector4f& ground_plane,
+                                const std::vector<Eigen::Vector4f>& region_planes, double min_angle_deg,
+                                double max_plane_distance_m, std::vector<int>& labels, std::vector<bool>& ground);
+
 
 /// Roughness r = A / A' (paper eqs. 8-10) of a segment: CGAL 2D Delaunay triangulation
 /// of the points projected on `plane`; A sums the triangles' 3D areas, A' the areas of
