@@ -26,6 +26,16 @@ float keyDistance(std::uint64_t key) {
 }
 int keyIndex(std::uint64_t key) { return static_cast<int>(static_cast<std::uint32_t>(key)); }
 
+// The one definition of squared distance used by every search here, so the grid
+// search and the brute-force reference agree to the last bit.
+inline float sqDist(float ax, float ay, float az, float bx, float by, float bz) {
+  const float dx = ax - bx, dy = ay - by, dz = az - bz;
+  return dx * dx + dy * dy + dz * dz;
+}
+inline float sqDist(const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
+  return sqDist(a.x(), a.y(), a.z(), b.x(), b.y(), b.z());
+}
+
 // Keeps the k smallest keys, sorted. Candidate lists are short (tens of keys), where
 // a bounded insertion sort beats nth_element followed by sort.
 void selectSmallest(std::vector<std::uint64_t>& keys, std::size_t k) {
@@ -95,7 +105,7 @@ class GridSearch {
       }
       if (!any) continue;
       const Eigen::Vector3i cc = buckets_.cells[c];
-      gather(cc, 1, block_idx_, block_pts_);
+      gather(cc, 1, block_);
       for (int s = buckets_.start[c]; s < buckets_.start[c + 1]; ++s) {
         const int i = buckets_.order[static_cast<std::size_t>(s)];
         if (!want(i)) continue;
@@ -105,14 +115,16 @@ class GridSearch {
         // First try a tighter radius (most surface points have k neighbours well
         // inside it, and fewer candidates make the selection cheaper), then the
         // whole guaranteed radius of the block, then wider rings.
-        collect(i, p, block_idx_, block_pts_, std::min(tight2_, max_r2_));
-        if (keys_.size() < k_ && tight2_ < max_r2_) collect(i, p, block_idx_, block_pts_, std::min(cell_ * cell_, max_r2_));
+        distances(p, block_);
+        collect(i, block_, std::min(tight2_, max_r2_));
+        if (keys_.size() < k_ && tight2_ < max_r2_) collect(i, block_, std::min(cell_ * cell_, max_r2_));
         int ring = 1;
         while (keys_.size() < k_ && ring < max_ring_) {
           ++ring;
-          gather(cc, ring, wide_idx_, wide_pts_);
+          gather(cc, ring, wide_);
+          distances(p, wide_);
           const float r = static_cast<float>(ring) * cell_;
-          collect(i, p, wide_idx_, wide_pts_, std::min(r * r, max_r2_));
+          collect(i, wide_, std::min(r * r, max_r2_));
         }
         selectSmallest(keys_, k_);
         storeKeys(g, static_cast<std::size_t>(row_of(i)), keys_);
@@ -121,7 +133,12 @@ class GridSearch {
   }
 
  private:
-  void gather(const Eigen::Vector3i& cc, int ring, std::vector<int>& idx, std::vector<Eigen::Vector3f>& pts) const {
+  struct Block {
+    std::vector<int> idx;
+    std::vector<float> x, y, z, d2;
+  };
+  void gather(const Eigen::Vector3i& cc, int ring, Block& b) const {
+    std::vector<int>& idx = b.idx;
     idx.clear();
     for (int dx = -ring; dx <= ring; ++dx) {
       for (int dy = -ring; dy <= ring; ++dy) {
@@ -133,15 +150,29 @@ class GridSearch {
         }
       }
     }
-    pts.resize(idx.size());
-    for (std::size_t j = 0; j < idx.size(); ++j) pts[j] = points_[static_cast<std::size_t>(idx[j])];
-  }
-  void collect(int self, const Eigen::Vector3f& p, const std::vector<int>& idx, const std::vector<Eigen::Vector3f>& pts,
-               float limit2) {
-    keys_.clear();
+    b.x.resize(idx.size());
+    b.y.resize(idx.size());
+    b.z.resize(idx.size());
+    b.d2.resize(idx.size());
     for (std::size_t j = 0; j < idx.size(); ++j) {
-      const float d2 = (pts[j] - p).squaredNorm();
-      if (d2 <= limit2 && idx[j] != self) keys_.push_back(packKey(d2, idx[j]));
+      const Eigen::Vector3f& q = points_[static_cast<std::size_t>(idx[j])];
+      b.x[j] = q.x(), b.y[j] = q.y(), b.z[j] = q.z();
+    }
+  }
+  // Distances from p to the whole block (a loop the compiler vectorises).
+  static void distances(const Eigen::Vector3f& p, Block& b) {
+    const float px = p.x(), py = p.y(), pz = p.z();
+    const float* x = b.x.data();
+    const float* y = b.y.data();
+    const float* z = b.z.data();
+    float* d2 = b.d2.data();
+    const std::size_t m = b.idx.size();
+    for (std::size_t j = 0; j < m; ++j) d2[j] = sqDist(x[j], y[j], z[j], px, py, pz);
+  }
+  void collect(int self, const Block& b, float limit2) {
+    keys_.clear();
+    for (std::size_t j = 0; j < b.idx.size(); ++j) {
+      if (b.d2[j] <= limit2 && b.idx[j] != self) keys_.push_back(packKey(b.d2[j], b.idx[j]));
     }
   }
 
@@ -151,8 +182,7 @@ class GridSearch {
   float cell_, max_r2_;
   int max_ring_;
   float tight2_;
-  std::vector<int> block_idx_, wide_idx_;
-  std::vector<Eigen::Vector3f> block_pts_, wide_pts_;
+  Block block_, wide_;
   std::vector<std::uint64_t> keys_;
 };
 
@@ -226,7 +256,7 @@ KnnGraph bruteForceKnnGraph(const std::vector<Eigen::Vector3f>& points, int k) {
   for (std::size_t i = 0; i < points.size(); ++i) {
     keys.clear();
     for (std::size_t j = 0; j < points.size(); ++j) {
-      if (j != i) keys.push_back(packKey((points[j] - points[i]).squaredNorm(), static_cast<int>(j)));
+      if (j != i) keys.push_back(packKey(sqDist(points[j], points[i]), static_cast<int>(j)));
     }
     selectSmallest(keys, static_cast<std::size_t>(k));
     storeKeys(g, i, keys);
