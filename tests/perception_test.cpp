@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <set>
 #include <random>
@@ -78,6 +79,38 @@ TEST(OutlierRemoval, FirstKOfALargerGraphEqualsTheSmallerGraph) {
   const auto a = statisticalOutlierMask(bruteForceKnnGraph(pts, 30), 1.0, 8);
   const auto b = statisticalOutlierMask(bruteForceKnnGraph(pts, 8), 1.0);
   EXPECT_EQ(a, b);
+}
+
+TEST(Camera, IntrinsicsFittedToAnOrganizedCloudAreTheOnesThatMadeIt) {
+  PinholeIntrinsics k;
+  k.width = 160, k.height = 120, k.fx = 150.5, k.fy = 149.0, k.cx = 79.25, k.cy = 61.5;
+  std::vector<Eigen::Vector3f> cloud(static_cast<std::size_t>(k.width * k.height));
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (int v = 0; v < k.height; ++v) {
+    for (int u = 0; u < k.width; ++u) {
+      const double z = 1.0 + 0.01 * ((u * 7 + v * 13) % 50);
+      cloud[static_cast<std::size_t>(v * k.width + u)] =
+          (u + v) % 11 == 0 ? Eigen::Vector3f(nan, nan, nan) : backProject(k, u, v, z).cast<float>();
+    }
+  }
+  double rms = -1;
+  const auto fit = fitIntrinsics(cloud, k.width, k.height, &rms);
+  ASSERT_TRUE(fit);
+  EXPECT_NEAR(fit->fx, k.fx, 1e-3);
+  EXPECT_NEAR(fit->fy, k.fy, 1e-3);
+  EXPECT_NEAR(fit->cx, k.cx, 1e-3);
+  EXPECT_NEAR(fit->cy, k.cy, 1e-3);
+  EXPECT_EQ(fit->width, k.width);
+  EXPECT_LT(rms, 0.01);
+  // Points that are not a pinhole image of their pixels: a large residual.
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-1, 1);
+  for (auto& p : cloud) p = Eigen::Vector3f(u(rng), u(rng), 2 + u(rng));
+  const auto bad = fitIntrinsics(cloud, k.width, k.height, &rms);
+  EXPECT_TRUE(!bad || rms > 10);
+  std::vector<Eigen::Vector3f> empty(cloud.size(), Eigen::Vector3f(nan, nan, nan));
+  EXPECT_FALSE(fitIntrinsics(empty, k.width, k.height));
+  EXPECT_THROW(fitIntrinsics(empty, k.width + 1, k.height), std::invalid_argument);
 }
 
 TEST(VoxelReduce, CentroidsEqualBruteForceGrouping) {

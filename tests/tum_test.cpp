@@ -1,8 +1,10 @@
-// TUM RGB-D sequences: timestamp association with MRPT pose interpolation, the
-// 5000-per-metre depth scale, skipped frames, and building a map from one.
+// Posed sequences other than 7-Scenes: TUM RGB-D (timestamp association with MRPT pose
+// interpolation, the 5000-per-metre depth scale, skipped frames) and .pcd frames with a
+// --poses trajectory (in order or by time stamps in the file names), built into maps.
 #include "dataset.hpp"
 #include "io_error.hpp"
 #include "png_io.hpp"
+#include "map_files.hpp"
 #include "sequence.hpp"
 
 #include "mobmap/mapping/trajectory.hpp"
@@ -16,6 +18,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 
 namespace mobmap {
 namespace {
@@ -125,6 +128,123 @@ TEST(TumSequence, BadGroundTruthNamesTheFileAndPose) {
   } catch (const app::IoError& e) {
     EXPECT_NE(std::string(e.what()).find("groundtruth.txt: missing"), std::string::npos) << e.what();
   }
+  fs::remove_all(dir);
+}
+
+// Writes frame `f` of the noise-free corridor as an organized binary PCD (x y z, NaN
+// where there is no depth), as a Kinect grabber would.
+void writeOrganizedPcd(const sim::CorridorScene& scene, int f, const std::string& path) {
+  const auto r = scene.render(f);
+  const auto& k = scene.params().intrinsics;
+  std::ofstream out(path, std::ios::binary);
+  out << "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH " << k.width << "\nHEIGHT "
+      << k.height << "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << k.width * k.height << "\nDATA binary\n";
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (int v = 0; v < k.height; ++v) {
+    for (int u = 0; u < k.width; ++u) {
+      const float z = r.exact_depth.at(u, v);
+      float xyz[3] = {nan, nan, nan};
+      if (z > 0) {
+        const Eigen::Vector3f p = perception::backProject(k, u, v, z).cast<float>();
+        xyz[0] = p.x(), xyz[1] = p.y(), xyz[2] = p.z();
+      }
+      out.write(reinterpret_cast<const char*>(xyz), sizeof xyz);
+    }
+  }
+}
+
+void writePoseLine(std::ostream& out, double t, const Eigen::Isometry3d& T) {
+  const Eigen::Quaterniond q(T.linear());
+  out.precision(9);
+  out << std::fixed << t << " " << T.translation().x() << " " << T.translation().y() << " " << T.translation().z() << " "
+      << q.x() << " " << q.y() << " " << q.z() << " " << q.w() << "\n";
+}
+
+TEST(PcdSequence, FileNameTimeStamps) {
+  // 2012-12-14 14:22:55 UTC is 1355494975 s after the epoch.
+  EXPECT_NEAR(*app::timestampFromFileName("/x/frame_20121214T142255.814212.pcd"), 1355494975.814212, 1e-6);
+  EXPECT_NEAR(*app::timestampFromFileName("1305031102.175304.pcd"), 1305031102.175304, 1e-6);
+  EXPECT_NEAR(*app::timestampFromFileName("cloud-42.pcd"), 42.0, 0);
+  EXPECT_FALSE(app::timestampFromFileName("cloud.pcd"));
+  EXPECT_FALSE(app::timestampFromFileName("frame_2012121XT.pcd"));
+  EXPECT_NEAR(*app::timestampFromFileName("frame_2012121XT142255.pcd"), 142255.0, 0);  // not a date: the trailing number
+}
+
+TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
+  sim::CorridorParams p;
+  p.frames = 30;
+  p.noise = sim::NoiseModel::kNone;
+  const sim::CorridorScene scene(p);
+  const fs::path dir = fs::temp_directory_path() / ("mobmap-pcdseq-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir / "frames");
+  const int frames[] = {0, 10, 20};
+  {
+    std::ofstream in_order(dir / "in_order.txt");
+    std::ofstream timed(dir / "timed.txt");
+    timed << "# timestamp tx ty tz qx qy qz qw\n";
+    for (int f : frames) {
+      char name[64];
+      std::snprintf(name, sizeof name, "frame_20121214T1422%02d.000000.pcd", 10 + f / 10);  // one per second
+      writeOrganizedPcd(scene, f, (dir / "frames" / name).string());
+      writePoseLine(in_order, 0.0, scene.cameraPose(f));
+    }
+    // Timestamped poses every 0.25 s around the frames: the frame times interpolate
+    // between samples of the same pose, so they must come back exactly.
+    for (int f : frames) {
+      for (double dt : {-0.25, 0.0, 0.25}) writePoseLine(timed, 1355494930.0 + f / 10 + dt, scene.cameraPose(f));
+    }
+  }
+  const auto& k = scene.params().intrinsics;
+  for (const char* poses : {"in_order.txt", "timed.txt"}) {
+    const auto seq = app::openSequence((dir / "frames").string(), "", 0.3, (dir / poses).string());
+    ASSERT_EQ(seq->frames().size(), 3u) << poses;
+    ASSERT_TRUE(seq->hasDepth()) << seq->describe();
+    EXPECT_NEAR(seq->intrinsics().fx, k.fx, 1e-3);
+    EXPECT_NEAR(seq->intrinsics().cy, k.cy, 1e-3);
+    for (int n : seq->frames()) {
+      const auto f = seq->load(n);
+      const Eigen::Isometry3d truth = scene.cameraPose(frames[n]);
+      EXPECT_LT((f.T_world_camera.translation() - truth.translation()).norm(), 1e-5) << poses << " " << n;
+      EXPECT_LT(Eigen::AngleAxisd(f.T_world_camera.linear().transpose() * truth.linear()).angle(), 1e-5);
+      const auto r = scene.render(frames[n]);
+      for (std::size_t i = 0; i < r.exact_depth.depth_m.size(); i += 101) {
+        ASSERT_NEAR(f.depth.depth_m[i], r.exact_depth.depth_m[i], 1e-6) << i;
+      }
+    }
+  }
+  // Too few poses for frames without usable time stamps: a clear error naming the file.
+  fs::create_directories(dir / "plain");
+  for (const char* name : {"a.pcd", "b.pcd"}) fs::copy_file(fs::directory_iterator(dir / "frames")->path(), dir / "plain" / name);
+  {
+    std::ofstream one(dir / "one.txt");
+    writePoseLine(one, 0.0, scene.cameraPose(0));
+  }
+  try {
+    (void)app::openSequence((dir / "plain").string(), "", 0.05, (dir / "one.txt").string());
+    FAIL();
+  } catch (const app::IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("one.txt: 1 poses for 2 .pcd frames"), std::string::npos) << e.what();
+  }
+  try {
+    (void)app::openSequence((dir / "plain").string(), "", 0.05, "");
+    FAIL();
+  } catch (const app::IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("--poses"), std::string::npos) << e.what();
+  }
+  // The CLI builds a map from the frames: the floor ahead of the walker is found at
+  // z = 0 (the corridor's world frame is z up) and scores as traversable.
+  const std::string out = (dir / "map.ot").string();
+  const std::string cmd = std::string(MOBMAP_EXE) + " build " + (dir / "frames").string() + " --poses " +
+                          (dir / "in_order.txt").string() + " --out " + out + " --quiet > " + (dir / "log").string() + " 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  const auto map = app::loadMap(out);
+  const Eigen::Vector3d cam = scene.cameraPose(10).translation();
+  const auto floor = map.snapDown(Eigen::Vector3d(cam.x() + 1.5, cam.y(), 0.1), 0.3);
+  ASSERT_TRUE(floor);
+  EXPECT_NEAR(floor->centre.z(), 0.0, map.tree().getResolution());
+  ASSERT_TRUE(floor->has_mobility);
+  EXPECT_GT(floor->mobility, 0.75);
   fs::remove_all(dir);
 }
 

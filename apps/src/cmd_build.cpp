@@ -78,13 +78,17 @@ Command addBuildCommand(CLI::App& app) {
     std::string config;
     std::string intrinsics;
     double max_pose_gap = 0.05;
+    std::string poses;
   };
   auto o = std::make_shared<Options>();
   cmd->add_option("INPUT", o->input,
                   "A 7-Scenes / 3DMatch layout directory (frame-NNNNNN.depth.png + .pose.txt), a TUM RGB-D directory "
-                  "(depth.txt + groundtruth.txt), or one .pcd frame")->required();
+                  "(depth.txt + groundtruth.txt), a directory of .pcd frames with --poses, or one .pcd frame")->required();
   cmd->add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy or a camera-intrinsics.txt file (TUM default 525,525,319.5,239.5)");
-  cmd->add_option("--max-pose-gap", o->max_pose_gap, "TUM: skip depth frames whose ground-truth neighbours are farther apart in time (s)")
+  cmd->add_option("--poses", o->poses,
+                  "Trajectory for .pcd frames, TUM format 't tx ty tz qx qy qz qw' (camera to world): one line per "
+                  "frame in file-name order, or timestamped and matched to time stamps in the file names");
+  cmd->add_option("--max-pose-gap", o->max_pose_gap, "TUM / timestamped --poses: skip frames whose neighbouring poses are farther apart in time (s)")
       ->capture_default_str();
   cmd->add_option("--out", o->out, "Map file to write (MAP.ot; MAP.bt, MAP.octovis.ot and MAP.json go beside it)")->required();
   cmd->add_option("--frames", o->frames, "FIRST:LAST:STEP of the frame numbers to use (default: all)");
@@ -115,14 +119,15 @@ Command addBuildCommand(CLI::App& app) {
     }
     const perception::FramePipeline pipeline(pp, makeModel(config));
 
-    // Inputs: a directory in the 7-Scenes layout, or a single PCD frame in its camera frame.
+    // Inputs: a posed sequence (7-Scenes or TUM directory, .pcd frames with --poses), or
+    // a single PCD frame in its camera frame.
     std::unique_ptr<Sequence> dir;
     std::vector<int> frames;
     std::optional<Eigen::Vector3d> gravity_world;
     LoadedFrame single;
-    const bool is_dir = fs::is_directory(o->input, ec);
+    const bool is_dir = fs::is_directory(o->input, ec) || !o->poses.empty();
     if (is_dir) {
-      dir = openSequence(o->input, o->intrinsics, o->max_pose_gap);
+      dir = openSequence(o->input, o->intrinsics, o->max_pose_gap, o->poses);
       const FrameRange range = parseRange(o->frames);
       for (int f : dir->frames()) {
         if (f >= range.first && (range.last < 0 || f <= range.last) && (f - range.first) % range.step == 0) frames.push_back(f);
@@ -164,7 +169,13 @@ Command addBuildCommand(CLI::App& app) {
         s.T_world_camera = f.T_world_camera;
         s.read_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
         g_cam = (s.T_world_camera.linear().transpose() * g_world).cast<float>();
-        s.result = pipeline.process(s.depth, dir->intrinsics(), g_cam);
+        if (dir->hasDepth()) {
+          s.result = pipeline.process(s.depth, dir->intrinsics(), g_cam);
+        } else if (f.height > 1 && f.cloud.size() == static_cast<std::size_t>(f.width) * static_cast<std::size_t>(f.height)) {
+          s.result = pipeline.processOrganized(f.cloud, f.width, f.height, g_cam);
+        } else {
+          s.result = pipeline.process(f.cloud, g_cam);
+        }
       } else if (single_result) {
         s.result = std::move(*single_result);
       } else {
@@ -195,7 +206,8 @@ Command addBuildCommand(CLI::App& app) {
       in_flight.pop_front();
       launch();
       const auto t0 = std::chrono::steady_clock::now();
-      map.integrate(s.result, s.T_world_camera, is_dir ? &s.depth : nullptr, is_dir ? &dir->intrinsics() : nullptr);
+      const bool depth = is_dir && dir->hasDepth();
+      map.integrate(s.result, s.T_world_camera, depth ? &s.depth : nullptr, depth ? &dir->intrinsics() : nullptr);
       fuse_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       for (const auto& st : s.result.stages) stage_ms[st.name] += st.milliseconds;
       const Eigen::Vector3d c = R_map_world * s.T_world_camera.translation();

@@ -8,8 +8,12 @@
 
 #include "mobmap/mapping/gravity.hpp"
 #include "mobmap/mapping/trajectory.hpp"
+#include "mobmap/perception/camera.hpp"
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <ctime>
 #include <filesystem>
 #include <sstream>
 
@@ -71,32 +75,217 @@ std::vector<std::pair<double, std::vector<std::string>>> readTimestamped(const s
   return out;
 }
 
+}  // namespace
+
+std::vector<std::pair<double, Eigen::Isometry3d>> readTumPoses(const std::string& path) {
+  std::vector<std::pair<double, Eigen::Isometry3d>> out;
+  int line = 0;
+  for (const auto& [t, v] : readTimestamped(path, 7)) {
+    ++line;
+    double x[7];
+    for (int i = 0; i < 7; ++i) {
+      const auto value = parseFiniteNumber(v[static_cast<std::size_t>(i)]);
+      if (!value) {
+        throw IoError(path, "pose " + std::to_string(line) + ": '" + v[static_cast<std::size_t>(i)] + "' is not a finite number");
+      }
+      x[i] = *value;
+    }
+    const Eigen::Quaterniond q(x[6], x[3], x[4], x[5]);  // file order qx qy qz qw
+    if (std::abs(q.norm() - 1.0) > 1e-3) {
+      throw IoError(path, "pose " + std::to_string(line) + ": quaternion norm " + std::to_string(q.norm()) + " is not 1");
+    }
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = q.normalized().toRotationMatrix();
+    T.translation() = Eigen::Vector3d(x[0], x[1], x[2]);
+    out.emplace_back(t, T);
+  }
+  return out;
+}
+
+std::optional<double> timestampFromFileName(const std::string& path) {
+  const std::string stem = fs::path(path).stem().string();
+  // ISO basic: YYYYMMDDTHHMMSS[.fraction]
+  for (std::size_t i = 0; i + 15 <= stem.size(); ++i) {
+    if (stem[i + 8] != 'T') continue;
+    bool digits = true;
+    for (std::size_t j = 0; j < 15 && digits; ++j) {
+      if (j != 8) digits = std::isdigit(static_cast<unsigned char>(stem[i + j])) != 0;
+    }
+    if (!digits) continue;
+    auto num = [&](std::size_t at, std::size_t len) { return std::stoi(stem.substr(i + at, len)); };
+    std::tm tm{};
+    tm.tm_year = num(0, 4) - 1900;
+    tm.tm_mon = num(4, 2) - 1;
+    tm.tm_mday = num(6, 2);
+    tm.tm_hour = num(9, 2);
+    tm.tm_min = num(11, 2);
+    tm.tm_sec = num(13, 2);
+    if (tm.tm_mon > 11 || tm.tm_mday < 1 || tm.tm_mday > 31 || tm.tm_hour > 23 || tm.tm_min > 59 || tm.tm_sec > 60) continue;
+    double t = static_cast<double>(timegm(&tm));
+    std::size_t end = i + 15;
+    if (end < stem.size() && stem[end] == '.') {
+      std::size_t k = end + 1;
+      while (k < stem.size() && std::isdigit(static_cast<unsigned char>(stem[k]))) ++k;
+      if (k > end + 1) t += std::stod("0" + stem.substr(end, k - end));
+    }
+    return t;
+  }
+  // A trailing decimal number: 1305031102.175304
+  std::size_t b = stem.size();
+  while (b > 0 && (std::isdigit(static_cast<unsigned char>(stem[b - 1])) || stem[b - 1] == '.')) --b;
+  while (b < stem.size() && stem[b] == '.') ++b;
+  if (b == stem.size()) return std::nullopt;
+  return parseFiniteNumber(stem.substr(b));
+}
+
+namespace {
+
+// A directory of .pcd frames (or one file) with a TUM-format trajectory: one pose per
+// frame in file-name order, or timestamped poses matched to time stamps in the names.
+class PcdSequence : public Sequence {
+ public:
+  PcdSequence(const std::string& input, const std::string& intrinsics_spec, double max_gap, const std::string& poses)
+      : input_(input), poses_path_(poses) {
+    std::error_code ec;
+    std::vector<std::string> files;
+    if (fs::is_directory(input, ec)) {
+      for (const auto& e : fs::directory_iterator(input, ec)) {
+        if (e.path().extension() == ".pcd") files.push_back(e.path().string());
+      }
+      std::sort(files.begin(), files.end());
+      if (files.empty()) throw IoError(input, "no .pcd files in this directory");
+    } else {
+      files.push_back(input);
+    }
+    if (poses.empty()) {
+      throw IoError(input, std::to_string(files.size()) + " .pcd frames but no poses: pass --poses FILE (TUM format " +
+                               "'t tx ty tz qx qy qz qw'); only a single frame can be mapped without poses");
+    }
+    const auto list = readTumPoses(poses);
+    if (list.empty()) throw IoError(poses, "no poses in this file");
+    if (list.size() == files.size()) {
+      for (std::size_t i = 0; i < files.size(); ++i) add(files[i], list[i].second);
+      how_ = "one pose per frame in file-name order";
+    } else {
+      mapping::Trajectory trajectory;
+      for (const auto& [t, T] : list) trajectory.insert(t, T);
+      int skipped = 0;
+      double first_t = 0, last_t = 0;
+      for (const auto& f : files) {
+        const auto t = timestampFromFileName(f);
+        if (!t) {
+          throw IoError(poses, std::to_string(list.size()) + " poses for " + std::to_string(files.size()) +
+                                   " .pcd frames, and " + fs::path(f).filename().string() +
+                                   " has no time stamp in its name to match poses by time: give one pose per frame " +
+                                   "(in file-name order) or name the frames by time stamp");
+        }
+        first_t = &f == &files.front() ? *t : std::min(first_t, *t);
+        last_t = &f == &files.front() ? *t : std::max(last_t, *t);
+        if (auto T = trajectory.at(*t, max_gap)) {
+          add(f, *T);
+        } else {
+          ++skipped;
+        }
+      }
+      if (skipped > 0) {
+        skipped_ = std::to_string(skipped) + " of " + std::to_string(files.size()) + " .pcd frames have no pose within " +
+                   std::to_string(max_gap) + " s and were skipped";
+      }
+      if (entries_.empty()) {
+        std::ostringstream msg;
+        msg.precision(15);
+        msg << "no .pcd frame has poses within " << max_gap << " s around its time stamp (frames span " << first_t
+            << " to " << last_t << " s, poses " << list.front().first << " to " << list.back().first
+            << " s; --max-pose-gap sets the tolerance)";
+        throw IoError(poses, msg.str());
+      }
+      how_ = "poses matched by the time stamps in the file names";
+    }
+    // Organized frames that are a pinhole image become depth images, so free space
+    // can be projected like for any depth camera.
+    const LoadedFrame first = loadPcd(entries_.front().path);
+    if (!intrinsics_spec.empty() && first.height > 1) {
+      k_ = parseIntrinsics(intrinsics_spec, first.width, first.height);
+      depth_ = true;
+    } else if (first.height > 1) {
+      double rms = 0;
+      if (auto k = perception::fitIntrinsics(first.points, first.width, first.height, &rms); k && rms < 0.5) {
+        k_ = *k;
+        depth_ = true;
+        fit_rms_ = rms;
+      }
+    }
+  }
+  std::string describe() const override {
+    std::ostringstream s;
+    s << input_ << " (" << entries_.size() << " .pcd frames, " << how_ << " from " << poses_path_;
+    if (depth_) {
+      s << "; pinhole fx " << k_.fx << " fy " << k_.fy << " cx " << k_.cx << " cy " << k_.cy;
+      if (fit_rms_) s << " fitted to the first frame, RMS " << *fit_rms_ << " px";
+    } else {
+      s << "; clouds without a pinhole model: no free-space clearing";
+    }
+    s << ")";
+    return s.str();
+  }
+  const perception::PinholeIntrinsics& intrinsics() const override { return k_; }
+  bool hasDepth() const override { return depth_; }
+  std::optional<Eigen::Vector3d> gravityDown() const override { return std::nullopt; }
+  const std::vector<int>& frames() const override { return frames_; }
+  void check(int n) const override {
+    std::error_code ec;
+    const std::string& path = entries_.at(static_cast<std::size_t>(n)).path;
+    if (!fs::exists(path, ec)) throw IoError(path, "missing");
+  }
+  SequenceFrame load(int n) const override {
+    const Entry& e = entries_.at(static_cast<std::size_t>(n));
+    LoadedFrame lf = loadPcd(e.path);
+    SequenceFrame f;
+    f.number = n;
+    f.T_world_camera = e.pose;
+    if (!depth_) {
+      f.cloud = std::move(lf.points);
+      f.width = lf.width;
+      f.height = lf.height;
+      return f;
+    }
+    if (lf.width != k_.width || lf.height != k_.height) {
+      throw IoError(e.path, "cloud is " + std::to_string(lf.width) + "x" + std::to_string(lf.height) +
+                                " but the sequence's frames are " + std::to_string(k_.width) + "x" + std::to_string(k_.height));
+    }
+    f.depth = perception::DepthImage(lf.width, lf.height);
+    for (std::size_t i = 0; i < lf.points.size(); ++i) {
+      const Eigen::Vector3f& p = lf.points[i];
+      f.depth.depth_m[i] = p.allFinite() && p.z() > 0.f ? p.z() : 0.f;
+    }
+    return f;
+  }
+  std::string skipped() const override { return skipped_; }
+
+ private:
+  struct Entry {
+    std::string path;
+    Eigen::Isometry3d pose;
+  };
+  void add(const std::string& path, const Eigen::Isometry3d& T) {
+    frames_.push_back(static_cast<int>(entries_.size()));
+    entries_.push_back({path, T});
+  }
+  std::string input_, poses_path_, how_, skipped_;
+  std::vector<Entry> entries_;
+  std::vector<int> frames_;
+  perception::PinholeIntrinsics k_;
+  bool depth_ = false;
+  std::optional<double> fit_rms_;
+};
+
 class TumSequence : public Sequence {
  public:
   TumSequence(const std::string& dir, const std::string& intrinsics_spec, double max_gap) : dir_(dir) {
     const std::string gt_path = (fs::path(dir) / "groundtruth.txt").string();
     std::error_code ec;
     if (!fs::exists(gt_path, ec)) throw IoError(gt_path, "missing: a TUM sequence needs ground-truth poses to build a map");
-    int line = 0;
-    for (const auto& [t, v] : readTimestamped(gt_path, 7)) {
-      ++line;
-      double x[7];
-      for (int i = 0; i < 7; ++i) {
-        const auto value = parseFiniteNumber(v[static_cast<std::size_t>(i)]);
-        if (!value) {
-          throw IoError(gt_path, "pose " + std::to_string(line) + ": '" + v[static_cast<std::size_t>(i)] + "' is not a finite number");
-        }
-        x[i] = *value;
-      }
-      const Eigen::Quaterniond q(x[6], x[3], x[4], x[5]);  // file order qx qy qz qw
-      if (std::abs(q.norm() - 1.0) > 1e-3) {
-        throw IoError(gt_path, "pose " + std::to_string(line) + ": quaternion norm " + std::to_string(q.norm()) + " is not 1");
-      }
-      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-      T.linear() = q.normalized().toRotationMatrix();
-      T.translation() = Eigen::Vector3d(x[0], x[1], x[2]);
-      trajectory_.insert(t, T);
-    }
+    for (const auto& [t, T] : readTumPoses(gt_path)) trajectory_.insert(t, T);
     const auto depth_list = readTimestamped((fs::path(dir) / "depth.txt").string(), 1);
     int skipped = 0;
     for (const auto& [t, v] : depth_list) {
@@ -156,11 +345,26 @@ class TumSequence : public Sequence {
 
 }  // namespace
 
-std::unique_ptr<Sequence> openSequence(const std::string& dir, const std::string& intrinsics_spec, double max_pose_gap_s) {
+std::unique_ptr<Sequence> openSequence(const std::string& input, const std::string& intrinsics_spec, double max_pose_gap_s,
+                                       const std::string& poses_path) {
   std::error_code ec;
-  if (!fs::is_directory(dir, ec)) throw IoError(dir, "not a directory");
-  if (fs::exists(fs::path(dir) / "depth.txt", ec)) return std::make_unique<TumSequence>(dir, intrinsics_spec, max_pose_gap_s);
-  return std::make_unique<SevenScenesSequence>(dir, intrinsics_spec);
+  if (!fs::is_directory(input, ec)) {
+    if (fs::path(input).extension() == ".pcd") return std::make_unique<PcdSequence>(input, intrinsics_spec, max_pose_gap_s, poses_path);
+    throw IoError(input, "not a directory");
+  }
+  if (fs::exists(fs::path(input) / "depth.txt", ec)) {
+    if (!poses_path.empty()) throw IoError(poses_path, "a TUM directory brings its own groundtruth.txt; --poses is for .pcd frames");
+    return std::make_unique<TumSequence>(input, intrinsics_spec, max_pose_gap_s);
+  }
+  bool pcd = false, seven = false;
+  for (const auto& e : fs::directory_iterator(input, ec)) {
+    const std::string name = e.path().filename().string();
+    pcd = pcd || e.path().extension() == ".pcd";
+    seven = seven || (name.rfind("frame-", 0) == 0 && name.find(".depth.") != std::string::npos);
+  }
+  if (pcd && !seven) return std::make_unique<PcdSequence>(input, intrinsics_spec, max_pose_gap_s, poses_path);
+  if (!poses_path.empty()) throw IoError(poses_path, "a 7-Scenes directory brings its own frame-*.pose.txt; --poses is for .pcd frames");
+  return std::make_unique<SevenScenesSequence>(input, intrinsics_spec);
 }
 
 }  // namespace mobmap::app

@@ -14,7 +14,12 @@ namespace mobmap::app {
 
 struct SequenceFrame {
   int number = 0;
+  /// A depth image for the sequence's intrinsics, or (when depth is empty) a cloud in
+  /// the camera frame, organized when width * height == cloud.size() and height > 1.
   perception::DepthImage depth;
+  std::vector<Eigen::Vector3f> cloud;
+  int width = 0;
+  int height = 0;
   Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
 };
 
@@ -24,7 +29,10 @@ class Sequence {
  public:
   virtual ~Sequence() = default;
   [[nodiscard]] virtual std::string describe() const = 0;
+  /// The depth camera; meaningless when hasDepth() is false.
   [[nodiscard]] virtual const perception::PinholeIntrinsics& intrinsics() const = 0;
+  /// Whether frames come as depth images (free space can then be projected).
+  [[nodiscard]] virtual bool hasDepth() const { return true; }
   [[nodiscard]] virtual std::optional<Eigen::Vector3d> gravityDown() const = 0;
   /// Numbers of the frames that have a pose, ascending.
   [[nodiscard]] virtual const std::vector<int>& frames() const = 0;
@@ -35,12 +43,24 @@ class Sequence {
   [[nodiscard]] virtual std::string skipped() const { return {}; }
 };
 
-/// Opens a directory: TUM RGB-D if it has depth.txt, else the 7-Scenes layout.
+/// Opens INPUT: a TUM RGB-D directory (it has depth.txt), a directory of .pcd frames
+/// or a single .pcd (these need `poses_path`), else a 7-Scenes layout directory.
 /// `intrinsics_spec` (fx,fy,cx,cy or a file) overrides the sequence's own; TUM has
-/// none in its files and defaults to 525, 525, 319.5, 239.5 (its documented default).
-/// `max_pose_gap_s`: TUM frames whose neighbouring ground-truth poses are farther
-/// apart in time are skipped.
-std::unique_ptr<Sequence> openSequence(const std::string& dir, const std::string& intrinsics_spec,
-                                       double max_pose_gap_s);
+/// none in its files and defaults to 525, 525, 319.5, 239.5 (its documented default);
+/// organized .pcd frames get intrinsics fitted to their first frame.
+/// `max_pose_gap_s`: frames whose neighbouring timestamped poses are farther apart in
+/// time are skipped.
+std::unique_ptr<Sequence> openSequence(const std::string& input, const std::string& intrinsics_spec,
+                                       double max_pose_gap_s, const std::string& poses_path = "");
+
+/// A TUM trajectory file, "t tx ty tz qx qy qz qw" per line ('#' comments): the
+/// camera-to-world poses with their timestamps. IoError naming the file and line for
+/// a missing column, a non-number or a quaternion whose norm is not 1 (+- 1e-3).
+std::vector<std::pair<double, Eigen::Isometry3d>> readTumPoses(const std::string& path);
+
+/// The timestamp in a frame's file name, in seconds: an ISO basic date-time such as
+/// frame_20121214T142255.814212.pcd (UTC) or a trailing number such as
+/// 1305031102.175304.pcd. nullopt when there is none.
+std::optional<double> timestampFromFileName(const std::string& path);
 
 }  // namespace mobmap::app

@@ -65,4 +65,11 @@ inline std::optional<Eigen::Vector2d> project(const PinholeIntrinsics& k, const 
 /// Back-projects every valid pixel (depth > 0 and finite) into camera-frame points.
 std::vector<Eigen::Vector3d> depthToPoints(const DepthImage& depth, const PinholeIntrinsics& k);
 
+/// Pinhole intrinsics fitted to an organized cloud (row-major, width x height, NaN
+/// or non-positive z where there is no point): least squares of u = fx x/z + cx and
+/// v = fy y/z + cy over the valid pixels. `rms_px` gets the RMS reprojection residual.
+/// nullopt with fewer than 100 valid points or a degenerate fit (focal length not > 0).
+std::optional<PinholeIntrinsics> fitIntrinsics(const std::vector<Eigen::Vector3f>& organized, int width, int height,
+                                               double* rms_px = nullptr);
+
 }  // namespace mobmap::perception
