@@ -5,6 +5,7 @@
 #include "frame_source.hpp"
 #include "io_error.hpp"
 #include "map_files.hpp"
+#include "openni_source.hpp"
 #include "progress.hpp"
 #include "sequence.hpp"
 
@@ -59,6 +60,7 @@ struct Scored {
   perception::DepthImage depth;
   Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
   double read_ms = 0.0;
+  bool no_pose = false;  // a stream frame without a pose within the tolerance: not fused
 };
 
 }  // namespace
@@ -79,15 +81,23 @@ Command addBuildCommand(CLI::App& app) {
     std::string intrinsics;
     double max_pose_gap = 0.05;
     std::string poses;
+    std::string device;
   };
   auto o = std::make_shared<Options>();
   cmd->add_option("INPUT", o->input,
                   "A 7-Scenes / 3DMatch layout directory (frame-NNNNNN.depth.png + .pose.txt), a TUM RGB-D directory "
-                  "(depth.txt + groundtruth.txt), a directory of .pcd frames with --poses, or one .pcd frame")->required();
+                  "(depth.txt + groundtruth.txt), a directory of .pcd frames with --poses, one .pcd frame, or an "
+                  "OpenNI2 .oni recording");
+  auto* device = cmd->add_option("--device", o->device,
+                                 "Read a live OpenNI2 depth sensor instead of INPUT: the first attached one, or the "
+                                 "given device URI. Stops after --frames LAST (default 300 frames) or Ctrl-C")
+                     ->expected(0, 1);
   cmd->add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy or a camera-intrinsics.txt file (TUM default 525,525,319.5,239.5)");
   cmd->add_option("--poses", o->poses,
-                  "Trajectory for .pcd frames, TUM format 't tx ty tz qx qy qz qw' (camera to world): one line per "
-                  "frame in file-name order, or timestamped and matched to time stamps in the file names");
+                  "Trajectory, TUM format 't tx ty tz qx qy qz qw' (camera to world). For .pcd frames: one line per "
+                  "frame in file-name order, or timestamped and matched to time stamps in the file names. For .oni "
+                  "and --device: matched to the frames' time stamps (seconds of the device clock); without it the "
+                  "camera is taken as static");
   cmd->add_option("--max-pose-gap", o->max_pose_gap, "TUM / timestamped --poses: skip frames whose neighbouring poses are farther apart in time (s)")
       ->capture_default_str();
   cmd->add_option("--out", o->out, "Map file to write (MAP.ot; MAP.bt, MAP.octovis.ot and MAP.json go beside it)")->required();
@@ -99,7 +109,7 @@ Command addBuildCommand(CLI::App& app) {
   cmd->add_flag("--force", o->force, "Overwrite an existing map");
   cmd->add_flag("--no-free-space", o->no_free_space, "Skip free-space updates (faster; moved obstacles stay)");
   cmd->add_flag("--quiet,-q", o->quiet, "No progress output");
-  return [o, max_range, resolution]() {
+  return [o, max_range, resolution, device]() {
     namespace fs = std::filesystem;
     std::error_code ec;
     if (fs::path(o->out).extension() != ".ot") throw UsageError("--out must end in .ot, got '" + o->out + "'");
@@ -125,9 +135,23 @@ Command addBuildCommand(CLI::App& app) {
     std::vector<int> frames;
     std::optional<Eigen::Vector3d> gravity_world;
     LoadedFrame single;
-    const bool is_dir = fs::is_directory(o->input, ec) || !o->poses.empty();
+    const bool live = device->count() > 0;
+    const bool oni = !live && fs::path(o->input).extension() == ".oni";
+    if (live == !o->input.empty()) throw UsageError("give either INPUT or --device");
+    const bool is_dir = live || oni || fs::is_directory(o->input, ec) || !o->poses.empty();
+    if (live || oni) {
+      const FrameRange range = parseRange(o->frames);
+      OpenNiOptions on;
+      on.uri = live ? o->device : o->input;
+      on.is_file = oni;
+      on.intrinsics_spec = o->intrinsics;
+      on.poses_path = o->poses;
+      on.max_pose_gap_s = o->max_pose_gap;
+      on.first = range.first, on.last = range.last, on.step = range.step;
+      dir = openOpenNi(on);
+    }
     if (is_dir) {
-      dir = openSequence(o->input, o->intrinsics, o->max_pose_gap, o->poses);
+      if (!dir) dir = openSequence(o->input, o->intrinsics, o->max_pose_gap, o->poses);
       const FrameRange range = parseRange(o->frames);
       for (int f : dir->frames()) {
         if (f >= range.first && (range.last < 0 || f <= range.last) && (f - range.first) % range.step == 0) frames.push_back(f);
@@ -165,6 +189,10 @@ Command addBuildCommand(CLI::App& app) {
       std::optional<Eigen::Vector3f> g_cam;
       if (is_dir) {
         SequenceFrame f = dir->load(number);
+        if (!f.has_pose) {
+          s.no_pose = true;
+          return s;
+        }
         s.depth = std::move(f.depth);
         s.T_world_camera = f.T_world_camera;
         s.read_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -190,7 +218,7 @@ Command addBuildCommand(CLI::App& app) {
     Progress progress("build", static_cast<int>(frames.size()), o->quiet);
     std::map<std::string, double> stage_ms;
     std::size_t points = 0;
-    int used = 0, no_ground = 0;
+    int used = 0, no_ground = 0, no_pose = 0;
     nlohmann::json trajectory = nlohmann::json::array();  // camera positions, map frame
     double read_ms = 0, fuse_ms = 0;
     // Two frames in perception at once (both cores), fused strictly in order.
@@ -205,6 +233,11 @@ Command addBuildCommand(CLI::App& app) {
       Scored s = in_flight.front().get();
       in_flight.pop_front();
       launch();
+      if (s.no_pose) {
+        ++no_pose;
+        progress.update(used + no_pose, "map " + std::to_string(map.tree().size()) + " nodes");
+        continue;
+      }
       const auto t0 = std::chrono::steady_clock::now();
       const bool depth = is_dir && dir->hasDepth();
       map.integrate(s.result, s.T_world_camera, depth ? &s.depth : nullptr, depth ? &dir->intrinsics() : nullptr);
@@ -216,7 +249,7 @@ Command addBuildCommand(CLI::App& app) {
       points += s.result.points.size();
       no_ground += !s.result.ground_plane;
       ++used;
-      progress.update(used, "map " + std::to_string(map.tree().size()) + " nodes");
+      progress.update(used + no_pose, "map " + std::to_string(map.tree().size()) + " nodes");
     }
     for (auto& f : in_flight) f.wait();  // let started frames finish before saving
     std::signal(SIGINT, SIG_DFL);
@@ -230,10 +263,12 @@ Command addBuildCommand(CLI::App& app) {
     meta["format"] = "mobmap-map-metadata";
     meta["tool"] = std::string("mobmap ") + MOBMAP_VERSION_STRING;
     meta["tree_type"] = mapping::MobilityOcTree::kTreeType;
-    meta["input"] = fs::absolute(o->input, ec).string();
+    meta["input"] = live ? "OpenNI2 device " + (o->device.empty() ? std::string("(first attached)") : o->device)
+                         : fs::absolute(o->input, ec).string();
     meta["frames"] = used;
     meta["frames_selected"] = frames.size();
     if (is_dir && !dir->skipped().empty()) meta["skipped"] = dir->skipped();
+    if (no_pose > 0) meta["frames_without_pose"] = no_pose;
     meta["frame_numbers"] = {frames.front(), frames[static_cast<std::size_t>(std::max(0, used - 1))]};
     meta["interrupted"] = g_interrupted.load();
     meta["resolution_m"] = map.tree().getResolution();
@@ -256,6 +291,10 @@ Command addBuildCommand(CLI::App& app) {
     std::printf("\n%d of %zu frames fused (%d without a ground plane)%s, %zu points, %zu map nodes (%zu leaves)\n", used,
                 frames.size(), no_ground, g_interrupted.load() ? ", INTERRUPTED" : "", points, map.tree().size(),
                 map.tree().getNumLeafNodes());
+    if (no_pose > 0) {
+      std::printf("%d frames skipped: no pose within %g s of their time stamp in %s\n", no_pose, o->max_pose_gap,
+                  o->poses.c_str());
+    }
     std::printf("time per frame (ms): read %.1f", used ? read_ms / used : 0.0);
     for (const auto& [name, ms] : stage_ms) std::printf(", %s %.1f", name.c_str(), ms / std::max(1, used));
     std::printf(", fusion %.1f\n", used ? fuse_ms / used : 0.0);

@@ -27,5 +27,6 @@ Command addEvaluateCommand(CLI::App& app);
 Command addExportCommand(CLI::App& app);
 Command addOverlayCommand(CLI::App& app);
 Command addConfigCommand(CLI::App& app);
+Command addRecordCommand(CLI::App& app);
 
 }  // namespace mobmap::app

@@ -43,6 +43,7 @@ int main(int argc, char** argv) {
   commands["export"] = mobmap::app::addExportCommand(app);
   commands["overlay"] = mobmap::app::addOverlayCommand(app);
   commands["config"] = mobmap::app::addConfigCommand(app);
+  commands["record"] = mobmap::app::addRecordCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

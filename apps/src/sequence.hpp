@@ -21,6 +21,8 @@ struct SequenceFrame {
   int width = 0;
   int height = 0;
   Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
+  /// False when a stream's frame has no pose within the tolerance: not to be fused.
+  bool has_pose = true;
 };
 
 /// A sequence of depth frames with camera-to-world poses. load() may run on several

@@ -1,0 +1,164 @@
+// OpenNI2 inputs of `mobmap build` and `mobmap record`, for real and without hardware:
+// OpenNI2's own Dummy device (the live path), no device at all, and a driver of ours
+// (tests/support/openni) that serves the synthetic corridor as a live sensor, whose
+// recordings OpenNI2's player plays back. The driver is loaded from a private folder
+// (build/openni-sim) by pointing LD_LIBRARY_PATH at it.
+#include "map_files.hpp"
+
+#include "mobmap/sim/corridor_scene.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <unistd.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <string>
+
+namespace mobmap {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Outcome {
+  int code = -1;
+  std::string output;
+};
+
+// Runs mobmap with `env` prepended (VAR=value ...), capturing stdout and stderr.
+Outcome mobmap(const std::string& env, const std::string& args) {
+  const std::string cmd = env + " " + MOBMAP_EXE + " " + args + " 2>&1";
+  Outcome r;
+  FILE* p = ::popen(cmd.c_str(), "r");
+  if (p == nullptr) return r;
+  std::array<char, 4096> buf{};
+  while (std::fgets(buf.data(), buf.size(), p) != nullptr) r.output += buf.data();
+  const int status = ::pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+class OpenNi : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("mobmap-openni-" + std::to_string(::getpid()) + "-" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  static std::string simEnv(int frames) {
+    return "LD_LIBRARY_PATH=" + std::string(MOBMAP_OPENNI_SIM_DIR) + " MOBMAP_SIM_FRAMES=" + std::to_string(frames);
+  }
+  // Poses of corridor frames 0..n-1 at their device time stamps i/30 s.
+  std::string writePoses(const sim::CorridorScene& scene, int n) const {
+    const std::string p = path("poses.txt");
+    std::ofstream out(p);
+    out.precision(10);
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Isometry3d T = scene.cameraPose(i);
+      const Eigen::Quaterniond q(T.linear());
+      out << std::fixed << i / 30.0 << " " << T.translation().x() << " " << T.translation().y() << " "
+          << T.translation().z() << " " << q.x() << " " << q.y() << " " << q.z() << " " << q.w() << "\n";
+    }
+    return p;
+  }
+  // The floor ahead of the walker's first position is found at z = 0 and traversable.
+  static void expectFloorAhead(const std::string& map_path, const sim::CorridorScene& scene) {
+    const auto map = app::loadMap(map_path);
+    const Eigen::Vector3d cam = scene.cameraPose(0).translation();
+    const auto floor = map.snapDown(Eigen::Vector3d(cam.x() + 1.5, cam.y(), 0.1), 0.3);
+    ASSERT_TRUE(floor);
+    EXPECT_NEAR(floor->centre.z(), 0.0, map.tree().getResolution());
+    ASSERT_TRUE(floor->has_mobility);
+    EXPECT_GT(floor->mobility, 0.75);
+  }
+  static nlohmann::json metadata(const std::string& map_path) {
+    std::ifstream in(map_path.substr(0, map_path.size() - 3) + ".json");
+    return nlohmann::json::parse(in);
+  }
+  fs::path dir_;
+};
+
+TEST_F(OpenNi, NoDeviceAttachedIsAClearErrorAndWritesNothing) {
+  // A driver folder with only the .oni file driver, which never reports a device:
+  // OpenNI2 starts and finds nothing, as on a machine with no sensor plugged in.
+  const fs::path system_lib = fs::read_symlink(fs::path(MOBMAP_OPENNI_SIM_DIR) / "libOpenNI2.so.0");
+  fs::create_directories(dir_ / "lib" / "OpenNI2" / "Drivers");
+  fs::create_symlink(system_lib, dir_ / "lib" / "libOpenNI2.so.0");
+  fs::create_symlink(system_lib.parent_path() / "OpenNI2" / "Drivers" / "libOniFile.so.0",
+                     dir_ / "lib" / "OpenNI2" / "Drivers" / "libOniFile.so.0");
+  const Outcome r = mobmap("LD_LIBRARY_PATH=" + path("lib"), "build --device --out " + path("m.ot"));
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("--device: no depth sensor is attached"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(path("m.ot")));
+  const Outcome rec = mobmap("LD_LIBRARY_PATH=" + path("lib"), "record --out " + path("r.oni"));
+  EXPECT_EQ(rec.code, 1) << rec.output;
+  EXPECT_NE(rec.output.find("no depth sensor is attached"), std::string::npos) << rec.output;
+  EXPECT_FALSE(fs::exists(path("r.oni")));
+}
+
+TEST_F(OpenNi, DummyDeviceFeedsTheLivePath) {
+  // OpenNI2's Dummy device (320x240, no field of view): intrinsics must be given.
+  const Outcome no_k = mobmap("", "build --device Dummy --frames 0:4 --out " + path("m.ot"));
+  EXPECT_EQ(no_k.code, 1) << no_k.output;
+  EXPECT_NE(no_k.output.find("pass --intrinsics"), std::string::npos) << no_k.output;
+  const Outcome r = mobmap("", "build --device Dummy --intrinsics 300,300,159.5,119.5 --frames 0:4 --quiet --out " + path("m.ot"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(metadata(path("m.ot"))["frames"], 5);
+  EXPECT_NE(r.output.find("5 of 5 frames fused"), std::string::npos) << r.output;
+}
+
+TEST_F(OpenNi, RecordingsWithoutCroppingAreRejectedWithTheReason) {
+  // The Dummy device reports no cropping property, so its recordings lack it, and
+  // OpenNI2's player then drops every frame: refuse them instead of waiting forever.
+  const Outcome rec = mobmap("", "record --device Dummy --frames 5 --out " + path("d.oni"));
+  ASSERT_EQ(rec.code, 0) << rec.output;
+  ASSERT_TRUE(fs::exists(path("d.oni")));
+  const Outcome r = mobmap("", "build " + path("d.oni") + " --intrinsics 300,300,159.5,119.5 --out " + path("m.ot"));
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("d.oni: its depth stream was recorded without a cropping property"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(path("m.ot")));
+}
+
+TEST_F(OpenNi, LiveCorridorSensorWithPosesMapsTheKnownFloor) {
+  const int device_frames = 900;  // 30 s: the device outlasts the run
+  sim::CorridorParams p;
+  p.frames = device_frames;
+  p.noise = sim::NoiseModel::kNone;
+  const sim::CorridorScene scene(p);
+  const std::string poses = writePoses(scene, device_frames);
+  // Frames are taken as they arrive (a slow consumer skips some): their time stamps
+  // find their poses.
+  const Outcome r = mobmap(simEnv(device_frames), "build --device mobmap-sim://corridor --intrinsics 585,585,320,240 --poses " +
+                                                  poses + " --frames 0:7 --quiet --out " + path("m.ot"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(metadata(path("m.ot"))["frames"], 8);
+  expectFloorAhead(path("m.ot"), scene);
+}
+
+TEST_F(OpenNi, RecordedCorridorPlaysBackEveryFrameAndMapsTheKnownFloor) {
+  const int n = 20;
+  sim::CorridorParams p;
+  p.frames = n;
+  p.noise = sim::NoiseModel::kNone;
+  const sim::CorridorScene scene(p);
+  const Outcome rec = mobmap(simEnv(n), "record --device mobmap-sim://corridor --frames " + std::to_string(n) + " --out " + path("c.oni"));
+  ASSERT_EQ(rec.code, 0) << rec.output;
+  // Played back without the driver: every recorded frame, in order, each with the pose
+  // of its time stamp (none skipped), and field-of-view intrinsics.
+  const Outcome r = mobmap("", "build " + path("c.oni") + " --poses " + writePoses(scene, n) + " --quiet --out " + path("m.ot"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  const auto meta = metadata(path("m.ot"));
+  EXPECT_GE(meta["frames"].get<int>(), n - 2);  // the recorder may miss the first frame or two
+  EXPECT_FALSE(meta.contains("frames_without_pose")) << meta.dump();
+  expectFloorAhead(path("m.ot"), scene);
+}
+
+}  // namespace
+}  // namespace mobmap
