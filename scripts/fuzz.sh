@@ -1,26 +1,72 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets with clang (ASan + UBSan) into ./build-fuzz and runs each
-# for SECONDS (default 30) on its corpus in tests/fuzz/corpus/, which it grows.
-#   bash scripts/fuzz.sh [SECONDS]
+# for SECONDS (default 30) on its corpus in tests/fuzz/corpus/TARGET, which it grows.
+# Exits non-zero if any target finds a crash (the input is saved as build-fuzz/crash-*).
+#   bash scripts/fuzz.sh [SECONDS] [TARGET...]      targets: map_reader config poses pipeline
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${1:-30}
-command -v clang++ >/dev/null || { echo "fuzz.sh: needs clang++ (apt-get install clang libclang-rt-14-dev)" >&2; exit 1; }
-mkdir -p build-fuzz
-flags=(-std=c++17 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined
-       -Igp/include -Iperception/include -Imapping/include -Iapps/src -I/usr/include/eigen3 -Ibuild-fuzz)
+shift || true
+targets=("$@")
+[ ${#targets[@]} -eq 0 ] && targets=(map_reader config poses pipeline)
+bash scripts/setup.sh fuzz
+mkdir -p build-fuzz/obj
+flags=(-std=c++17 -O1 -g -fsanitize=address,undefined -fno-sanitize-recover=undefined
+       -Igp/include -Iperception/include -Imapping/include -Iapps/src -I/usr/include/eigen3 -I/usr/include/openni2 -Ibuild-fuzz)
 for d in /usr/include/mrpt/*/include; do flags+=("-I$d"); done
 cmake -DIN=apps/default.yaml -DOUT=build-fuzz/default_yaml.inc -P apps/embed.cmake
-clang++ "${flags[@]}" tests/fuzz/fuzz_map_reader.cpp mapping/src/mobility_octree.cpp mapping/src/map_io.cpp \
-  -loctomap -loctomath -o build-fuzz/fuzz_map_reader
-clang++ "${flags[@]}" tests/fuzz/fuzz_config.cpp apps/src/config.cpp apps/src/files.cpp \
-  gp/src/rule_table.cpp gp/src/gaussian_process.cpp gp/src/mobility_model.cpp perception/src/pipeline.cpp \
-  perception/src/stages.cpp perception/src/neighbours.cpp perception/src/camera.cpp perception/src/delaunay_roughness.cpp \
-  mapping/src/mobility_map.cpp mapping/src/mobility_octree.cpp mapping/src/gravity.cpp \
-  -lyaml-cpp -loctomap -loctomath -lmrpt-poses -lmrpt-math -lmrpt-core -lgmp -lmpfr -o build-fuzz/fuzz_config
-for target in map_reader config; do
+
+# Each source is compiled once (again when it is newer than its object).
+objects() {
+  for src in "$@"; do
+    local o="build-fuzz/obj/${src//\//_}.o"
+    if [ ! -f "$o" ] || [ "$src" -nt "$o" ]; then
+      clang++ "${flags[@]}" -fsanitize=fuzzer-no-link -c "$src" -o "$o"
+    fi
+    echo "$o"
+  done
+}
+gp=(gp/src/rule_table.cpp gp/src/gaussian_process.cpp gp/src/mobility_model.cpp)
+perception=(perception/src/pipeline.cpp perception/src/stages.cpp perception/src/neighbours.cpp
+            perception/src/camera.cpp perception/src/delaunay_roughness.cpp)
+mrpt=(-lmrpt-poses -lmrpt-math -lmrpt-core)
+link() {  # link TARGET SOURCES... -- LIBS...
+  local target=$1; shift
+  local srcs=() libs=()
+  while [ $# -gt 0 ] && [ "$1" != "--" ]; do srcs+=("$1"); shift; done
+  [ $# -gt 0 ] && shift
+  libs=("$@")
+  echo "== building fuzz_$target"
+  mapfile -t objs < <(objects "${srcs[@]}")
+  clang++ "${flags[@]}" -fsanitize=fuzzer "${objs[@]}" "${libs[@]}" -o "build-fuzz/fuzz_$target"
+}
+for target in "${targets[@]}"; do
+  case $target in
+    map_reader) link map_reader tests/fuzz/fuzz_map_reader.cpp mapping/src/mobility_octree.cpp mapping/src/map_io.cpp \
+                  -- -loctomap -loctomath ;;
+    config) link config tests/fuzz/fuzz_config.cpp apps/src/config.cpp apps/src/files.cpp "${gp[@]}" "${perception[@]}" \
+              mapping/src/mobility_map.cpp mapping/src/mobility_octree.cpp mapping/src/gravity.cpp \
+              -- -lyaml-cpp -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;
+    poses) link poses tests/fuzz/fuzz_poses.cpp apps/src/trajectory_files.cpp apps/src/dataset.cpp apps/src/files.cpp \
+             apps/src/png_io.cpp perception/src/camera.cpp mapping/src/gravity.cpp -- -lpng "${mrpt[@]}" ;;
+    pipeline) link pipeline tests/fuzz/fuzz_pipeline.cpp "${gp[@]}" "${perception[@]}" -- -lgmp -lmpfr ;;
+    *) echo "fuzz.sh: unknown target $target" >&2; exit 2 ;;
+  esac
+done
+
+failed=()
+for target in "${targets[@]}"; do
   mkdir -p "tests/fuzz/corpus/$target"
   echo "== fuzz_$target for ${seconds}s"
-  ./build-fuzz/fuzz_$target "tests/fuzz/corpus/$target" -max_total_time="$seconds" -max_len=65536 -rss_limit_mb=2048 \
-    -print_final_stats=1 2>&1 | grep -E "stat::number_of_executed_units|stat::peak_rss_mb|ERROR|SUMMARY|crash-|Done" || true
+  set +e
+  (cd build-fuzz && "./fuzz_$target" "../tests/fuzz/corpus/$target" -max_total_time="$seconds" -max_len=65536 \
+     -rss_limit_mb=2048 -timeout=20 -print_final_stats=1 > "fuzz_$target.log" 2>&1)
+  status=$?
+  set -e
+  grep -E "stat::number_of_executed_units|stat::peak_rss_mb|ERROR|SUMMARY|crash-|timeout-|Done" "build-fuzz/fuzz_$target.log" || true
+  [ $status -eq 0 ] || failed+=("$target")
 done
+if [ ${#failed[@]} -gt 0 ]; then
+  echo "fuzz.sh: crashes in ${failed[*]} (logs and inputs in build-fuzz/)" >&2
+  exit 1
+fi

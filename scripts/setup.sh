@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs what mobmap needs to build and test on Debian 12, and nothing that is
 # already there. Safe to run again. Needs root (or sudo) only when something is missing.
+#   bash scripts/setup.sh [fuzz]
 set -euo pipefail
 
 packages=(
@@ -9,6 +10,10 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev libpng-dev nlohmann-json3-dev libyaml-cpp-dev
 )
+# `setup.sh fuzz`: also clang and its libFuzzer / sanitizer runtimes (scripts/fuzz.sh).
+if [ "${1:-}" = fuzz ]; then
+  packages+=(clang libclang-rt-14-dev)
+fi
 
 missing=()
 for p in "${packages[@]}"; do

@@ -248,21 +248,55 @@ TEST(MobilityMap, QueriesFromSeveralThreadsEqualSingleThreadedAnswers) {
   for (int i = 0; i < 20000; ++i) pts.emplace_back(u(rng), u(rng) * 0.3, u(rng) * 0.5);
   std::vector<PointQuery> single(pts.size());
   for (std::size_t i = 0; i < pts.size(); ++i) single[i] = map.query(pts[i]);
+  // Planners also ask for support under a point and for whole soles.
+  auto footOf = [](const Eigen::Vector3d& p, std::size_t i) {
+    Foot f;
+    f.x = p.x(), f.y = p.y(), f.z = 0.05, f.yaw = 0.3 * static_cast<double>(i % 7), f.length = 0.24, f.width = 0.1;
+    return f;
+  };
+  std::vector<std::optional<PointQuery>> single_snap(pts.size());
+  std::vector<FootprintQuery> single_foot(pts.size() / 10);
+  for (std::size_t i = 0; i < pts.size(); ++i) single_snap[i] = map.snapDown(pts[i], 0.5);
+  for (std::size_t i = 0; i < single_foot.size(); ++i) single_foot[i] = map.footprint(footOf(pts[i], i));
   std::vector<std::vector<PointQuery>> per_thread(4, std::vector<PointQuery>(pts.size()));
+  std::vector<std::vector<std::optional<PointQuery>>> snaps(4, std::vector<std::optional<PointQuery>>(pts.size()));
+  std::vector<std::vector<FootprintQuery>> feet(4, std::vector<FootprintQuery>(single_foot.size()));
   std::vector<std::thread> threads;
   for (int t = 0; t < 4; ++t) {
     threads.emplace_back([&, t] {
-      for (std::size_t i = 0; i < pts.size(); ++i) per_thread[static_cast<std::size_t>(t)][i] = map.query(pts[i]);
+      const auto ti = static_cast<std::size_t>(t);
+      for (std::size_t i = 0; i < pts.size(); ++i) {
+        per_thread[ti][i] = map.query(pts[i]);
+        snaps[ti][i] = map.snapDown(pts[i], 0.5);
+        if (i < feet[ti].size()) feet[ti][i] = map.footprint(footOf(pts[i], i));
+      }
     });
   }
   for (auto& th : threads) th.join();
-  for (const auto& answers : per_thread) {
+  for (std::size_t t = 0; t < per_thread.size(); ++t) {
     for (std::size_t i = 0; i < pts.size(); ++i) {
-      ASSERT_EQ(answers[i].state, single[i].state);
-      ASSERT_EQ(answers[i].mobility, single[i].mobility);
-      ASSERT_EQ(answers[i].centre, single[i].centre);
+      ASSERT_EQ(per_thread[t][i].state, single[i].state);
+      ASSERT_EQ(per_thread[t][i].mobility, single[i].mobility);
+      ASSERT_EQ(per_thread[t][i].centre, single[i].centre);
+      ASSERT_EQ(snaps[t][i].has_value(), single_snap[i].has_value());
+      if (snaps[t][i]) {
+        ASSERT_EQ(snaps[t][i]->centre, single_snap[i]->centre);
+      }
+    }
+    for (std::size_t i = 0; i < single_foot.size(); ++i) {
+      ASSERT_EQ(feet[t][i].min_mobility, single_foot[i].min_mobility);
+      ASSERT_EQ(feet[t][i].mean_mobility, single_foot[i].mean_mobility);
+      ASSERT_EQ(feet[t][i].known_fraction, single_foot[i].known_fraction);
     }
   }
+  // The answers are not all alike (the test would prove little otherwise).
+  std::size_t surface = 0, snapped = 0, known_feet = 0;
+  for (const auto& q : single) surface += q.state == VoxelState::kSurface;
+  for (const auto& q : single_snap) snapped += q.has_value();
+  for (const auto& f : single_foot) known_feet += f.known_fraction > 0;
+  EXPECT_GT(surface, 50u);
+  EXPECT_GT(snapped, 1000u);
+  EXPECT_GT(known_feet, 100u);
 }
 
 TEST(MapFiles, OtRoundTripIsExact) {
@@ -364,8 +398,12 @@ TEST(MapFiles, BtAndOctovisExportLoadInStockOctomapWithTheSameOccupiedVoxels) {
     ASSERT_TRUE(ours.count(it.getKey()));
     const auto q = map.query(Eigen::Vector3d(it.getX(), it.getY(), it.getZ()));
     const auto c = it->getColor();
-    if (q.mobility > 0.99) EXPECT_GT(c.g, 200);  // green
-    if (q.mobility < 0.01) EXPECT_EQ(c.g, 0);    // red
+    if (q.mobility > 0.99) {
+      EXPECT_GT(c.g, 200);  // green
+    }
+    if (q.mobility < 0.01) {
+      EXPECT_EQ(c.g, 0);  // red
+    }
   }
   EXPECT_EQ(coloured, ours.size());
 }

@@ -14,6 +14,7 @@
 #include <map>
 #include <set>
 #include <random>
+#include <thread>
 
 namespace mobmap::perception {
 namespace {
@@ -434,13 +435,46 @@ TEST_P(CorridorFrames, SurfacesAreCoveredByOneSegmentEach) {
   for (const auto& [id, c] : cover) {
     const double frac = static_cast<double>(c.second) / c.first;
     std::printf("[ info ] %-22s %6d points, %5.1f %% in one segment\n", scene.surface(id).name.c_str(), c.first, 100 * frac);
-    if (asserted.count(scene.surface(id).name)) EXPECT_GE(frac, 0.9) << scene.surface(id).name;
+    if (asserted.count(scene.surface(id).name)) {
+      EXPECT_GE(frac, 0.9) << scene.surface(id).name;
+    }
   }
 }
 
 INSTANTIATE_TEST_SUITE_P(NoiseOffAndOn, CorridorFrames,
                          ::testing::Values(sim::NoiseModel::kNone, sim::NoiseModel::kKinect),
-                         [](const auto& info) { return info.param == sim::NoiseModel::kNone ? "Exact" : "Kinect"; });
+                         [](const auto& param_info) { return param_info.param == sim::NoiseModel::kNone ? "Exact" : "Kinect"; });
+
+TEST(FramePipeline, OnePipelineServesSeveralThreadsWithIdenticalResults) {
+  // `mobmap build` runs two frames through one const pipeline at once.
+  sim::CorridorParams params;
+  params.noise = sim::NoiseModel::kKinect;
+  const sim::CorridorScene scene(params);
+  const FramePipeline pipeline;
+  const int frames[] = {10, 40, 70};
+  std::vector<FrameResult> alone;
+  for (int f : frames) alone.push_back(pipeline.process(scene.render(f).depth, params.intrinsics));
+  std::vector<std::vector<FrameResult>> together(2);
+  std::vector<std::thread> threads;
+  for (std::size_t t = 0; t < together.size(); ++t) {
+    threads.emplace_back([&, t] {
+      for (int f : frames) together[t].push_back(pipeline.process(scene.render(f).depth, params.intrinsics));
+    });
+  }
+  for (auto& th : threads) th.join();
+  for (const auto& run : together) {
+    ASSERT_EQ(run.size(), alone.size());
+    for (std::size_t i = 0; i < run.size(); ++i) {
+      EXPECT_EQ(run[i].points, alone[i].points);
+      ASSERT_EQ(run[i].segments.size(), alone[i].segments.size());
+      EXPECT_GT(run[i].segments.size(), 3u);
+      for (std::size_t s = 0; s < run[i].segments.size(); ++s) {
+        EXPECT_EQ(run[i].segments[s].points, alone[i].segments[s].points);
+        EXPECT_EQ(run[i].segments[s].mobility, alone[i].segments[s].mobility);
+      }
+    }
+  }
+}
 
 TEST(FramePipeline, FloorIsChosenAsGroundEvenWhenAWallHasMorePoints) {
   // Camera 1.3 m above a floor, looking at a wall 2.2 m ahead that fills most of the view.
@@ -518,10 +552,6 @@ TEST(PerceptionParams, RejectsAbsurdValuesNamingTheField) {
   p.ground_probability = 1.0;
   EXPECT_THROW(FramePipeline{p}, std::invalid_argument);
 }
-
-// --- Real frames (skipped without ../shared/data) --------------------------------
-
-std::string pcl(const std::string& name) { return std::string(MOBMAP_SHARED_DATA_DIR) + "/pcl-kinect/" + name; }
 
 }  // namespace
 }  // namespace mobmap::perception

@@ -6,6 +6,7 @@
 #include "png_io.hpp"
 #include "map_files.hpp"
 #include "sequence.hpp"
+#include "trajectory_files.hpp"
 
 #include "mobmap/mapping/trajectory.hpp"
 #include "mobmap/sim/corridor_scene.hpp"
@@ -97,7 +98,9 @@ TEST(TumSequence, AssociatesDepthWithInterpolatedPosesAndSkipsFramesInAGap) {
     EXPECT_LT(Eigen::AngleAxisd(f.T_world_camera.linear().transpose() * truth.linear()).angle(), 1e-3) << frame;
     const auto r = scene.render(frame);
     for (std::size_t i = 0; i < r.exact_depth.depth_m.size(); i += 97) {
-      if (r.exact_depth.depth_m[i] > 0) ASSERT_NEAR(f.depth.depth_m[i], r.exact_depth.depth_m[i], 1.0 / 10000 + 1e-6);
+      if (r.exact_depth.depth_m[i] > 0) {
+        ASSERT_NEAR(f.depth.depth_m[i], r.exact_depth.depth_m[i], 1.0 / 10000 + 1e-6);
+      }
     }
   }
   fs::remove_all(dir);

@@ -3,6 +3,7 @@
 #include "files.hpp"
 #include "frame_source.hpp"
 #include "io_error.hpp"
+#include "trajectory_files.hpp"
 
 #include "mobmap/mapping/trajectory.hpp"
 

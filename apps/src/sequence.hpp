@@ -55,14 +55,4 @@ class Sequence {
 std::unique_ptr<Sequence> openSequence(const std::string& input, const std::string& intrinsics_spec,
                                        double max_pose_gap_s, const std::string& poses_path = "");
 
-/// A TUM trajectory file, "t tx ty tz qx qy qz qw" per line ('#' comments): the
-/// camera-to-world poses with their timestamps. IoError naming the file and line for
-/// a missing column, a non-number or a quaternion whose norm is not 1 (+- 1e-3).
-std::vector<std::pair<double, Eigen::Isometry3d>> readTumPoses(const std::string& path);
-
-/// The timestamp in a frame's file name, in seconds: an ISO basic date-time such as
-/// frame_20121214T142255.814212.pcd (UTC) or a trailing number such as
-/// 1305031102.175304.pcd. nullopt when there is none.
-std::optional<double> timestampFromFileName(const std::string& path);
-
 }  // namespace mobmap::app

@@ -9,7 +9,9 @@
 // Device URI: "mobmap-sim://corridor". One depth sensor, 640x480 at 30 Hz, 1 mm units.
 // Frame i is corridor frame i, time stamped i/30 s (in microseconds), paced at 30 Hz.
 // Environment: MOBMAP_SIM_FRAMES (frames before the stream goes quiet, default 90),
-// MOBMAP_SIM_NOISE ("none" or "kinect", default none).
+// MOBMAP_SIM_NOISE ("none" or "kinect", default none), MOBMAP_SIM_LOOP (if > 1: walk a
+// corridor of that many frames back and forth, for long runs), MOBMAP_SIM_POSES (a file
+// to receive the true trajectory of every frame, TUM format, time stamps in seconds).
 
 // OniDriverAPI.h's export macro allocates with XnLib's macros, which Debian does not
 // ship; plain new/delete do the same job.
@@ -25,6 +27,7 @@
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <memory>
 #include <string>
 #include <thread>
@@ -36,6 +39,20 @@ constexpr const char* kUri = "mobmap-sim://corridor";
 int envInt(const char* name, int fallback) {
   const char* v = std::getenv(name);
   return v != nullptr ? std::atoi(v) : fallback;
+}
+
+// The corridor frame shown as device frame i: straight through, or back and forth.
+int corridorFrame(int i) {
+  const int loop = envInt("MOBMAP_SIM_LOOP", 0);
+  if (loop < 2) return i;
+  const int period = 2 * (loop - 1);
+  const int k = i % period;
+  return k < loop ? k : period - k;
+}
+
+int corridorLength() {
+  const int loop = envInt("MOBMAP_SIM_LOOP", 0);
+  return std::max(2, loop >= 2 ? loop : envInt("MOBMAP_SIM_FRAMES", 90));
 }
 
 class CorridorStream : public oni::driver::StreamBase {
@@ -129,7 +146,7 @@ class CorridorStream : public oni::driver::StreamBase {
     const auto period = std::chrono::microseconds(33333);
     auto next = std::chrono::steady_clock::now();
     for (int i = 0; i < frames && running_; ++i) {
-      const auto r = scene_->render(i);
+      const auto r = scene_->render(corridorFrame(i));
       OniFrame* f = getServices().acquireFrame();
       if (f == nullptr) break;
       f->frameIndex = i;
@@ -166,8 +183,9 @@ class CorridorDevice : public oni::driver::DeviceBase {
     mobmap::sim::CorridorParams p;
     const char* noise = std::getenv("MOBMAP_SIM_NOISE");
     p.noise = noise != nullptr && std::string(noise) == "kinect" ? mobmap::sim::NoiseModel::kKinect : mobmap::sim::NoiseModel::kNone;
-    p.frames = std::max(2, envInt("MOBMAP_SIM_FRAMES", 90));
+    p.frames = corridorLength();
     scene_ = std::make_shared<const mobmap::sim::CorridorScene>(p);
+    if (const char* poses = std::getenv("MOBMAP_SIM_POSES")) writePoses(poses);
     mode_.pixelFormat = ONI_PIXEL_FORMAT_DEPTH_1_MM;
     mode_.resolutionX = p.intrinsics.width;
     mode_.resolutionY = p.intrinsics.height;
@@ -187,6 +205,18 @@ class CorridorDevice : public oni::driver::DeviceBase {
   void destroyStream(oni::driver::StreamBase* stream) override { delete stream; }
 
  private:
+  void writePoses(const char* path) const {
+    std::ofstream out(path);
+    out.precision(9);
+    const int frames = envInt("MOBMAP_SIM_FRAMES", 90);
+    for (int i = 0; i < frames; ++i) {
+      const Eigen::Isometry3d T = scene_->cameraPose(corridorFrame(i));
+      const Eigen::Quaterniond q(T.linear());
+      out << std::fixed << i / 30.0 << " " << T.translation().x() << " " << T.translation().y() << " "
+          << T.translation().z() << " " << q.x() << " " << q.y() << " " << q.z() << " " << q.w() << "\n";
+    }
+  }
+
   std::shared_ptr<const mobmap::sim::CorridorScene> scene_;
   OniVideoMode mode_{};
   OniSensorInfo sensor_{};
