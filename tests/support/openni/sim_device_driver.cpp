@@ -11,7 +11,8 @@
 // Environment: MOBMAP_SIM_FRAMES (frames before the stream goes quiet, default 90),
 // MOBMAP_SIM_NOISE ("none" or "kinect", default none), MOBMAP_SIM_LOOP (if > 1: walk a
 // corridor of that many frames back and forth, for long runs), MOBMAP_SIM_POSES (a file
-// to receive the true trajectory of every frame, TUM format, time stamps in seconds).
+// to receive the true trajectory of every frame, TUM format, time stamps in seconds),
+// MOBMAP_SIM_FPS (frame rate, default 30; time stamps are i / rate).
 
 // OniDriverAPI.h's export macro allocates with XnLib's macros, which Debian does not
 // ship; plain new/delete do the same job.
@@ -41,6 +42,8 @@ int envInt(const char* name, int fallback) {
   return v != nullptr ? std::atoi(v) : fallback;
 }
 
+int frameRate() { return std::max(1, envInt("MOBMAP_SIM_FPS", 30)); }
+
 // The corridor frame shown as device frame i: straight through, or back and forth.
 int corridorFrame(int i) {
   const int loop = envInt("MOBMAP_SIM_LOOP", 0);
@@ -62,7 +65,7 @@ class CorridorStream : public oni::driver::StreamBase {
     mode_.pixelFormat = ONI_PIXEL_FORMAT_DEPTH_1_MM;
     mode_.resolutionX = k.width;
     mode_.resolutionY = k.height;
-    mode_.fps = 30;
+    mode_.fps = frameRate();
   }
   ~CorridorStream() override { stop(); }
 
@@ -143,14 +146,14 @@ class CorridorStream : public oni::driver::StreamBase {
  private:
   void run() {
     const int frames = envInt("MOBMAP_SIM_FRAMES", 90);
-    const auto period = std::chrono::microseconds(33333);
+    const auto period = std::chrono::microseconds(1000000 / frameRate());
     auto next = std::chrono::steady_clock::now();
     for (int i = 0; i < frames && running_; ++i) {
       const auto r = scene_->render(corridorFrame(i));
       OniFrame* f = getServices().acquireFrame();
       if (f == nullptr) break;
       f->frameIndex = i;
-      f->timestamp = static_cast<std::uint64_t>(i) * 1000000ULL / 30ULL;
+      f->timestamp = static_cast<std::uint64_t>(i) * 1000000ULL / static_cast<std::uint64_t>(frameRate());
       f->sensorType = ONI_SENSOR_DEPTH;
       f->videoMode = mode_;
       f->width = mode_.resolutionX;
@@ -189,7 +192,7 @@ class CorridorDevice : public oni::driver::DeviceBase {
     mode_.pixelFormat = ONI_PIXEL_FORMAT_DEPTH_1_MM;
     mode_.resolutionX = p.intrinsics.width;
     mode_.resolutionY = p.intrinsics.height;
-    mode_.fps = 30;
+    mode_.fps = frameRate();
     sensor_.sensorType = ONI_SENSOR_DEPTH;
     sensor_.numSupportedVideoModes = 1;
     sensor_.pSupportedVideoModes = &mode_;
@@ -212,7 +215,7 @@ class CorridorDevice : public oni::driver::DeviceBase {
     for (int i = 0; i < frames; ++i) {
       const Eigen::Isometry3d T = scene_->cameraPose(corridorFrame(i));
       const Eigen::Quaterniond q(T.linear());
-      out << std::fixed << i / 30.0 << " " << T.translation().x() << " " << T.translation().y() << " "
+      out << std::fixed << i / static_cast<double>(frameRate()) << " " << T.translation().x() << " " << T.translation().y() << " "
           << T.translation().z() << " " << q.x() << " " << q.y() << " " << q.z() << " " << q.w() << "\n";
     }
   }
