@@ -33,6 +33,7 @@ TEST(Config, ShippedDefaultYamlEqualsTheStructDefaults) {
   EXPECT_EQ(c.perception.ground_normal_tolerance_deg, p.ground_normal_tolerance_deg);
   EXPECT_EQ(c.perception.ground_min_points, p.ground_min_points);
   EXPECT_EQ(c.perception.ground_reclaim_min_angle_deg, p.ground_reclaim_min_angle_deg);
+  EXPECT_EQ(c.perception.ground_reclaim_max_angle_deg, p.ground_reclaim_max_angle_deg);
   EXPECT_EQ(c.perception.colour_threshold, p.colour_threshold);
   EXPECT_EQ(c.perception.neighbour_distance_m, p.neighbour_distance_m);
   EXPECT_EQ(c.perception.min_segment_points, p.min_segment_points);

@@ -280,7 +280,7 @@ TEST(GroundReclaim, TheFootOfAGentleRampGoesBackToTheRamp) {
     }
   }
   const std::vector<Eigen::Vector4f> planes = {leastSquaresPlane(pts, ramp), Eigen::Vector4f(0, 0, 1, 0)};
-  const std::size_t moved = reclaimGroundPoints(pts, g, 0.025, ground, planes, 3.0, 0.02, labels, is_ground);
+  const std::size_t moved = reclaimGroundPoints(pts, g, 0.025, ground, planes, 3.0, 30.0, 0.02, labels, is_ground);
   std::size_t expected = 0;
   for (std::size_t i = 0; i < pts.size(); ++i) {
     const float x = pts[i].x();
@@ -297,6 +297,39 @@ TEST(GroundReclaim, TheFootOfAGentleRampGoesBackToTheRamp) {
   }
   EXPECT_EQ(moved, expected);
   EXPECT_GT(moved, 60u * 20);
+}
+
+TEST(GroundReclaim, FloorAtTheBaseOfAWallStaysFloor) {
+  // A floor with +-3 mm noise meeting a wall at x = 0.5: the row of floor points at the
+  // wall's base is closer to the wall's plane than to the (noisy) floor, but a wall is
+  // not a ramp, so nothing moves unless the angle limit lets walls in.
+  std::vector<Eigen::Vector3f> pts;
+  std::vector<int> labels;
+  std::vector<bool> is_ground;
+  for (int i = 0; i <= 50; ++i) {
+    for (int j = 0; j <= 60; ++j) {
+      pts.emplace_back(0.01f * static_cast<float>(i), 0.01f * static_cast<float>(j), (i + j) % 2 != 0 ? 0.003f : -0.003f);
+      labels.push_back(-1);
+      is_ground.push_back(true);
+    }
+  }
+  for (int k = 2; k <= 50; ++k) {
+    for (int j = 0; j <= 60; ++j) {
+      pts.emplace_back(0.5f, 0.01f * static_cast<float>(j), 0.01f * static_cast<float>(k));
+      labels.push_back(0);
+      is_ground.push_back(false);
+    }
+  }
+  const KnnGraph g = buildKnnGraph(pts, 30, 0.04f, 0.2f);
+  const std::vector<Eigen::Vector4f> planes = {Eigen::Vector4f(1, 0, 0, -0.5f)};
+  auto labels_steep = labels;
+  auto ground_steep = is_ground;
+  EXPECT_EQ(reclaimGroundPoints(pts, g, 0.025, Eigen::Vector4f(0, 0, 1, 0), planes, 3.0, 30.0, 0.02, labels, is_ground), 0u);
+  // With walls allowed, the base row (x = 0.5, |z| = 3 mm > 0) moves: the limit is what
+  // keeps it.
+  EXPECT_EQ(reclaimGroundPoints(pts, g, 0.025, Eigen::Vector4f(0, 0, 1, 0), planes, 3.0, 90.0, 0.02, labels_steep,
+                                ground_steep),
+            61u);
 }
 
 TEST(Roughness, FlatAndCorrugatedSurfacesMatchTheirExactRatio) {

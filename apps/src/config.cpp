@@ -62,6 +62,7 @@ static Config parseConfigUnchecked(const std::string& text, const std::string& o
          {"ground_max_iterations", bind(p.ground_max_iterations)}, {"ground_max_tilt_deg", bind(p.ground_max_tilt_deg)},
          {"ground_normal_tolerance_deg", bind(p.ground_normal_tolerance_deg)}, {"ground_min_points", bind(p.ground_min_points)},
          {"ground_reclaim_min_angle_deg", bind(p.ground_reclaim_min_angle_deg)},
+         {"ground_reclaim_max_angle_deg", bind(p.ground_reclaim_max_angle_deg)},
          {"colour_threshold", bind(p.colour_threshold)}, {"neighbour_distance_m", bind(p.neighbour_distance_m)},
          {"min_segment_points", bind(p.min_segment_points)}, {"plane_ransac_distance_m", bind(p.plane_ransac_distance_m)},
          {"max_triangle_edge_m", bind(p.max_triangle_edge_m)}, {"roughness_smoothing", bind(p.roughness_smoothing)}, {"roughness_smoothing_passes", bind(p.roughness_smoothing_passes)},

@@ -65,6 +65,7 @@ void validate(const PerceptionParams& p) {
   if (!(p.ground_max_tilt_deg >= 0 && p.ground_max_tilt_deg <= 90)) fail("ground_max_tilt_deg", p.ground_max_tilt_deg, "must be in [0, 90]");
   if (!(p.ground_normal_tolerance_deg > 0 && p.ground_normal_tolerance_deg <= 180)) fail("ground_normal_tolerance_deg", p.ground_normal_tolerance_deg, "must be in (0, 180]");
   if (!(p.ground_reclaim_min_angle_deg >= 0 && p.ground_reclaim_min_angle_deg <= 90)) fail("ground_reclaim_min_angle_deg", p.ground_reclaim_min_angle_deg, "must be in [0, 90]");
+  if (!(p.ground_reclaim_max_angle_deg >= p.ground_reclaim_min_angle_deg && p.ground_reclaim_max_angle_deg <= 90)) fail("ground_reclaim_max_angle_deg", p.ground_reclaim_max_angle_deg, "must be in [ground_reclaim_min_angle_deg, 90]");
   if (p.ground_min_points < 3) fail("ground_min_points", p.ground_min_points, "must be >= 3");
   if (!(p.colour_threshold > 0) || !std::isfinite(p.colour_threshold)) fail("colour_threshold", p.colour_threshold, "must be finite and > 0");
   if (!(p.neighbour_distance_m > 0) || !std::isfinite(p.neighbour_distance_m)) fail("neighbour_distance_m", p.neighbour_distance_m, "must be finite and > 0");
@@ -264,7 +265,8 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
     std::vector<bool> is_ground(n, false);
     for (int i : ground_points) is_ground[static_cast<std::size_t>(i)] = true;
     if (reclaimGroundPoints(out.points, graph, p.neighbour_distance_m, *out.ground_plane, planes,
-                            p.ground_reclaim_min_angle_deg, p.ground_distance_m, labels, is_ground) > 0) {
+                            p.ground_reclaim_min_angle_deg, p.ground_reclaim_max_angle_deg, p.ground_distance_m,
+                            labels, is_ground) > 0) {
       ground_points.clear();
       for (std::size_t i = 0; i < n; ++i) {
         if (is_ground[i]) ground_points.push_back(static_cast<int>(i));

@@ -289,7 +289,8 @@ std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
 std::size_t reclaimGroundPoints(const std::vector<Eigen::Vector3f>& points, const KnnGraph& g,
                                 double max_neighbour_distance_m, const Eigen::Vector4f& ground_plane,
                                 const std::vector<Eigen::Vector4f>& region_planes, double min_angle_deg,
-                                double max_plane_distance_m, std::vector<int>& labels, std::vector<bool>& ground) {
+                                double max_angle_deg, double max_plane_distance_m, std::vector<int>& labels,
+                                std::vector<bool>& ground) {
   const std::size_t n = points.size();
   if (labels.size() != n || ground.size() != n || g.count.size() != n) {
     throw std::invalid_argument("reclaimGroundPoints: points, graph, labels and ground mask sizes differ");
@@ -297,13 +298,15 @@ std::size_t reclaimGroundPoints(const std::vector<Eigen::Vector3f>& points, cons
   const Eigen::Vector3f gn = ground_plane.head<3>().normalized();
   const float gd = ground_plane(3) / ground_plane.head<3>().norm();
   const double cos_min = std::cos(min_angle_deg * M_PI / 180.0);
+  const double cos_max = std::cos(max_angle_deg * M_PI / 180.0);
   std::vector<bool> tilted(region_planes.size(), false);
   std::vector<Eigen::Vector4f> unit(region_planes.size());
   for (std::size_t r = 0; r < region_planes.size(); ++r) {
     const float len = region_planes[r].head<3>().norm();
     if (!(len > 0.f)) continue;
     unit[r] = region_planes[r] / len;
-    tilted[r] = std::abs(static_cast<double>(unit[r].head<3>().dot(gn))) < cos_min;
+    const double c = std::abs(static_cast<double>(unit[r].head<3>().dot(gn)));
+    tilted[r] = c < cos_min && c >= cos_max - 1e-9;
   }
   const float max_d2 = static_cast<float>(max_neighbour_distance_m * max_neighbour_distance_m);
   const float max_plane = static_cast<float>(max_plane_distance_m);

@@ -40,6 +40,8 @@ struct PerceptionParams {
   /// Ground inliers that continue a region tilted at least this much from the floor
   /// (the foot of a gentle ramp) go back to that region; 0 turns this off.
   double ground_reclaim_min_angle_deg = 3.0;
+  /// ... and at most this much (ramps, not walls: floor at a wall's base stays floor).
+  double ground_reclaim_max_angle_deg = 30.0;
   // 6. Region growing (paper Algorithm 1)
   double colour_threshold = 12.0;       ///< max YCrCb distance between neighbours (0-255 scale)
   double neighbour_distance_m = 0.025;  ///< neighbours farther apart are not connected

@@ -92,8 +92,10 @@ std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
 /// Gives back to a tilted region the ground inliers that continue it. RANSAC takes
 /// every point within its distance of the floor plane, which includes the foot of a
 /// gentle ramp (a 5 degree ramp stays within 2 cm of the floor for its first 23 cm).
-/// Starting from each region whose plane (`region_planes[r]`) is at least
-/// `min_angle_deg` from the ground's, a breadth-first walk over graph neighbours
+/// Starting from each region whose plane (`region_planes[r]`) is between
+/// `min_angle_deg` and `max_angle_deg` from the ground's (a ramp, not a wall: the foot
+/// of a steep face loses under 2 cm to the ground, and floor points at a wall's base
+/// must stay floor), a breadth-first walk over graph neighbours
 /// within `max_neighbour_distance_m` moves a ground point into the region when it
 /// is closer to the region's plane than to the ground plane and within
 /// `max_plane_distance_m` of it. Updates `labels` (region per point, -1 none) and
@@ -101,7 +103,8 @@ std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
 std::size_t reclaimGroundPoints(const std::vector<Eigen::Vector3f>& points, const KnnGraph& graph,
                                 double max_neighbour_distance_m, const Eigen::Vector4f& ground_plane,
                                 const std::vector<Eigen::Vector4f>& region_planes, double min_angle_deg,
-                                double max_plane_distance_m, std::vector<int>& labels, std::vector<bool>& ground);
+                                double max_angle_deg, double max_plane_distance_m, std::vector<int>& labels,
+                                std::vector<bool>& ground);
 
 
 /// Roughness r = A / A' (paper eqs. 8-10) of a segment: CGAL 2D Delaunay triangulation
