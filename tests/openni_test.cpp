@@ -142,6 +142,26 @@ TEST_F(OpenNi, LiveCorridorSensorWithPosesMapsTheKnownFloor) {
   expectFloorAhead(path("m.ot"), scene);
 }
 
+TEST_F(OpenNi, PosesOnAnotherClockAreAClearErrorAndWriteNothing) {
+  const int n = 8;
+  sim::CorridorParams p;
+  p.frames = n;
+  p.noise = sim::NoiseModel::kNone;
+  const sim::CorridorScene scene(p);
+  const Outcome rec = mobmap(simEnv(n), "record --device mobmap-sim://corridor --frames " + std::to_string(n) + " --out " + path("c.oni"));
+  ASSERT_EQ(rec.code, 0) << rec.output;
+  // Poses stamped in Unix time while the recording's clock starts at 0.
+  const std::string poses = path("unix.txt");
+  {
+    std::ofstream out(poses);
+    for (int i = 0; i < n; ++i) out << 1700000000.0 + i / 30.0 << " 0 0 1 0 0 0 1\n";
+  }
+  const Outcome r = mobmap("", "build " + path("c.oni") + " --poses " + poses + " --quiet --out " + path("m.ot"));
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("unix.txt: none of the"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(path("m.ot")));
+}
+
 TEST_F(OpenNi, RecordedCorridorPlaysBackEveryFrameAndMapsTheKnownFloor) {
   const int n = 20;
   sim::CorridorParams p;

@@ -20,6 +20,7 @@
 #include <filesystem>
 #include <future>
 #include <iostream>
+#include <sstream>
 #include <map>
 #include <memory>
 
@@ -254,6 +255,12 @@ Command addBuildCommand(CLI::App& app) {
     for (auto& f : in_flight) f.wait();  // let started frames finish before saving
     std::signal(SIGINT, SIG_DFL);
 
+    if (used == 0 && no_pose > 0 && !g_interrupted.load()) {
+      std::ostringstream msg;
+      msg << "none of the " << no_pose << " frames read has a pose within " << o->max_pose_gap
+          << " s of its time stamp (are the poses on the sensor's clock, in seconds?); no map written";
+      throw IoError(o->poses, msg.str());
+    }
     map.finalize();
     const std::string stem = mapStem(o->out);
     mapping::saveMobilityMap(map.tree(), o->out);
