@@ -136,7 +136,7 @@ TEST(TumSequence, BadGroundTruthNamesTheFileAndPose) {
 
 // Writes frame `f` of the noise-free corridor as an organized binary PCD (x y z, NaN
 // where there is no depth), as a Kinect grabber would.
-void writeOrganizedPcd(const sim::CorridorScene& scene, int f, const std::string& path) {
+void writeOrganizedPcd(const sim::CorridorScene& scene, int f, const std::string& path, float x_scale = 1.f) {
   const auto r = scene.render(f);
   const auto& k = scene.params().intrinsics;
   std::ofstream out(path, std::ios::binary);
@@ -149,7 +149,7 @@ void writeOrganizedPcd(const sim::CorridorScene& scene, int f, const std::string
       float xyz[3] = {nan, nan, nan};
       if (z > 0) {
         const Eigen::Vector3f p = perception::backProject(k, u, v, z).cast<float>();
-        xyz[0] = p.x(), xyz[1] = p.y(), xyz[2] = p.z();
+        xyz[0] = p.x() * x_scale, xyz[1] = p.y(), xyz[2] = p.z();
       }
       out.write(reinterpret_cast<const char*>(xyz), sizeof xyz);
     }
@@ -234,6 +234,25 @@ TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
     FAIL();
   } catch (const app::IoError& e) {
     EXPECT_NE(std::string(e.what()).find("--poses"), std::string::npos) << e.what();
+  }
+  // A later frame that is not the first one's pinhole image (here stretched 5 % in x,
+  // as a differently registered cloud would be) is refused, not misread as depth.
+  fs::create_directories(dir / "warped");
+  writeOrganizedPcd(scene, 0, (dir / "warped" / "a.pcd").string());
+  writeOrganizedPcd(scene, 10, (dir / "warped" / "b.pcd").string(), 1.05f);
+  {
+    std::ofstream two(dir / "two.txt");
+    writePoseLine(two, 0.0, scene.cameraPose(0));
+    writePoseLine(two, 0.0, scene.cameraPose(10));
+  }
+  const auto warped = app::openSequence((dir / "warped").string(), "", 0.05, (dir / "two.txt").string());
+  ASSERT_TRUE(warped->hasDepth());
+  EXPECT_NO_THROW((void)warped->load(0));
+  try {
+    (void)warped->load(1);
+    FAIL() << "a stretched cloud was read as depth";
+  } catch (const app::IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("b.pcd: its points are not a pinhole image"), std::string::npos) << e.what();
   }
   // The CLI builds a map from the frames: the floor ahead of the walker is found at
   // z = 0 (the corridor's world frame is z up) and scores as traversable.

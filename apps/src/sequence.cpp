@@ -168,9 +168,21 @@ class PcdSequence : public Sequence {
                                 " but the sequence's frames are " + std::to_string(k_.width) + "x" + std::to_string(k_.height));
     }
     f.depth = perception::DepthImage(lf.width, lf.height);
+    double worst_px = 0.0;
     for (std::size_t i = 0; i < lf.points.size(); ++i) {
       const Eigen::Vector3f& p = lf.points[i];
-      f.depth.depth_m[i] = p.allFinite() && p.z() > 0.f ? p.z() : 0.f;
+      const bool valid = p.allFinite() && p.z() > 0.f;
+      f.depth.depth_m[i] = valid ? p.z() : 0.f;
+      if (valid && i % 97 == 0) {  // a sample: is this frame still the first one's pinhole image?
+        const auto uv = perception::project(k_, p.cast<double>());
+        const double u = static_cast<double>(i % static_cast<std::size_t>(lf.width));
+        const double v = static_cast<double>(i / static_cast<std::size_t>(lf.width));
+        if (uv) worst_px = std::max(worst_px, std::max(std::abs(uv->x() - u), std::abs(uv->y() - v)));
+      }
+    }
+    if (worst_px > 1.0) {
+      throw IoError(e.path, "its points are not a pinhole image with the intrinsics of the first frame (a point lies " +
+                                std::to_string(worst_px) + " px from its pixel); map such clouds one at a time");
     }
     return f;
   }
