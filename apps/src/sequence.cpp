@@ -12,9 +12,7 @@
 #include "mobmap/perception/camera.hpp"
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
-#include <ctime>
 #include <filesystem>
 #include <sstream>
 
