@@ -6,6 +6,7 @@
 #include "map_files.hpp"
 
 #include "mobmap/sim/corridor_scene.hpp"
+#include "mobmap/sim/tum_pose.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -59,13 +60,7 @@ class OpenNi : public ::testing::Test {
   std::string writePoses(const sim::CorridorScene& scene, int n) const {
     const std::string p = path("poses.txt");
     std::ofstream out(p);
-    out.precision(10);
-    for (int i = 0; i < n; ++i) {
-      const Eigen::Isometry3d T = scene.cameraPose(i);
-      const Eigen::Quaterniond q(T.linear());
-      out << std::fixed << i / 30.0 << " " << T.translation().x() << " " << T.translation().y() << " "
-          << T.translation().z() << " " << q.x() << " " << q.y() << " " << q.z() << " " << q.w() << "\n";
-    }
+    for (int i = 0; i < n; ++i) sim::writeTumPoseLine(out, i / 30.0, scene.cameraPose(i));
     return p;
   }
   // The floor ahead of the walker's first position is found at z = 0 and traversable.

@@ -10,6 +10,7 @@
 
 #include "mobmap/mapping/trajectory.hpp"
 #include "mobmap/sim/corridor_scene.hpp"
+#include "mobmap/sim/tum_pose.hpp"
 
 #include <gtest/gtest.h>
 
@@ -50,11 +51,7 @@ std::string writeTum(const sim::CorridorScene& scene, int n, int gap_frame) {
   const double gap_t = gap_frame / 30.0;
   for (double t = -0.05; t < n / 30.0 + 0.05; t += 0.01) {
     if (std::abs(t + 0.003 - gap_t) < 0.02) continue;
-    const Eigen::Isometry3d T = scene.cameraPoseAt(t + 0.003);
-    const Eigen::Quaterniond q(T.linear());
-    gt.precision(9);
-    gt << std::fixed << kT0 + t + 0.003 << " " << T.translation().x() << " " << T.translation().y() << " " << T.translation().z() << " "
-       << q.x() << " " << q.y() << " " << q.z() << " " << q.w() << "\n";
+    sim::writeTumPoseLine(gt, kT0 + t + 0.003, scene.cameraPoseAt(t + 0.003));
   }
   return dir.string();
 }
@@ -156,13 +153,6 @@ void writeOrganizedPcd(const sim::CorridorScene& scene, int f, const std::string
   }
 }
 
-void writePoseLine(std::ostream& out, double t, const Eigen::Isometry3d& T) {
-  const Eigen::Quaterniond q(T.linear());
-  out.precision(9);
-  out << std::fixed << t << " " << T.translation().x() << " " << T.translation().y() << " " << T.translation().z() << " "
-      << q.x() << " " << q.y() << " " << q.z() << " " << q.w() << "\n";
-}
-
 TEST(PcdSequence, FileNameTimeStamps) {
   // 2012-12-14 14:22:55 UTC is 1355494975 s after the epoch.
   EXPECT_NEAR(*app::timestampFromFileName("/x/frame_20121214T142255.814212.pcd"), 1355494975.814212, 1e-6);
@@ -190,12 +180,12 @@ TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
       char name[64];
       std::snprintf(name, sizeof name, "frame_20121214T1422%02d.000000.pcd", 10 + f / 10);  // one per second
       writeOrganizedPcd(scene, f, (dir / "frames" / name).string());
-      writePoseLine(in_order, 0.0, scene.cameraPose(f));
+      sim::writeTumPoseLine(in_order, 0.0, scene.cameraPose(f));
     }
     // Timestamped poses every 0.25 s around the frames: the frame times interpolate
     // between samples of the same pose, so they must come back exactly.
     for (int f : frames) {
-      for (double dt : {-0.25, 0.0, 0.25}) writePoseLine(timed, 1355494930.0 + f / 10 + dt, scene.cameraPose(f));
+      for (double dt : {-0.25, 0.0, 0.25}) sim::writeTumPoseLine(timed, 1355494930.0 + f / 10 + dt, scene.cameraPose(f));
     }
   }
   const auto& k = scene.params().intrinsics;
@@ -221,7 +211,7 @@ TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
   for (const char* name : {"a.pcd", "b.pcd"}) fs::copy_file(fs::directory_iterator(dir / "frames")->path(), dir / "plain" / name);
   {
     std::ofstream one(dir / "one.txt");
-    writePoseLine(one, 0.0, scene.cameraPose(0));
+    sim::writeTumPoseLine(one, 0.0, scene.cameraPose(0));
   }
   try {
     (void)app::openSequence((dir / "plain").string(), "", 0.05, (dir / "one.txt").string());
@@ -242,8 +232,8 @@ TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
   writeOrganizedPcd(scene, 10, (dir / "warped" / "b.pcd").string(), 1.05f);
   {
     std::ofstream two(dir / "two.txt");
-    writePoseLine(two, 0.0, scene.cameraPose(0));
-    writePoseLine(two, 0.0, scene.cameraPose(10));
+    sim::writeTumPoseLine(two, 0.0, scene.cameraPose(0));
+    sim::writeTumPoseLine(two, 0.0, scene.cameraPose(10));
   }
   const auto warped = app::openSequence((dir / "warped").string(), "", 0.05, (dir / "two.txt").string());
   ASSERT_TRUE(warped->hasDepth());

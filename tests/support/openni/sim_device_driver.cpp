@@ -21,6 +21,7 @@
 #include <Driver/OniDriverAPI.h>
 
 #include "mobmap/sim/corridor_scene.hpp"
+#include "mobmap/sim/tum_pose.hpp"
 
 #include <atomic>
 #include <chrono>
@@ -210,13 +211,9 @@ class CorridorDevice : public oni::driver::DeviceBase {
  private:
   void writePoses(const char* path) const {
     std::ofstream out(path);
-    out.precision(9);
     const int frames = envInt("MOBMAP_SIM_FRAMES", 90);
     for (int i = 0; i < frames; ++i) {
-      const Eigen::Isometry3d T = scene_->cameraPose(corridorFrame(i));
-      const Eigen::Quaterniond q(T.linear());
-      out << std::fixed << i / static_cast<double>(frameRate()) << " " << T.translation().x() << " " << T.translation().y() << " "
-          << T.translation().z() << " " << q.x() << " " << q.y() << " " << q.z() << " " << q.w() << "\n";
+      mobmap::sim::writeTumPoseLine(out, i / static_cast<double>(frameRate()), scene_->cameraPose(corridorFrame(i)));
     }
   }
 
