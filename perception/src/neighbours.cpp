@@ -206,15 +206,13 @@ KnnGraph restrictKnnGraph(const KnnGraph& g, const std::vector<Eigen::Vector3f>&
     throw std::invalid_argument("restrictKnnGraph: graph, points and mask sizes differ");
   }
   std::vector<int> new_index(points.size(), -1);
-  std::vector<Eigen::Vector3f> kept;
+  int n_kept = 0;
   for (std::size_t i = 0; i < points.size(); ++i) {
-    if (!keep[i]) continue;
-    new_index[i] = static_cast<int>(kept.size());
-    kept.push_back(points[i]);
+    if (keep[i]) new_index[i] = n_kept++;
   }
   KnnGraph out;
-  allocate(out, kept.size(), k);
-  std::vector<bool> redo(kept.size(), false);
+  allocate(out, static_cast<std::size_t>(n_kept), k);
+  std::vector<bool> redo(static_cast<std::size_t>(n_kept), false);
   std::size_t n_redo = 0;
   const float max_r2 = max_radius_m * max_radius_m;
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -241,7 +239,12 @@ KnnGraph restrictKnnGraph(const KnnGraph& g, const std::vector<Eigen::Vector3f>&
     }
   }
   if (recomputed) *recomputed = n_redo;
-  if (n_redo > 0) {
+  if (n_redo > 0) {  // only then is the kept cloud needed as a cloud of its own
+    std::vector<Eigen::Vector3f> kept;
+    kept.reserve(static_cast<std::size_t>(n_kept));
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      if (keep[i]) kept.push_back(points[i]);
+    }
     GridSearch search(kept, k, cell_m, max_radius_m);
     search.run(out, [&](int i) { return static_cast<bool>(redo[static_cast<std::size_t>(i)]); },
                [](int i) { return i; });
