@@ -37,6 +37,13 @@ TEST(Config, ShippedDefaultYamlEqualsTheStructDefaults) {
   EXPECT_EQ(c.perception.colour_threshold, p.colour_threshold);
   EXPECT_EQ(c.perception.neighbour_distance_m, p.neighbour_distance_m);
   EXPECT_EQ(c.perception.min_segment_points, p.min_segment_points);
+  EXPECT_EQ(c.perception.rough_fragment_max_points, p.rough_fragment_max_points);
+  EXPECT_EQ(c.perception.rough_min_fragments, p.rough_min_fragments);
+  EXPECT_EQ(c.perception.rough_fragment_max_width_m, p.rough_fragment_max_width_m);
+  EXPECT_EQ(c.perception.rough_min_points, p.rough_min_points);
+  EXPECT_EQ(c.perception.rough_min_width_m, p.rough_min_width_m);
+  EXPECT_EQ(c.perception.rough_max_slope_deg, p.rough_max_slope_deg);
+  EXPECT_EQ(c.perception.rough_min_normal_spread_deg, p.rough_min_normal_spread_deg);
   EXPECT_EQ(c.perception.plane_ransac_distance_m, p.plane_ransac_distance_m);
   EXPECT_EQ(c.perception.max_triangle_edge_m, p.max_triangle_edge_m);
   EXPECT_EQ(c.perception.roughness_smoothing, p.roughness_smoothing);

@@ -56,9 +56,9 @@ struct CorridorMap {
 
 void CorridorMap::walkableAndUntraversableSurfacesScoreAsTheTableSays() const {
   const app::Evaluation ev = app::evaluateMap(*map_, *truth_, 3, 0.04);
-  // Surfaces the pipeline gets right today; the rough patch is a known gap
-  // (docs/MAPPING.md), reported by `mobmap evaluate`, not asserted.
-  const std::set<std::string> checked = {"floor", "ramp 5 deg", "ramp 15 deg", "ramp 25 deg", "ramp 35 deg", "ramp 45 deg", "box -x face",
+  // Surfaces the pipeline gets right today; the small faces (ramp sides and backs,
+  // the box's top and far faces) are reported by `mobmap evaluate`, not asserted.
+  const std::set<std::string> checked = {"floor", "rough patch", "ramp 5 deg", "ramp 15 deg", "ramp 25 deg", "ramp 35 deg", "ramp 45 deg", "box -x face",
                                          "stair tread 1", "stair tread 2", "stair tread 3", "stair tread 4",
                                          "stair riser 1", "stair riser 2", "stair riser 3", "stair riser 4"};
   int right = 0, total = 0;
@@ -70,7 +70,7 @@ void CorridorMap::walkableAndUntraversableSurfacesScoreAsTheTableSays() const {
     right += static_cast<int>(std::lround(s.right_side * s.voxels));
     total += s.voxels;
   }
-  EXPECT_GE(static_cast<double>(right) / total, 0.95);
+  EXPECT_GE(static_cast<double>(right) / total, 0.97);
   std::printf("[ info ] right side of 0.5 over the checked surfaces: %.1f %% of %d voxels\n", 100.0 * right / total, total);
 }
 

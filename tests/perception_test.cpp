@@ -332,6 +332,118 @@ TEST(GroundReclaim, FloorAtTheBaseOfAWallStaysFloor) {
             61u);
 }
 
+// Tiles of a 1 cm grid, each its own region, with normals leaning `lean_deg` off the
+// tiles' plane in alternating directions (the facets of a rough surface when large).
+struct Tiles {
+  std::vector<Eigen::Vector3f> points, normals;
+  std::vector<int> labels;
+};
+Tiles tiles(int nx, int ny, int tile_cm_x, int tile_cm_y, double lean_deg, const Eigen::Matrix3f& rot = Eigen::Matrix3f::Identity()) {
+  Tiles t;
+  for (int i = 0; i < nx * tile_cm_x; ++i) {
+    for (int j = 0; j < ny * tile_cm_y; ++j) {
+      const int tile = (i / tile_cm_x) * ny + j / tile_cm_y;
+      const double a = (tile % 2 ? 1 : -1) * lean_deg * kDeg;
+      t.points.push_back(rot * Eigen::Vector3f(0.01f * i, 0.01f * j, 0.f));
+      t.normals.push_back(rot * Eigen::Vector3f(static_cast<float>(std::sin(a)), 0.f, static_cast<float>(std::cos(a))));
+      t.labels.push_back(tile);
+    }
+  }
+  return t;
+}
+std::vector<int> merge(const Tiles& t, const std::optional<Eigen::Vector3f>& up, int* regions, std::vector<bool>* rough) {
+  const KnnGraph g = bruteForceKnnGraph(t.points, 12);
+  // min segment 50, fragments < 150 points or < 8 cm wide, groups of >= 3 fragments,
+  // >= 100 points, >= 15 cm wide, normals >= 20 degrees off, <= 20 degrees from level.
+  return mergeFragments(t.points, t.normals, g, 0.025, t.labels, 50, 150, 0.08, 3, 100, 0.15, 20.0, up, 20.0, regions, rough);
+}
+
+TEST(RoughMerge, ConnectedSteepFragmentsOfALevelSurfaceBecomeOneRoughRegion) {
+  const Tiles t = tiles(3, 3, 10, 10, 45.0);  // 9 tiles of 100 points
+  int regions = 0;
+  std::vector<bool> rough;
+  const auto labels = merge(t, Eigen::Vector3f::UnitZ(), &regions, &rough);
+  ASSERT_EQ(regions, 1);
+  EXPECT_EQ(rough, std::vector<bool>{true});
+  for (int l : labels) EXPECT_EQ(l, 0);
+}
+
+TEST(RoughMerge, FragmentsOfASmoothSurfaceStaySeparate) {
+  // Noise breaks a smooth floor into tiles whose normals lean only a few degrees.
+  const Tiles t = tiles(3, 3, 10, 10, 5.0);
+  int regions = 0;
+  std::vector<bool> rough;
+  const auto labels = merge(t, Eigen::Vector3f::UnitZ(), &regions, &rough);
+  EXPECT_EQ(regions, 9);  // every tile has >= 50 points: each stays a region
+  EXPECT_EQ(std::count(rough.begin(), rough.end(), true), 0);
+  for (std::size_t i = 0; i < labels.size(); ++i) EXPECT_EQ(labels[i] >= 0, true);
+}
+
+TEST(RoughMerge, AStripAlongAnEdgeIsNotARoughSurface) {
+  // Fragments along a crease: 6 tiles of 10 x 3 cm in a row, 60 x 3 cm in all.
+  const Tiles t = tiles(6, 1, 10, 3, 45.0);
+  int regions = 0;
+  std::vector<bool> rough;
+  const auto labels = merge(t, Eigen::Vector3f::UnitZ(), &regions, &rough);
+  EXPECT_EQ(regions, 0);  // 30-point tiles are too small to stand alone
+  for (int l : labels) EXPECT_EQ(l, -1);
+}
+
+TEST(RoughMerge, ASteepGroupIsNotRoughGroundUnlessLevelIsUnknown) {
+  Eigen::Matrix3f rot = Eigen::AngleAxisf(static_cast<float>(50 * kDeg), Eigen::Vector3f::UnitX()).toRotationMatrix();
+  const Tiles t = tiles(3, 3, 10, 10, 45.0, rot);
+  int regions = 0;
+  std::vector<bool> rough;
+  merge(t, Eigen::Vector3f::UnitZ(), &regions, &rough);
+  EXPECT_EQ(std::count(rough.begin(), rough.end(), true), 0);
+  EXPECT_EQ(regions, 9);
+  merge(t, std::nullopt, &regions, &rough);
+  EXPECT_EQ(regions, 1);
+  EXPECT_EQ(std::count(rough.begin(), rough.end(), true), 1);
+}
+
+TEST(RoughMerge, APyramidFieldIsOneLevelSegmentWithItsExactAreaRatio) {
+  // 6 x 6 pyramids of 10 cm pitch with 48-degree faces (A/A' = 1.5 exactly), sampled
+  // every 2 mm, seen from 1 m above; no floor around it, gravity known.
+  const double pitch = 0.1, h = 0.5 * pitch * std::sqrt(1.25);
+  std::vector<Eigen::Vector3f> cloud;
+  for (int i = 0; i < 300; ++i) {
+    for (int j = 0; j < 300; ++j) {
+      const double x = 0.002 * i + 0.001, y = 0.002 * j + 0.001;
+      const double fx = std::fmod(x, pitch) / pitch - 0.5, fy = std::fmod(y, pitch) / pitch - 0.5;
+      const double z = h * (1.0 - 2.0 * std::max(std::abs(fx), std::abs(fy)));
+      // Camera frame (OpenCV): x right, y down, z forward; the field faces the camera.
+      cloud.emplace_back(static_cast<float>(x - 0.3), static_cast<float>(y - 0.3), static_cast<float>(1.0 - z));
+    }
+  }
+  for (const bool smoothing : {true, false}) {
+    PerceptionParams params;
+    params.min_range_m = 0.1;
+    params.roughness_smoothing = smoothing;
+    const FramePipeline pipeline(params);
+    const FrameResult r = pipeline.process(cloud, Eigen::Vector3f(0, 0, 1));  // gravity along +z: looking down
+    const Segment* best = nullptr;
+    for (const auto& seg : r.segments) {
+      if (!best || seg.points.size() > best->points.size()) best = &seg;
+    }
+    ASSERT_NE(best, nullptr);
+    EXPECT_TRUE(best->is_rough);
+    EXPECT_GE(best->points.size(), 0.9 * r.points.size());
+    EXPECT_LE(best->slope_deg, 2.0);
+    std::printf("[ info ] pyramid field, smoothing %s: %zu of %zu points in one segment, slope %.2f deg, r %.3f (exact 1.5)\n",
+                smoothing ? "on" : "off", best->points.size(), r.points.size(), best->slope_deg, best->roughness);
+    if (smoothing) {
+      // One projection pass rounds the creases: the noise-free field measures ~1.19.
+      // Under Kinect noise at 1.5-2.5 m the same pass measures ~1.4-1.5 (the demo's
+      // rough patch); docs/PERCEPTION.md has both. Here: rough, well above flat.
+      EXPECT_GE(best->roughness, 1.15);
+    } else {
+      // Raw 1 cm voxel centroids: the Delaunay area misses only the crease voxels.
+      EXPECT_NEAR(best->roughness, 1.5, 0.1);
+    }
+  }
+}
+
 TEST(Roughness, FlatAndCorrugatedSurfacesMatchTheirExactRatio) {
   // A zigzag z = a * tri(x / P) sampled at its kinks: Delaunay reproduces it exactly,
   // so A/A' = sqrt(1 + (2a / (P/2))^2 ... per facet slope s = a / (P / 2).

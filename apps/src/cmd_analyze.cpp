@@ -37,6 +37,7 @@ nlohmann::json frameResultJson(const perception::FrameResult& r) {
   json segs = json::array();
   for (const auto& s : r.segments) {
     segs.push_back({{"id", s.id}, {"points", s.points.size()}, {"is_ground", s.is_ground},
+                    {"is_rough", s.is_rough},
                     {"centroid", {s.centroid.x(), s.centroid.y(), s.centroid.z()}},
                     {"normal", {s.normal.x(), s.normal.y(), s.normal.z()}},
                     {"slope_deg", s.slope_deg}, {"roughness", s.roughness}, {"area_m2", s.area_m2},
@@ -174,11 +175,11 @@ Command addAnalyzeCommand(CLI::App& app) {
     }
     std::printf("slope measured against: %s\n\n", perception::toString(r.reference));
     std::printf("%4s %7s %-26s %-24s %7s %9s %8s %8s %6s\n", "id", "points", "centroid (m)", "normal", "slope", "roughness",
-                "mobility", "variance", "ground");
+                "mobility", "variance", "kind");
     for (const auto& s : r.segments) {
       std::printf("%4d %7zu (%6.2f,%6.2f,%6.2f)    (%6.3f,%6.3f,%6.3f)  %6.1f° %9.3f %8.2f %8.4f %6s\n", s.id, s.points.size(),
                   s.centroid.x(), s.centroid.y(), s.centroid.z(), s.normal.x(), s.normal.y(), s.normal.z(), s.slope_deg,
-                  s.roughness, s.mobility, s.variance, s.is_ground ? "yes" : "");
+                  s.roughness, s.mobility, s.variance, s.is_ground ? "ground" : s.is_rough ? "rough" : "");
     }
     if (r.segments.empty()) std::printf("no segments (empty frame or nothing in range)\n");
     return 0;

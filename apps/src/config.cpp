@@ -64,7 +64,12 @@ static Config parseConfigUnchecked(const std::string& text, const std::string& o
          {"ground_reclaim_min_angle_deg", bind(p.ground_reclaim_min_angle_deg)},
          {"ground_reclaim_max_angle_deg", bind(p.ground_reclaim_max_angle_deg)},
          {"colour_threshold", bind(p.colour_threshold)}, {"neighbour_distance_m", bind(p.neighbour_distance_m)},
-         {"min_segment_points", bind(p.min_segment_points)}, {"plane_ransac_distance_m", bind(p.plane_ransac_distance_m)},
+         {"min_segment_points", bind(p.min_segment_points)},
+         {"rough_fragment_max_points", bind(p.rough_fragment_max_points)}, {"rough_min_fragments", bind(p.rough_min_fragments)},
+         {"rough_fragment_max_width_m", bind(p.rough_fragment_max_width_m)},
+         {"rough_min_points", bind(p.rough_min_points)},
+         {"rough_min_width_m", bind(p.rough_min_width_m)}, {"rough_max_slope_deg", bind(p.rough_max_slope_deg)},
+         {"rough_min_normal_spread_deg", bind(p.rough_min_normal_spread_deg)}, {"plane_ransac_distance_m", bind(p.plane_ransac_distance_m)},
          {"max_triangle_edge_m", bind(p.max_triangle_edge_m)}, {"roughness_smoothing", bind(p.roughness_smoothing)}, {"roughness_smoothing_passes", bind(p.roughness_smoothing_passes)},
          {"random_seed", bind(p.random_seed)}},
         origin);

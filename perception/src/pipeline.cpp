@@ -70,6 +70,13 @@ void validate(const PerceptionParams& p) {
   if (!(p.colour_threshold > 0) || !std::isfinite(p.colour_threshold)) fail("colour_threshold", p.colour_threshold, "must be finite and > 0");
   if (!(p.neighbour_distance_m > 0) || !std::isfinite(p.neighbour_distance_m)) fail("neighbour_distance_m", p.neighbour_distance_m, "must be finite and > 0");
   if (p.min_segment_points < 3) fail("min_segment_points", p.min_segment_points, "must be >= 3");
+  if (p.rough_fragment_max_points < 0) fail("rough_fragment_max_points", p.rough_fragment_max_points, "must be >= 0");
+  if (!(p.rough_fragment_max_width_m >= 0) || !std::isfinite(p.rough_fragment_max_width_m)) fail("rough_fragment_max_width_m", p.rough_fragment_max_width_m, "must be finite and >= 0");
+  if (p.rough_min_fragments < 2) fail("rough_min_fragments", p.rough_min_fragments, "must be >= 2");
+  if (p.rough_min_points < 3) fail("rough_min_points", p.rough_min_points, "must be >= 3");
+  if (!(p.rough_min_width_m >= 0) || !std::isfinite(p.rough_min_width_m)) fail("rough_min_width_m", p.rough_min_width_m, "must be finite and >= 0");
+  if (!(p.rough_min_normal_spread_deg >= 0 && p.rough_min_normal_spread_deg <= 90)) fail("rough_min_normal_spread_deg", p.rough_min_normal_spread_deg, "must be in [0, 90]");
+  if (!(p.rough_max_slope_deg >= 0 && p.rough_max_slope_deg <= 90)) fail("rough_max_slope_deg", p.rough_max_slope_deg, "must be in [0, 90]");
   if (p.roughness_smoothing_passes < 1 || p.roughness_smoothing_passes > 10) fail("roughness_smoothing_passes", p.roughness_smoothing_passes, "must be 1..10");
   if (!(p.plane_ransac_distance_m > 0) || !std::isfinite(p.plane_ransac_distance_m)) fail("plane_ransac_distance_m", p.plane_ransac_distance_m, "must be finite and > 0");
   if (!(p.max_triangle_edge_m > 0) || !std::isfinite(p.max_triangle_edge_m)) fail("max_triangle_edge_m", p.max_triangle_edge_m, "must be finite and > 0");
@@ -210,6 +217,13 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
   std::vector<Eigen::Vector3f> smoothed;
   estimateNormals(out.points, graph, Eigen::Vector3f::Zero(), out.normals, out.curvature,
                   p.roughness_smoothing ? &smoothed : nullptr);
+  // Rough segments (joined fragments) are measured after the first pass only: their
+  // roughness is creases at the fragments' scale, which the widening passes below
+  // round off (docs/PERCEPTION.md, "Rough surfaces", gives the numbers).
+  std::vector<Eigen::Vector3f> first_planes;
+  if (p.roughness_smoothing && p.rough_fragment_max_points > 0 && p.roughness_smoothing_passes > 1) {
+    first_planes = smoothed;
+  }
   for (int pass = 1; p.roughness_smoothing && pass < p.roughness_smoothing_passes; ++pass) {
     std::vector<Eigen::Vector3f> n_tmp, next;
     std::vector<float> c_tmp;
@@ -253,8 +267,31 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
   // 6. Colour region growing on what is not ground.
   clock.start();
   int regions = 0;
-  std::vector<int> labels = growRegions(out.points, out.colours, graph, eligible, p.colour_threshold,
-                                        p.neighbour_distance_m, p.min_segment_points, &regions);
+  std::vector<int> labels;
+  std::vector<bool> region_rough;
+  std::optional<Eigen::Vector3f> level = up;
+  if (!level && out.ground_plane) level = out.ground_plane->head<3>();
+  if (p.rough_fragment_max_points > 0) {
+    labels = growRegions(out.points, out.colours, graph, eligible, p.colour_threshold, p.neighbour_distance_m, 1,
+                         &regions);
+    labels = mergeFragments(out.points, out.normals, graph, p.neighbour_distance_m, labels, p.min_segment_points,
+                            p.rough_fragment_max_points, p.rough_fragment_max_width_m, p.rough_min_fragments, p.rough_min_points,
+                            p.rough_min_width_m, p.rough_min_normal_spread_deg, level, p.rough_max_slope_deg, &regions,
+                            &region_rough);
+  } else {
+    labels = growRegions(out.points, out.colours, graph, eligible, p.colour_threshold, p.neighbour_distance_m,
+                         p.min_segment_points, &regions);
+  }
+  if (!ground_points.empty() && std::find(region_rough.begin(), region_rough.end(), true) != region_rough.end()) {
+    std::vector<bool> is_ground(n, false);
+    for (int i : ground_points) is_ground[static_cast<std::size_t>(i)] = true;
+    if (absorbGroundIntoRough(graph, p.neighbour_distance_m, region_rough, 0.5, 3, labels, is_ground) > 0) {
+      ground_points.clear();
+      for (std::size_t i = 0; i < n; ++i) {
+        if (is_ground[i]) ground_points.push_back(static_cast<int>(i));
+      }
+    }
+  }
   if (out.ground_plane && regions > 0 && p.ground_reclaim_min_angle_deg > 0) {
     std::vector<std::vector<int>> region_points(static_cast<std::size_t>(regions));
     for (std::size_t i = 0; i < n; ++i) {
@@ -283,9 +320,10 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
     g.points = std::move(ground_points);
     out.segments.push_back(std::move(g));
   }
-  for (auto& m : members) {
+  for (std::size_t r = 0; r < members.size(); ++r) {
     Segment s;
-    s.points = std::move(m);
+    s.points = std::move(members[r]);
+    s.is_rough = r < region_rough.size() && region_rough[r];
     out.segments.push_back(std::move(s));
   }
   std::size_t segmented = 0;
@@ -318,7 +356,11 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
     o.distance_m = std::max(p.plane_ransac_distance_m, 2.5 * rms);
     o.probability = p.ground_probability;
     o.max_iterations = 200;
-    if (auto fit = ransacPlane(out.points, seg.points, o, rng); fit && fit->inliers.size() * 2 >= seg.points.size()) {
+    // Each segment draws from its own stream, seeded by its first point, so its
+    // plane does not depend on how many segments came before it.
+    std::seed_seq seq{p.random_seed, static_cast<std::uint32_t>(seg.points.front())};
+    std::mt19937 seg_rng(seq);
+    if (auto fit = ransacPlane(out.points, seg.points, o, seg_rng); fit && fit->inliers.size() * 2 >= seg.points.size()) {
       plane = fit->plane;
     }
     Eigen::Vector3f centroid = Eigen::Vector3f::Zero();
@@ -330,7 +372,9 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
     seg.centroid = centroid;
     seg.normal = normal;
     seg.slope_deg = std::acos(std::clamp(static_cast<double>(normal.dot(reference)), -1.0, 1.0)) * kRadToDeg;
-    const auto [r, area] = delaunayRoughness(p.roughness_smoothing ? smoothed : out.points, seg.points, plane,
+    const std::vector<Eigen::Vector3f>& measured =
+        !p.roughness_smoothing ? out.points : seg.is_rough && !first_planes.empty() ? first_planes : smoothed;
+    const auto [r, area] = delaunayRoughness(measured, seg.points, plane,
                                              p.max_triangle_edge_m);
     seg.roughness = r;
     seg.area_m2 = area;

@@ -229,15 +229,21 @@ std::optional<PlaneFit> ransacPlane(const std::vector<Eigen::Vector3f>& points, 
   }
   countInliers(best, &fit.inliers);
   if (fit.inliers.size() < 3) return std::nullopt;
-  // Least-squares refit on the inliers, then the final inlier set of that plane.
-  Eigen::Vector4f refined = leastSquaresPlane(points, fit.inliers);
-  if (refined.head<3>().dot(best.head<3>()) < 0) refined = -refined;
-  if (!o.required_normal || std::abs(refined.head<3>().dot(*o.required_normal)) >= cos_tilt) {
+  // Least-squares refits on the inliers, each followed by the inlier set of the new
+  // plane, while that set does not shrink (at most a few rounds). One refit leaves
+  // the slab chosen by the 3-point hypothesis, and with it part of the hypothesis'
+  // tilt; iterating moves the band onto the surface's own mean plane, so the result
+  // no longer depends on which sample happened to win.
+  for (int round = 0; round < 5; ++round) {
+    Eigen::Vector4f refined = leastSquaresPlane(points, fit.inliers);
+    if (refined.head<3>().dot(best.head<3>()) < 0) refined = -refined;
+    if (o.required_normal && std::abs(refined.head<3>().dot(*o.required_normal)) < cos_tilt) break;
     std::vector<int> again;
-    if (countInliers(refined, &again) >= fit.inliers.size()) {
-      best = refined;
-      fit.inliers = std::move(again);
-    }
+    if (countInliers(refined, &again) < fit.inliers.size()) break;
+    const bool same = again == fit.inliers;
+    best = refined;
+    fit.inliers = std::move(again);
+    if (same) break;
   }
   fit.plane = best;
   return fit;
@@ -284,6 +290,186 @@ std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
   for (auto& l : label) l = l < 0 ? -1 : l;
   if (regions) *regions = next;
   return label;
+}
+
+namespace {
+
+// First and second moments of a point set, for its PCA.
+struct PointMoments {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+  std::size_t n = 0;
+  void add(const Eigen::Vector3f& p) {
+    const Eigen::Vector3d q = p.cast<double>();
+    sum += q;
+    outer += q * q.transpose();
+    ++n;
+  }
+  // Eigenvalues ascending, eigenvectors in columns (col(0): the plane normal).
+  [[nodiscard]] Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen() const {
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+    const Eigen::Vector3d mean = sum / static_cast<double>(std::max<std::size_t>(n, 1));
+    es.computeDirect(outer / static_cast<double>(std::max<std::size_t>(n, 1)) - mean * mean.transpose());
+    return es;
+  }
+  // Extent across the set's main direction: the width of a uniform strip is sqrt(12)
+  // times its standard deviation.
+  [[nodiscard]] double width() const { return std::sqrt(12.0 * std::max(0.0, eigen().eigenvalues()(1))); }
+};
+
+}  // namespace
+
+std::vector<int> mergeFragments(const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3f>& normals,
+                                const KnnGraph& g, double max_neighbour_distance_m, const std::vector<int>& labels,
+                                int min_segment_points, int fragment_max_points, double fragment_max_width_m,
+                                int min_fragments, int min_points, double min_width_m, double min_spread_deg,
+                                const std::optional<Eigen::Vector3f>& up, double max_slope_deg, int* regions,
+                                std::vector<bool>* rough) {
+  const double cos_max_slope = std::cos(max_slope_deg * M_PI / 180.0);
+  const std::size_t n = points.size();
+  if (labels.size() != n || normals.size() != n || g.count.size() != n) {
+    throw std::invalid_argument("mergeFragments: points, normals, graph and labels sizes differ");
+  }
+  int n_in = 0;
+  for (int l : labels) n_in = std::max(n_in, l + 1);
+  std::vector<int> size(static_cast<std::size_t>(n_in), 0);
+  for (int l : labels) {
+    if (l >= 0) ++size[static_cast<std::size_t>(l)];
+  }
+  // A fragment is a small region, or a narrow one: where fragments of the same
+  // orientation touch at their corners (a row of pyramid faces) they grow into a long
+  // zigzag strip a few centimetres wide.
+  std::vector<bool> fragment(static_cast<std::size_t>(n_in), false);
+  {
+    std::vector<PointMoments> moments(static_cast<std::size_t>(n_in));
+    for (std::size_t i = 0; i < n; ++i) {
+      if (labels[i] >= 0) moments[static_cast<std::size_t>(labels[i])].add(points[i]);
+    }
+    for (std::size_t r = 0; r < fragment.size(); ++r) {
+      fragment[r] = size[r] < fragment_max_points || moments[r].width() < fragment_max_width_m;
+    }
+  }
+  auto is_fragment = [&](std::size_t i) { return labels[i] >= 0 && fragment[static_cast<std::size_t>(labels[i])]; };
+  // Groups of connected fragment points (-1: not in a group).
+  std::vector<int> group(n, -1);
+  std::vector<bool> group_kept;
+  {
+    const float max_d2 = static_cast<float>(max_neighbour_distance_m * max_neighbour_distance_m);
+    std::vector<int> queue;
+    std::vector<int> seen_stamp(static_cast<std::size_t>(n_in), -1);
+    for (std::size_t seed = 0; seed < n; ++seed) {
+      if (group[seed] >= 0 || !is_fragment(seed)) continue;
+      const int id = static_cast<int>(group_kept.size());
+      queue.assign(1, static_cast<int>(seed));
+      group[seed] = id;
+      int fragments = 0;
+      for (std::size_t head = 0; head < queue.size(); ++head) {
+        const auto i = static_cast<std::size_t>(queue[head]);
+        int& stamp = seen_stamp[static_cast<std::size_t>(labels[i])];
+        if (stamp != id) {
+          stamp = id;
+          ++fragments;
+        }
+        const std::size_t base = i * static_cast<std::size_t>(g.k);
+        for (int j = 0; j < g.count[i]; ++j) {
+          if (g.sq_dist[base + static_cast<std::size_t>(j)] > max_d2) continue;
+          const auto nb = static_cast<std::size_t>(g.indices[base + static_cast<std::size_t>(j)]);
+          if (group[nb] >= 0 || !is_fragment(nb)) continue;
+          group[nb] = id;
+          queue.push_back(static_cast<int>(nb));
+        }
+      }
+      bool keep = fragments >= min_fragments && static_cast<int>(queue.size()) >= min_points;
+      if (keep) {
+        // Areal, not a strip: fragments along a crease (a stair's nose, a box edge)
+        // also form groups, long and a few centimetres wide. The width of a uniform
+        // strip is sqrt(12) times its standard deviation across.
+        PointMoments m;
+        for (int i : queue) m.add(points[static_cast<std::size_t>(i)]);
+        const auto es = m.eigen();
+        keep = m.width() >= min_width_m;
+        // Walking surfaces only: a steep group is a staircase or a wall at a range
+        // where noise fragments it, not rough ground.
+        const Eigen::Vector3d plane_normal = es.eigenvectors().col(0);
+        if (keep && up) keep = std::abs(plane_normal.dot(up->cast<double>().normalized())) >= cos_max_slope;
+        // Rough: the point normals turn away from the group's plane. Fragments of a
+        // smooth surface that noise broke up (a far floor, a gentle ramp) lean only a
+        // few degrees off it.
+        if (keep) {
+          double spread = 0.0;
+          for (int i : queue) {
+            const double c = std::abs(normals[static_cast<std::size_t>(i)].cast<double>().dot(plane_normal));
+            spread += std::acos(std::min(1.0, c));
+          }
+          keep = spread / static_cast<double>(queue.size()) * 180.0 / M_PI >= min_spread_deg;
+        }
+      }
+      group_kept.push_back(keep);
+    }
+  }
+  // Final labels, numbered in order of first point: kept groups, then regions that are
+  // large enough on their own.
+  std::vector<int> out(n, -1);
+  std::vector<int> region_id(static_cast<std::size_t>(n_in), -1), group_id(group_kept.size(), -1);
+  int next = 0;
+  std::vector<bool> flags;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (labels[i] < 0) continue;
+    if (group[i] >= 0 && group_kept[static_cast<std::size_t>(group[i])]) {
+      int& id = group_id[static_cast<std::size_t>(group[i])];
+      if (id < 0) {
+        id = next++;
+        flags.push_back(true);
+      }
+      out[i] = id;
+    } else if (size[static_cast<std::size_t>(labels[i])] >= min_segment_points) {
+      int& id = region_id[static_cast<std::size_t>(labels[i])];
+      if (id < 0) {
+        id = next++;
+        flags.push_back(false);
+      }
+      out[i] = id;
+    }
+  }
+  if (regions) *regions = next;
+  if (rough) *rough = std::move(flags);
+  return out;
+}
+
+std::size_t absorbGroundIntoRough(const KnnGraph& g, double max_neighbour_distance_m,
+                                  const std::vector<bool>& region_is_rough, double min_fraction, int passes,
+                                  std::vector<int>& labels, std::vector<bool>& ground) {
+  const std::size_t n = labels.size();
+  if (ground.size() != n || g.count.size() != n) {
+    throw std::invalid_argument("absorbGroundIntoRough: graph, labels and ground mask sizes differ");
+  }
+  const float max_d2 = static_cast<float>(max_neighbour_distance_m * max_neighbour_distance_m);
+  std::size_t moved = 0;
+  std::vector<std::pair<std::size_t, int>> moves;
+  for (int pass = 0; pass < passes; ++pass) {
+    moves.clear();
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!ground[i]) continue;
+      const std::size_t base = i * static_cast<std::size_t>(g.k);
+      int near = 0, votes = 0, region = -1;
+      for (int j = 0; j < g.count[i]; ++j) {
+        if (g.sq_dist[base + static_cast<std::size_t>(j)] > max_d2) continue;
+        ++near;
+        const int l = labels[static_cast<std::size_t>(g.indices[base + static_cast<std::size_t>(j)])];
+        if (l < 0 || static_cast<std::size_t>(l) >= region_is_rough.size() || !region_is_rough[static_cast<std::size_t>(l)]) continue;
+        if (region < 0) region = l;
+        votes += l == region;
+      }
+      if (region >= 0 && votes > min_fraction * near) moves.emplace_back(i, region);
+    }
+    if (moves.empty()) break;
+    for (const auto& [i, region] : moves) {
+      ground[i] = false;
+      labels[i] = region;
+    }
+    moved += moves.size();
+  }
+  return moved;
 }
 
 std::size_t reclaimGroundPoints(const std::vector<Eigen::Vector3f>& points, const KnnGraph& g,

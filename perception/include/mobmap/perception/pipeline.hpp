@@ -46,6 +46,15 @@ struct PerceptionParams {
   double colour_threshold = 12.0;       ///< max YCrCb distance between neighbours (0-255 scale)
   double neighbour_distance_m = 0.025;  ///< neighbours farther apart are not connected
   int min_segment_points = 50;
+  /// Rough surfaces (see mergeFragments in stages.hpp): regions smaller than this are
+  /// fragments, and connected groups of them are joined into one segment; 0 turns it off.
+  int rough_fragment_max_points = 150;
+  double rough_fragment_max_width_m = 0.08;  ///< narrower regions are fragments too
+  int rough_min_fragments = 3;   ///< a group needs at least this many fragments ...
+  int rough_min_points = 100;    ///< ... and this many points
+  double rough_min_width_m = 0.15;  ///< ... and this width both ways (not a strip along an edge)
+  double rough_min_normal_spread_deg = 20.0;  ///< ... and normals leaning this much off its plane on average
+  double rough_max_slope_deg = 20.0;  ///< ... and a mean plane this close to level (gravity or ground)
   // 7. Surface properties
   double plane_ransac_distance_m = 0.01;  ///< floor of the RANSAC refinement threshold
   double max_triangle_edge_m = 0.05;      ///< Delaunay triangles with a longer edge span gaps: skipped
@@ -84,6 +93,7 @@ struct StageTiming {
 struct Segment {
   int id = 0;                   ///< 0 is the ground when one was found
   bool is_ground = false;
+  bool is_rough = false;        ///< joined from fragments (a rough surface, see mergeFragments)
   std::vector<int> points;      ///< indices into FrameResult::points
   Eigen::Vector3f centroid = Eigen::Vector3f::Zero();  ///< camera frame, metres
   Eigen::Vector3f normal = Eigen::Vector3f::Zero();    ///< unit, towards the camera

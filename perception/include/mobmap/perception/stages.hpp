@@ -89,6 +89,43 @@ std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
                              const std::vector<bool>& eligible, double colour_threshold, double max_distance_m,
                              int min_points, int* regions);
 
+/// Rough surfaces. Region growing on normal colours splits a surface whose normal
+/// turns faster than the colour threshold allows (gravel, rubble, a pyramid field)
+/// into fragments, each too small to stand on and most too small to be kept, and the
+/// surface would be scored as a scatter of steep facets, or not at all. This joins
+/// them: `labels` holds every grown region (growRegions with min_points 1, -1 for
+/// points that took no part). Regions under `fragment_max_points` points or
+/// `fragment_max_width_m` wide (a row of faces touching at their corners) are fragments;
+/// fragment points connected through graph neighbours within
+/// `max_neighbour_distance_m` form groups, and a group of at least `min_fragments`
+/// fragments and `min_points` points, at least `min_width_m` wide in both directions
+/// (sqrt(12) standard deviations: a strip of fragments along a crease is not a rough
+/// surface), whose point normals lean on average at least `min_spread_deg` from its
+/// mean plane (rough: fragments of a smooth surface that noise broke up lean only a
+/// few degrees) and, if `up` is given, with a mean plane at most `max_slope_deg` from
+/// horizontal (walking surfaces: a staircase or wall seen at a range where noise
+/// fragments it is not rough ground), becomes one region, whose slope and roughness
+/// are then those of the rough surface as a whole. Other regions under
+/// `min_segment_points` are dropped. Returns the final labels (0.. in order of first
+/// point, -1 none); `regions` gets their number and `rough` (if given) a flag per
+/// region for the merged ones.
+std::vector<int> mergeFragments(const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3f>& normals,
+                                const KnnGraph& graph, double max_neighbour_distance_m, const std::vector<int>& labels,
+                                int min_segment_points, int fragment_max_points, double fragment_max_width_m,
+                                int min_fragments, int min_points, double min_width_m, double min_spread_deg,
+                                const std::optional<Eigen::Vector3f>& up, double max_slope_deg, int* regions,
+                                std::vector<bool>* rough = nullptr);
+
+/// The ground plane's RANSAC band also takes the creases of a rough surface that lie
+/// in it (the valleys of a pyramid field standing on the floor, whose normals average
+/// to "up"), which cuts the surface into pieces and its creases out of its area. A
+/// ground point most of whose graph neighbours within `max_neighbour_distance_m`
+/// (more than `min_fraction`) belong to one rough region moves into that region;
+/// repeated up to `passes` times. Updates `labels` and `ground`; returns how many moved.
+std::size_t absorbGroundIntoRough(const KnnGraph& graph, double max_neighbour_distance_m,
+                                  const std::vector<bool>& region_is_rough, double min_fraction, int passes,
+                                  std::vector<int>& labels, std::vector<bool>& ground);
+
 /// Gives back to a tilted region the ground inliers that continue it. RANSAC takes
 /// every point within its distance of the floor plane, which includes the foot of a
 /// gentle ramp (a 5 degree ramp stays within 2 cm of the floor for its first 23 cm).
