@@ -282,15 +282,14 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
     labels = growRegions(out.points, out.colours, graph, eligible, p.colour_threshold, p.neighbour_distance_m,
                          p.min_segment_points, &regions);
   }
+  // Rough segments absorb the ground points among them, then tilted regions take back
+  // the ground points that continue them; both edit one ground mask (the ground is
+  // exactly the points region growing was not allowed to take).
+  std::vector<bool> is_ground(n);
+  for (std::size_t i = 0; i < n; ++i) is_ground[i] = !eligible[i];
+  std::size_t moved = 0;
   if (!ground_points.empty() && std::find(region_rough.begin(), region_rough.end(), true) != region_rough.end()) {
-    std::vector<bool> is_ground(n, false);
-    for (int i : ground_points) is_ground[static_cast<std::size_t>(i)] = true;
-    if (absorbGroundIntoRough(graph, p.neighbour_distance_m, region_rough, 0.5, 3, labels, is_ground) > 0) {
-      ground_points.clear();
-      for (std::size_t i = 0; i < n; ++i) {
-        if (is_ground[i]) ground_points.push_back(static_cast<int>(i));
-      }
-    }
+    moved += absorbGroundIntoRough(graph, p.neighbour_distance_m, region_rough, 0.5, 3, labels, is_ground);
   }
   if (out.ground_plane && regions > 0 && p.ground_reclaim_min_angle_deg > 0) {
     std::vector<std::vector<int>> region_points(static_cast<std::size_t>(regions));
@@ -299,15 +298,14 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
     }
     std::vector<Eigen::Vector4f> planes(region_points.size());
     for (std::size_t r = 0; r < planes.size(); ++r) planes[r] = leastSquaresPlane(out.points, region_points[r]);
-    std::vector<bool> is_ground(n, false);
-    for (int i : ground_points) is_ground[static_cast<std::size_t>(i)] = true;
-    if (reclaimGroundPoints(out.points, graph, p.neighbour_distance_m, *out.ground_plane, planes,
-                            p.ground_reclaim_min_angle_deg, p.ground_reclaim_max_angle_deg, p.ground_distance_m,
-                            labels, is_ground) > 0) {
-      ground_points.clear();
-      for (std::size_t i = 0; i < n; ++i) {
-        if (is_ground[i]) ground_points.push_back(static_cast<int>(i));
-      }
+    moved += reclaimGroundPoints(out.points, graph, p.neighbour_distance_m, *out.ground_plane, planes,
+                                 p.ground_reclaim_min_angle_deg, p.ground_reclaim_max_angle_deg, p.ground_distance_m,
+                                 labels, is_ground);
+  }
+  if (moved > 0) {
+    ground_points.clear();
+    for (std::size_t i = 0; i < n; ++i) {
+      if (is_ground[i]) ground_points.push_back(static_cast<int>(i));
     }
   }
   std::vector<std::vector<int>> members(static_cast<std::size_t>(regions));

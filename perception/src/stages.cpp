@@ -314,7 +314,10 @@ struct PointMoments {
   }
   // Extent across the set's main direction: the width of a uniform strip is sqrt(12)
   // times its standard deviation.
-  [[nodiscard]] double width() const { return std::sqrt(12.0 * std::max(0.0, eigen().eigenvalues()(1))); }
+  [[nodiscard]] static double width(const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>& es) {
+    return std::sqrt(12.0 * std::max(0.0, es.eigenvalues()(1)));
+  }
+  [[nodiscard]] double width() const { return width(eigen()); }
 };
 
 }  // namespace
@@ -387,7 +390,7 @@ std::vector<int> mergeFragments(const std::vector<Eigen::Vector3f>& points, cons
         PointMoments m;
         for (int i : queue) m.add(points[static_cast<std::size_t>(i)]);
         const auto es = m.eigen();
-        keep = m.width() >= min_width_m;
+        keep = PointMoments::width(es) >= min_width_m;
         // Walking surfaces only: a steep group is a staircase or a wall at a range
         // where noise fragments it, not rough ground.
         const Eigen::Vector3d plane_normal = es.eigenvectors().col(0);
