@@ -56,6 +56,10 @@ class OpenNi : public ::testing::Test {
   static std::string simEnv(int frames) {
     return "LD_LIBRARY_PATH=" + std::string(MOBMAP_OPENNI_SIM_DIR) + " MOBMAP_SIM_FRAMES=" + std::to_string(frames);
   }
+  // Records n frames of the test driver's corridor to c.oni with `mobmap record`.
+  Outcome recordCorridor(int n) const {
+    return mobmap(simEnv(n), "record --device mobmap-sim://corridor --frames " + std::to_string(n) + " --out " + path("c.oni"));
+  }
   // Poses of corridor frames 0..n-1 at their device time stamps i/30 s.
   std::string writePoses(const sim::CorridorScene& scene, int n) const {
     const std::string p = path("poses.txt");
@@ -139,11 +143,7 @@ TEST_F(OpenNi, LiveCorridorSensorWithPosesMapsTheKnownFloor) {
 
 TEST_F(OpenNi, PosesOnAnotherClockAreAClearErrorAndWriteNothing) {
   const int n = 8;
-  sim::CorridorParams p;
-  p.frames = n;
-  p.noise = sim::NoiseModel::kNone;
-  const sim::CorridorScene scene(p);
-  const Outcome rec = mobmap(simEnv(n), "record --device mobmap-sim://corridor --frames " + std::to_string(n) + " --out " + path("c.oni"));
+  const Outcome rec = recordCorridor(n);
   ASSERT_EQ(rec.code, 0) << rec.output;
   // Poses stamped in Unix time while the recording's clock starts at 0.
   const std::string poses = path("unix.txt");
@@ -163,7 +163,7 @@ TEST_F(OpenNi, RecordedCorridorPlaysBackEveryFrameAndMapsTheKnownFloor) {
   p.frames = n;
   p.noise = sim::NoiseModel::kNone;
   const sim::CorridorScene scene(p);
-  const Outcome rec = mobmap(simEnv(n), "record --device mobmap-sim://corridor --frames " + std::to_string(n) + " --out " + path("c.oni"));
+  const Outcome rec = recordCorridor(n);
   ASSERT_EQ(rec.code, 0) << rec.output;
   // Played back without the driver: every recorded frame, in order, each with the pose
   // of its time stamp (none skipped), and field-of-view intrinsics.
