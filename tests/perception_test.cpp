@@ -226,6 +226,56 @@ TEST(RgbN, YCrCbOfKnownColours) {
   EXPECT_NEAR(red.y(), 128 + 0.713 * (255 - 76.245), 0.01);
 }
 
+// The top and side of a box joined by a rounded edge (radius 15 cm), with exact
+// normals: across the edge the normal turns 90 degrees in ~4-degree steps, each well
+// under the colour threshold, as PCA normals do across a sharp crease.
+TEST(RegionGrowing, TheMeanNormalGateStopsARegionAtARoundedEdge) {
+  std::vector<Eigen::Vector3f> pts, normals;
+  const float r = 0.15f, step = 0.01f;
+  std::vector<int> face;  // 0 top, 1 edge, 2 side
+  for (float y = 0; y < 0.3f; y += step) {
+    for (float x = -0.3f; x < 0; x += step) {  // top: z = 0, normal +z
+      pts.emplace_back(x, y, 0.f), normals.emplace_back(0.f, 0.f, 1.f), face.push_back(0);
+    }
+    for (float s = 0; s < 0.5f * static_cast<float>(M_PI) * r; s += step) {  // the rounded edge
+      const float t = s / r;
+      pts.emplace_back(r * std::sin(t), y, -r + r * std::cos(t));
+      normals.emplace_back(std::sin(t), 0.f, std::cos(t)), face.push_back(1);
+    }
+    for (float z = -r; z > -r - 0.3f; z -= step) {  // side: x = r, normal +x
+      pts.emplace_back(r, y, z), normals.emplace_back(1.f, 0.f, 0.f), face.push_back(2);
+    }
+  }
+  const KnnGraph g = bruteForceKnnGraph(pts, 16);
+  const auto colours = normalColours(normals);
+  const std::vector<bool> eligible(pts.size(), true);
+  const auto regionOf = [&](double gate_deg) {
+    int regions = 0;
+    return growRegions(pts, colours, g, eligible, 12.0, 0.025, 1, &regions, &normals, gate_deg);
+  };
+  const auto majority = [&](const std::vector<int>& labels, int f) {
+    std::map<int, int> votes;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      if (face[i] == f) ++votes[labels[i]];
+    }
+    return std::max_element(votes.begin(), votes.end(), [](auto& a, auto& b) { return a.second < b.second; })->first;
+  };
+  // The paper's neighbour-to-neighbour colour test alone: one region over both faces.
+  const auto open = regionOf(180.0);
+  EXPECT_EQ(majority(open, 0), majority(open, 2));
+  // With the gate: top and side are separate regions, each face whole, and no point
+  // more than 40 degrees (plus the region's own drift) from the face it joined.
+  const auto gated = regionOf(40.0);
+  const int top = majority(gated, 0), side = majority(gated, 2);
+  EXPECT_NE(top, side);
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    if (face[i] == 0) EXPECT_EQ(gated[i], top);
+    if (face[i] == 2) EXPECT_EQ(gated[i], side);
+    if (gated[i] == top) EXPECT_GT(normals[i].z(), std::cos(50 * kDeg));
+    if (gated[i] == side) EXPECT_GT(normals[i].x(), std::cos(50 * kDeg));
+  }
+}
+
 TEST(Ransac, AdaptiveIterationsFindThePlaneAndRespectGravity) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> u(-1, 1);

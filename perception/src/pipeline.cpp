@@ -70,6 +70,7 @@ void validate(const PerceptionParams& p) {
   if (!(p.colour_threshold > 0) || !std::isfinite(p.colour_threshold)) fail("colour_threshold", p.colour_threshold, "must be finite and > 0");
   if (!(p.neighbour_distance_m > 0) || !std::isfinite(p.neighbour_distance_m)) fail("neighbour_distance_m", p.neighbour_distance_m, "must be finite and > 0");
   if (p.min_segment_points < 3) fail("min_segment_points", p.min_segment_points, "must be >= 3");
+  if (!(p.region_max_normal_deviation_deg > 0 && p.region_max_normal_deviation_deg <= 180)) fail("region_max_normal_deviation_deg", p.region_max_normal_deviation_deg, "must be in (0, 180]");
   if (p.rough_fragment_max_points < 0) fail("rough_fragment_max_points", p.rough_fragment_max_points, "must be >= 0");
   if (!(p.rough_fragment_max_width_m >= 0) || !std::isfinite(p.rough_fragment_max_width_m)) fail("rough_fragment_max_width_m", p.rough_fragment_max_width_m, "must be finite and >= 0");
   if (p.rough_min_fragments < 2) fail("rough_min_fragments", p.rough_min_fragments, "must be >= 2");
@@ -273,14 +274,14 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
   if (!level && out.ground_plane) level = out.ground_plane->head<3>();
   if (p.rough_fragment_max_points > 0) {
     labels = growRegions(out.points, out.colours, graph, eligible, p.colour_threshold, p.neighbour_distance_m, 1,
-                         &regions);
+                         &regions, &out.normals, p.region_max_normal_deviation_deg);
     labels = mergeFragments(out.points, out.normals, graph, p.neighbour_distance_m, labels, p.min_segment_points,
                             p.rough_fragment_max_points, p.rough_fragment_max_width_m, p.rough_min_fragments, p.rough_min_points,
                             p.rough_min_width_m, p.rough_min_normal_spread_deg, level, p.rough_max_slope_deg, &regions,
                             &region_rough);
   } else {
     labels = growRegions(out.points, out.colours, graph, eligible, p.colour_threshold, p.neighbour_distance_m,
-                         p.min_segment_points, &regions);
+                         p.min_segment_points, &regions, &out.normals, p.region_max_normal_deviation_deg);
   }
   // Rough segments absorb the ground points among them, then tilted regions take back
   // the ground points that continue them; both edit one ground mask (the ground is

@@ -252,8 +252,12 @@ std::optional<PlaneFit> ransacPlane(const std::vector<Eigen::Vector3f>& points, 
 std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
                              const std::vector<std::array<std::uint8_t, 3>>& colours, const KnnGraph& g,
                              const std::vector<bool>& eligible, double colour_threshold, double max_distance_m,
-                             int min_points, int* regions) {
+                             int min_points, int* regions, const std::vector<Eigen::Vector3f>* normals,
+                             double max_deviation_deg) {
   const std::size_t n = points.size();
+  if (normals && normals->size() != n) throw std::invalid_argument("growRegions: normals size differs from points");
+  const bool gate = normals && max_deviation_deg < 180.0;
+  const float min_cos = static_cast<float>(std::cos(max_deviation_deg * M_PI / 180.0));
   std::vector<Eigen::Vector3f> ycc(n);
   for (std::size_t i = 0; i < n; ++i) ycc[i] = rgbToYCrCb(colours[i]);
   const float max_d2 = static_cast<float>(max_distance_m * max_distance_m);
@@ -268,15 +272,22 @@ std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
     queue.clear();
     queue.push_back(static_cast<int>(seed));
     label[seed] = next;
+    Eigen::Vector3f normal_sum = Eigen::Vector3f::Zero();
+    Eigen::Vector3f mean_dir = Eigen::Vector3f::Zero();
     for (std::size_t head = 0; head < queue.size(); ++head) {
       const int i = queue[head];
       members.push_back(i);
+      if (gate) {
+        normal_sum += (*normals)[static_cast<std::size_t>(i)];
+        mean_dir = normal_sum.normalized();
+      }
       const std::size_t base = static_cast<std::size_t>(i) * static_cast<std::size_t>(g.k);
       for (int j = 0; j < g.count[static_cast<std::size_t>(i)]; ++j) {
         const int nb = g.indices[base + static_cast<std::size_t>(j)];
         if (g.sq_dist[base + static_cast<std::size_t>(j)] > max_d2) break;  // sorted by distance
         if (!eligible[static_cast<std::size_t>(nb)] || label[static_cast<std::size_t>(nb)] != -1) continue;
         if ((ycc[static_cast<std::size_t>(i)] - ycc[static_cast<std::size_t>(nb)]).squaredNorm() > thr2) continue;
+        if (gate && (*normals)[static_cast<std::size_t>(nb)].dot(mean_dir) < min_cos) continue;
         label[static_cast<std::size_t>(nb)] = next;
         queue.push_back(nb);
       }

@@ -46,6 +46,9 @@ struct PerceptionParams {
   double colour_threshold = 12.0;       ///< max YCrCb distance between neighbours (0-255 scale)
   double neighbour_distance_m = 0.025;  ///< neighbours farther apart are not connected
   int min_segment_points = 50;
+  /// A point joins a region only if its normal is within this angle of the region's
+  /// mean normal (stops regions creeping round creases); 180 turns it off.
+  double region_max_normal_deviation_deg = 40.0;
   /// Rough surfaces (see mergeFragments in stages.hpp): regions smaller than this are
   /// fragments, and connected groups of them are joined into one segment; 0 turns it off.
   int rough_fragment_max_points = 150;

@@ -83,11 +83,16 @@ Eigen::Vector4f leastSquaresPlane(const std::vector<Eigen::Vector3f>& points, co
 /// point it is reached from if it is within `max_distance_m` and the Euclidean
 /// distance of their YCrCb colours is at most `colour_threshold`. Only points with
 /// `eligible[i]` take part. Regions smaller than `min_points` are dropped (label -1).
+/// With `normals`, a point also needs a normal within `max_deviation_deg` of the mean
+/// normal of the region so far: normals estimated across a crease turn gradually from
+/// one face to the other, and neighbour-to-neighbour colour steps alone would carry a
+/// region round the edge of a box onto its sides. Ignored if `max_deviation_deg` >= 180.
 /// Returns a label per point (0, 1, ... in order of seeds) and the number of regions.
 std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
                              const std::vector<std::array<std::uint8_t, 3>>& colours, const KnnGraph& graph,
                              const std::vector<bool>& eligible, double colour_threshold, double max_distance_m,
-                             int min_points, int* regions);
+                             int min_points, int* regions, const std::vector<Eigen::Vector3f>* normals = nullptr,
+                             double max_deviation_deg = 180.0);
 
 /// Rough surfaces. Region growing on normal colours splits a surface whose normal
 /// turns faster than the colour threshold allows (gravel, rubble, a pyramid field)
