@@ -1,5 +1,6 @@
 // Readers and writers of the apps layer: round trips, hostile files, real data.
 #include "dataset.hpp"
+#include "ground_truth.hpp"
 #include "files.hpp"
 #include "io_error.hpp"
 #include "png_io.hpp"
@@ -232,6 +233,75 @@ TEST_F(WrittenCorridor, GroundTruthJsonListsEverySurface) {
     EXPECT_DOUBLE_EQ(s["expected_mobility"].get<double>(), truth.expected_mobility);
   }
   EXPECT_EQ(j["moving_obstacle"]["start_frame"].get<int>(), scene_->movingObstacle().start_frame);
+  // pixels_seen: the label images' pixel counts, summed over every frame written.
+  std::map<int, long long> counted;
+  const SevenScenesDirectory d(dir_->str());
+  for (int f : d.frameNumbers()) {
+    for (const std::uint16_t id : readPng16(d.labelsPath(f)).pixels) {
+      if (id != 0) ++counted[id];
+    }
+  }
+  int never = 0;
+  for (const auto& s : j["surfaces"]) {
+    const int id = s["id"].get<int>();
+    EXPECT_EQ(s["pixels_seen"].get<long long>(), counted.count(id) ? counted[id] : 0) << s["name"];
+    never += counted.count(id) == 0;
+  }
+  EXPECT_GT(never, 0);  // the ramps' backs face away from the walk
+  EXPECT_GT(counted[1], 1000000);  // the floor
+}
+
+// evaluateMap on a hand-made map: a floor (answer 1) meets a wall (answer 0) at x = 1.005;
+// a back face at y = 1 that no frame showed stands on the floor.
+TEST(Evaluate, EdgeVoxelsAreScoredApartAndFacesNeverInViewTakeNoVoxels) {
+  const std::string truth_json = R"({"format": "mobmap-ground-truth", "gravity_down_world": [0, 0, -1], "surfaces": [
+    {"id": 1, "name": "floor", "kind": "floor", "slope_deg": 0, "roughness": 1, "expected_mobility": 1, "pixels_seen": 100,
+     "geometry": {"type": "polygons", "polygons": [[[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]]}},
+    {"id": 2, "name": "wall", "kind": "wall", "slope_deg": 90, "roughness": 1, "expected_mobility": 0, "pixels_seen": 100,
+     "geometry": {"type": "polygons", "polygons": [[[1.005, 0, 0], [1.005, 1, 0], [1.005, 1, 1], [1.005, 0, 1]]]}},
+    {"id": 3, "name": "back", "kind": "ramp_side", "slope_deg": 90, "roughness": 1, "expected_mobility": 0, "pixels_seen": 0,
+     "geometry": {"type": "polygons", "polygons": [[[0, 1, 0], [1, 1, 0], [1, 1, 0.2], [0, 1, 0.2]]]}}]})";
+  TempDir dir;
+  const std::string with_views = dir.file("truth.json");
+  const std::string without_views = dir.file("truth-old.json");
+  writeTextFileAtomically(with_views, truth_json);
+  std::string old = truth_json;
+  for (std::size_t at; (at = old.find(", \"pixels_seen\": ")) != std::string::npos;) old.erase(at, old.find(',', at + 1) - at);
+  writeTextFileAtomically(without_views, old);
+
+  auto tree = std::make_unique<mapping::MobilityOcTree>(0.02);
+  const auto surface = [&](double x, double y, double z, double mobility) {
+    const octomap::OcTreeKey key = tree->coordToKey(x, y, z);
+    for (int i = 0; i < 3; ++i) tree->updateNode(key, true)->fuse(mobility, 0.01, 1e4);
+  };
+  surface(0.51, 0.51, 0.01, 1.0);  // floor
+  surface(0.31, 0.51, 0.01, 0.8);  // floor, off by 0.2
+  surface(1.01, 0.51, 0.51, 0.0);  // wall
+  surface(0.99, 0.51, 0.01, 0.0);  // the corner: 1 cm from the floor, 1.5 cm from the wall
+  surface(0.51, 0.99, 0.03, 1.0);  // floor noise 1 cm from the back face, 3 cm above the floor
+  const mapping::MobilityMap map(std::move(tree), mapping::MapParams{}, Eigen::Matrix3d::Identity());
+
+  const Evaluation ev = evaluateMap(map, loadGroundTruth(with_views), 3, 0.04);
+  ASSERT_EQ(ev.surfaces.size(), 3u);
+  EXPECT_FALSE(ev.surfaces[2].surface->seen);
+  EXPECT_EQ(ev.surfaces[0].voxels, 3);  // with the voxel beside the back face
+  EXPECT_NEAR(ev.surfaces[0].mean_abs_error, 0.2 / 3, 0.005);
+  EXPECT_EQ(ev.surfaces[1].voxels, 1);
+  EXPECT_NEAR(ev.surfaces[1].mean_abs_error, 0.0, 0.005);
+  EXPECT_EQ(ev.surfaces[2].voxels, 0);
+  EXPECT_EQ(ev.edge_voxels, 1);
+  EXPECT_NEAR(ev.edge_mean_abs_error, 1.0, 0.005);      // the nearest surface (the floor) says 1
+  EXPECT_NEAR(ev.edge_mean_abs_error_any, 0.0, 0.005);  // the wall it also touches says 0
+  // All five count in the confusion; only the corner is on the wrong side.
+  EXPECT_EQ(ev.true_traversable + ev.true_untraversable, 4);
+  EXPECT_EQ(ev.false_untraversable, 1);
+
+  // Without pixels_seen every surface counts as seen: the back face takes its voxel.
+  const Evaluation all = evaluateMap(map, loadGroundTruth(without_views), 3, 0.04);
+  EXPECT_TRUE(all.surfaces[2].surface->seen);
+  EXPECT_EQ(all.surfaces[2].voxels, 1);
+  EXPECT_NEAR(all.surfaces[2].mean_abs_error, 1.0, 0.005);
+  EXPECT_EQ(all.surfaces[0].voxels, 2);
 }
 
 TEST(SevenScenesDirectory, MismatchedInputsNameTheFile) {

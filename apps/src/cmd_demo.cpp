@@ -64,6 +64,10 @@ Command addDemoCommand(CLI::App& app) {
       std::printf("%-24s %8.2f %7d %10.3f\n", s.surface->name.c_str(), s.surface->expected_mobility, s.voxels, s.mean_abs_error);
     }
     const int total = ev.true_traversable + ev.false_traversable + ev.true_untraversable + ev.false_untraversable;
+    if (ev.edge_voxels > 0) {
+      std::printf("%d voxels on edges between surfaces with different answers (scored apart): mean |err| %.3f\n",
+                  ev.edge_voxels, ev.edge_mean_abs_error);
+    }
     if (total) {
       std::printf("right side of 0.5: %.1f %% of %d voxels\n", 100.0 * (ev.true_traversable + ev.true_untraversable) / total, total);
     }

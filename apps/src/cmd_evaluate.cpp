@@ -33,10 +33,13 @@ Command addEvaluateCommand(CLI::App& app) {
       nlohmann::json j;
       for (const auto& s : ev.surfaces) {
         j["surfaces"].push_back({{"id", s.surface->id}, {"name", s.surface->name}, {"expected_mobility", s.surface->expected_mobility},
+                                 {"in_view", s.surface->seen},
                                  {"voxels", s.voxels}, {"mean_abs_error", s.mean_abs_error}, {"worst_abs_error", s.worst_abs_error},
                                  {"right_side_of_0_5", s.right_side}, {"area_observed_m2", s.area_observed_m2}});
       }
       j["unassigned_voxels"] = ev.unassigned;
+      j["edge_voxels"] = {{"voxels", ev.edge_voxels}, {"mean_abs_error_nearest", ev.edge_mean_abs_error},
+                          {"mean_abs_error_best", ev.edge_mean_abs_error_any}};
       j["confusion_at_0_5"] = {{"true_traversable", ev.true_traversable}, {"false_traversable", ev.false_traversable},
                                {"true_untraversable", ev.true_untraversable}, {"false_untraversable", ev.false_untraversable}};
       std::cout << j.dump() << "\n";
@@ -46,12 +49,18 @@ Command addEvaluateCommand(CLI::App& app) {
                 "area m2");
     for (const auto& s : ev.surfaces) {
       if (s.voxels == 0) {
-        std::printf("%-4d %-24s %8.2f %7s\n", s.surface->id, s.surface->name.c_str(), s.surface->expected_mobility, "unseen");
+        std::printf("%-4d %-24s %8.2f %7s\n", s.surface->id, s.surface->name.c_str(), s.surface->expected_mobility,
+                    s.surface->seen ? "unseen" : "never in view");
         continue;
       }
       std::printf("%-4d %-24s %8.2f %7d %10.3f %10.3f %9.1f%% %9.2f\n", s.surface->id, s.surface->name.c_str(),
                   s.surface->expected_mobility, s.voxels, s.mean_abs_error, s.worst_abs_error, 100 * s.right_side,
                   s.area_observed_m2);
+    }
+    if (ev.edge_voxels > 0) {
+      std::printf("\n%d edge voxels (their cell also touches a surface with another answer; not in the rows above): "
+                  "mean |err| %.3f against the nearest surface, %.3f against the best of those it touches\n",
+                  ev.edge_voxels, ev.edge_mean_abs_error, ev.edge_mean_abs_error_any);
     }
     std::printf("\nconfusion at 0.5 over %d voxels: traversable %d correct / %d wrongly untraversable; "
                 "untraversable %d correct / %d wrongly traversable; %d voxels off every surface\n",

@@ -69,6 +69,7 @@ GroundTruth loadGroundTruth(const std::string& path) {
       s.slope_deg = js.at("slope_deg").get<double>();
       s.roughness = js.at("roughness").get<double>();
       s.expected_mobility = js.at("expected_mobility").get<double>();
+      if (js.contains("pixels_seen")) s.seen = js.at("pixels_seen").get<long long>() > 0;
       const bool moving = js.value("moving", false);
       const auto& g = js.at("geometry");
       if (g.at("type") == "pyramid_field") {
@@ -95,19 +96,22 @@ GroundTruth loadGroundTruth(const std::string& path) {
   return t;
 }
 
-Evaluation evaluateMap(const mapping::MobilityMap& map, const GroundTruth& truth, int min_count, double tolerance_m) {
+Evaluation evaluateMap(const mapping::MobilityMap& map, const GroundTruth& truth, int min_count, double tolerance_m,
+                       double edge_band_m) {
   Evaluation ev;
   ev.surfaces.resize(truth.surfaces.size());
   for (std::size_t i = 0; i < truth.surfaces.size(); ++i) ev.surfaces[i].surface = &truth.surfaces[i];
   const auto& tree = map.tree();
   const Eigen::Matrix3d R_world_map = map.rotationMapWorld().transpose();
   const double res = tree.getResolution();
+  const double edge_band = edge_band_m >= 0 ? edge_band_m : 0.5 * std::sqrt(3.0) * res;
   for (auto it = tree.begin_leafs(); it != tree.end_leafs(); ++it) {
     if (!tree.isNodeOccupied(*it) || !it->hasMobility() || it->count() < min_count) continue;
     const Eigen::Vector3d p = R_world_map * Eigen::Vector3d(it.getX(), it.getY(), it.getZ());
     int best = -1;
     double best_d = tolerance_m;
     for (std::size_t i = 0; i < truth.surfaces.size(); ++i) {
+      if (!truth.surfaces[i].seen) continue;  // its neighbours' points, displaced by noise
       const double d = truth.surfaces[i].distance(p);
       if (d <= best_d) {
         best_d = d;
@@ -121,16 +125,40 @@ Evaluation evaluateMap(const mapping::MobilityMap& map, const GroundTruth& truth
     SurfaceScore& sc = ev.surfaces[static_cast<std::size_t>(best)];
     const double expected = sc.surface->expected_mobility;
     const double err = std::abs(it->mobility() - expected);
+    // An edge voxel: its cell also holds (touches) a surface whose answer differs.
+    bool edge = false;
+    double err_any = err;
+    for (std::size_t i = 0; i < truth.surfaces.size(); ++i) {
+      if (static_cast<int>(i) == best || !truth.surfaces[i].seen) continue;
+      if (std::abs(truth.surfaces[i].expected_mobility - expected) <= 0.1) continue;
+      if (truth.surfaces[i].distance(p) <= edge_band) {
+        edge = true;
+        err_any = std::min(err_any, std::abs(it->mobility() - truth.surfaces[i].expected_mobility));
+      }
+    }
+    {
+      const bool pred = it->mobility() >= 0.5, truth_trav = expected >= 0.5;
+      if (pred && truth_trav) ++ev.true_traversable;
+      if (pred && !truth_trav) ++ev.false_traversable;
+      if (!pred && !truth_trav) ++ev.true_untraversable;
+      if (!pred && truth_trav) ++ev.false_untraversable;
+    }
+    if (edge) {
+      ++ev.edge_voxels;
+      ev.edge_mean_abs_error += err;
+      ev.edge_mean_abs_error_any += err_any;
+      continue;
+    }
     ++sc.voxels;
     sc.mean_abs_error += err;
     sc.worst_abs_error = std::max(sc.worst_abs_error, err);
     const bool pred = it->mobility() >= 0.5, truth_trav = expected >= 0.5;
     sc.right_side += pred == truth_trav;
     sc.area_observed_m2 += res * res / std::max(0.1, std::cos(sc.surface->slope_deg * M_PI / 180));
-    if (pred && truth_trav) ++ev.true_traversable;
-    if (pred && !truth_trav) ++ev.false_traversable;
-    if (!pred && !truth_trav) ++ev.true_untraversable;
-    if (!pred && truth_trav) ++ev.false_untraversable;
+  }
+  if (ev.edge_voxels > 0) {
+    ev.edge_mean_abs_error /= ev.edge_voxels;
+    ev.edge_mean_abs_error_any /= ev.edge_voxels;
   }
   for (auto& sc : ev.surfaces) {
     if (sc.voxels == 0) continue;

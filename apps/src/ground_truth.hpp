@@ -14,6 +14,7 @@ struct TruthSurface {
   int id = 0;
   std::string name, kind;
   double slope_deg = 0, roughness = 1, expected_mobility = 0;
+  bool seen = true;  ///< false when ground_truth.json says no frame shows it (pixels_seen 0)
   std::vector<std::vector<Eigen::Vector3d>> polygons;  ///< convex, world frame, final positions
   bool pyramid_field = false;
   double x0 = 0, y0 = 0, pitch = 0, height = 0;
@@ -43,12 +44,16 @@ struct SurfaceScore {
 struct Evaluation {
   std::vector<SurfaceScore> surfaces;
   int unassigned = 0;  ///< surface voxels farther than the tolerance from any truth surface
+  int edge_voxels = 0;  ///< voxels whose cell also touches a surface with a different answer
+  double edge_mean_abs_error = 0;      ///< edge voxels: mean |mobility - nearest surface's|
+  double edge_mean_abs_error_any = 0;  ///< edge voxels: mean of the smallest error over the surfaces they touch
   // Traversable (>= 0.5) confusion over all assigned voxels.
   int true_traversable = 0, false_traversable = 0, true_untraversable = 0, false_untraversable = 0;
 };
 
 /// Assigns each surface voxel with a mobility and at least `min_count` observations to
 /// the nearest ground-truth surface within `tolerance_m` and scores it.
-Evaluation evaluateMap(const mapping::MobilityMap& map, const GroundTruth& truth, int min_count, double tolerance_m);
+Evaluation evaluateMap(const mapping::MobilityMap& map, const GroundTruth& truth, int min_count, double tolerance_m,
+                       double edge_band_m = -1);
 
 }  // namespace mobmap::app

@@ -18,7 +18,15 @@ nlohmann::json vec(const Eigen::Vector3d& v) { return nlohmann::json::array({v.x
 
 }  // namespace
 
-nlohmann::json groundTruthJson(const sim::CorridorScene& scene) {
+void countSurfacePixels(const sim::RenderedFrame& frame, std::vector<long long>& pixels_seen) {
+  for (const std::uint16_t id : frame.labels) {
+    if (id == 0) continue;
+    if (id >= pixels_seen.size()) pixels_seen.resize(static_cast<std::size_t>(id) + 1, 0);
+    ++pixels_seen[id];
+  }
+}
+
+nlohmann::json groundTruthJson(const sim::CorridorScene& scene, const std::vector<long long>* pixels_seen) {
   using nlohmann::json;
   const auto& p = scene.params();
   json j;
@@ -47,6 +55,10 @@ nlohmann::json groundTruthJson(const sim::CorridorScene& scene) {
     js["expected_mobility"] = s.expected_mobility;
     js["traversable"] = s.expected_mobility >= 0.5;
     js["moving"] = s.moving;
+    if (pixels_seen) {
+      const auto id = static_cast<std::size_t>(s.id);
+      js["pixels_seen"] = id < pixels_seen->size() ? (*pixels_seen)[id] : 0;
+    }
     js["normal"] = vec(s.normal);
     json polys = json::array();
     for (const auto& poly : s.polygons) {
@@ -88,10 +100,9 @@ void writeSimulation(const sim::CorridorScene& scene, const std::string& dir, in
   const auto& p = scene.params();
   writeIntrinsicsFile((fs::path(dir) / "camera-intrinsics.txt").string(), p.intrinsics);
   writeGravityFile((fs::path(dir) / "gravity-direction.txt").string(), scene.gravityDown());
-  writeTextFileAtomically((fs::path(dir) / "ground_truth.json").string(),
-                          groundTruthJson(scene).dump(1) + "\n");
 
   std::atomic<int> next{0};
+  std::vector<long long> pixels_seen;
   std::atomic<int> done{0};
   std::exception_ptr failure;
   std::mutex failure_mutex;
@@ -105,6 +116,10 @@ void writeSimulation(const sim::CorridorScene& scene, const std::string& dir, in
       }
       try {
         const sim::RenderedFrame r = scene.render(f);
+        {
+          std::lock_guard<std::mutex> lock(failure_mutex);
+          countSurfacePixels(r, pixels_seen);
+        }
         const std::string stem = (fs::path(dir) / frameStem(f)).string();
         writeDepthPng(stem + ".depth.png", r.depth);
         writePoseFile(stem + ".pose.txt", r.T_world_camera.matrix());
@@ -137,6 +152,8 @@ void writeSimulation(const sim::CorridorScene& scene, const std::string& dir, in
   }
   for (auto& t : pool) t.join();
   if (failure) std::rethrow_exception(failure);
+  writeTextFileAtomically((fs::path(dir) / "ground_truth.json").string(),
+                          groundTruthJson(scene, &pixels_seen).dump(1) + "\n");
   progress(done.load());
 }
 
