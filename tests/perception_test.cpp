@@ -204,6 +204,39 @@ TEST(Normals, PcaEqualsBruteForceEigenvector) {
   }
 }
 
+// The smoothing passes' fast path (inverse iteration from a nearby normal) against the
+// closed-form eigenvectors on the same neighbourhoods, started 10 degrees off.
+TEST(Normals, InverseIterationFromANearbyNormalEqualsTheExactEigenvector) {
+  const auto pts = randomCloud(3000, 9);
+  const KnnGraph g = bruteForceKnnGraph(pts, 30);
+  std::vector<Eigen::Vector3f> exact, fast, exact_proj, fast_proj;
+  std::vector<float> exact_curv, fast_curv;
+  estimateNormals(pts, g, Eigen::Vector3f(0, 0, 5), exact, exact_curv, &exact_proj);
+  std::mt19937 rng(3);
+  std::normal_distribution<float> gauss;
+  std::vector<Eigen::Vector3f> near(pts.size());
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    // Tilt by 10 degrees about a random axis perpendicular to the normal.
+    const Eigen::Vector3f axis = exact[i].cross(Eigen::Vector3f(gauss(rng), gauss(rng), gauss(rng))).normalized();
+    near[i] = Eigen::AngleAxisf(static_cast<float>(10 * kDeg), axis) * exact[i];
+  }
+  estimateNormals(pts, g, Eigen::Vector3f(0, 0, 5), fast, fast_curv, &fast_proj, &near);
+  std::vector<double> planar_angles;
+  double worst_shift = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const double angle = std::acos(std::min(1.0, static_cast<double>(exact[i].dot(fast[i])))) / kDeg;
+    if (exact_curv[i] < 0.05) planar_angles.push_back(angle);  // a well-defined plane
+    EXPECT_LT(angle, 0.05) << i << " curvature " << exact_curv[i];
+    EXPECT_NEAR(fast_curv[i], exact_curv[i], 1e-4) << i;
+    worst_shift = std::max(worst_shift, static_cast<double>((fast_proj[i] - exact_proj[i]).norm()));
+  }
+  ASSERT_GT(planar_angles.size(), pts.size() / 2);
+  EXPECT_LT(*std::max_element(planar_angles.begin(), planar_angles.end()), 0.05);
+  EXPECT_LT(worst_shift, 1e-5);  // metres
+  std::printf("[ info ] worst angle on planes %.2g deg, worst projection shift %.2g m\n",
+              *std::max_element(planar_angles.begin(), planar_angles.end()), worst_shift);
+}
+
 TEST(RgbN, PerCloudMinMaxNormalisation) {
   const std::vector<Eigen::Vector3f> n = {{0, 0, 1}, {0.6f, 0, 0.8f}, {-0.6f, 0.8f, 0}};
   const auto c = normalColours(n);

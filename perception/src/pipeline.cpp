@@ -225,11 +225,15 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
   if (p.roughness_smoothing && p.rough_fragment_max_points > 0 && p.roughness_smoothing_passes > 1) {
     first_planes = smoothed;
   }
+  // Each pass starts its eigenvectors from the previous pass's normals (the fast path
+  // of estimateNormals: the planes move little between passes).
+  std::vector<Eigen::Vector3f> previous_normals = out.normals;
   for (int pass = 1; p.roughness_smoothing && pass < p.roughness_smoothing_passes; ++pass) {
     std::vector<Eigen::Vector3f> n_tmp, next;
     std::vector<float> c_tmp;
-    estimateNormals(smoothed, graph, Eigen::Vector3f::Zero(), n_tmp, c_tmp, &next);
+    estimateNormals(smoothed, graph, Eigen::Vector3f::Zero(), n_tmp, c_tmp, &next, &previous_normals);
     smoothed.swap(next);
+    previous_normals.swap(n_tmp);
   }
   clock.stop("normals", n, n);
 

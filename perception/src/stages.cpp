@@ -63,10 +63,54 @@ std::vector<bool> statisticalOutlierMask(const KnnGraph& g, double alpha, int k)
   return keep;
 }
 
+namespace {
+
+// Smallest eigenvector of a symmetric 3x3 `cov` from a nearby unit vector: x <- adj(cov) x
+// until it stops moving (at most 4 steps).
+// adj(cov) has the eigenvalues l1 l2, l0 l2, l0 l1 on the eigenvectors v0, v1, v2, so each
+// step shrinks the other components by l0 / l1 and l0 / l2; it is defined for singular
+// matrices too (an exact plane: one step lands on v0). False (use the exact solver) if
+// it does not converge, collapses (start orthogonal to v0, rank <= 1) or finds no plane.
+bool inverseIteration(const Eigen::Matrix3d& c, const Eigen::Vector3d& start, Eigen::Vector3d& normal, float& curvature) {
+  if (start.squaredNorm() < 0.25) return false;
+  Eigen::Matrix3d adj;
+  adj(0, 0) = c(1, 1) * c(2, 2) - c(1, 2) * c(1, 2);
+  adj(1, 1) = c(0, 0) * c(2, 2) - c(0, 2) * c(0, 2);
+  adj(2, 2) = c(0, 0) * c(1, 1) - c(0, 1) * c(0, 1);
+  adj(0, 1) = adj(1, 0) = c(0, 2) * c(1, 2) - c(0, 1) * c(2, 2);
+  adj(0, 2) = adj(2, 0) = c(0, 1) * c(1, 2) - c(0, 2) * c(1, 1);
+  adj(1, 2) = adj(2, 1) = c(0, 1) * c(0, 2) - c(0, 0) * c(1, 2);
+  Eigen::Vector3d x = start;
+  const double scale = adj.cwiseAbs().maxCoeff();
+  for (int step = 0; step < 4; ++step) {
+    const Eigen::Vector3d y = adj * x;
+    const double norm = y.norm();
+    if (!(norm > 1e-30 * scale) || !std::isfinite(norm)) return false;
+    const Eigen::Vector3d next = y / norm;
+    // Converged: a step that moves x by under 1e-5 rad leaves it within ~1e-4 rad of v0
+    // unless l0 / l1 > 0.9, a neighbourhood with no plane, which goes to the exact
+    // solver through the curvature test below.
+    const bool converged = (next - x).norm() < 1e-5;
+    x = next;
+    if (converged) {
+      const double total = c.trace();
+      const double lambda0 = std::max(0.0, x.dot(c * x));  // Rayleigh quotient
+      if (!(total > 0) || lambda0 > 0.25 * total) return false;
+      normal = x;
+      curvature = static_cast<float>(lambda0 / total);
+      return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
 void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph& g, const Eigen::Vector3f& viewpoint,
                      std::vector<Eigen::Vector3f>& normals, std::vector<float>& curvature,
-                     std::vector<Eigen::Vector3f>* projected) {
+                     std::vector<Eigen::Vector3f>* projected, const std::vector<Eigen::Vector3f>* near) {
   const std::size_t n = points.size();
+  if (near && near->size() != n) throw std::invalid_argument("estimateNormals: `near` size differs from points");
   normals.assign(n, Eigen::Vector3f::Zero());
   curvature.assign(n, 1.f);
   if (projected) *projected = points;
@@ -91,11 +135,14 @@ void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph&
     Eigen::Matrix3d ss;
     ss << xx, xy, xz, xy, yy, yz, xz, yz, zz;
     const Eigen::Matrix3d cov = ss / m - mean * mean.transpose();
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-    es.computeDirect(cov);
-    Eigen::Vector3d normal = es.eigenvectors().col(0);
-    const double total = es.eigenvalues().sum();
-    curvature[i] = total > 0 ? static_cast<float>(std::max(0.0, es.eigenvalues()(0)) / total) : 0.f;
+    Eigen::Vector3d normal;
+    if (!(near && inverseIteration(cov, (*near)[i].cast<double>(), normal, curvature[i]))) {
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+      es.computeDirect(cov);
+      normal = es.eigenvectors().col(0);
+      const double total = es.eigenvalues().sum();
+      curvature[i] = total > 0 ? static_cast<float>(std::max(0.0, es.eigenvalues()(0)) / total) : 0.f;
+    }
     if (normal.dot((viewpoint - points[i]).cast<double>()) < 0) normal = -normal;  // eq. 4
     normals[i] = normal.normalized().cast<float>();
     // Move the point along the normal onto the plane through the neighbourhood mean

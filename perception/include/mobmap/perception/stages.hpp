@@ -32,9 +32,17 @@ std::vector<bool> statisticalOutlierMask(const KnnGraph& graph, double alpha, in
 /// `viewpoint` (eq. 4). Curvature = lambda_min / (sum of eigenvalues). Points with
 /// fewer than 3 neighbours get a zero normal and curvature 1. If `projected` is given
 /// it receives each point moved onto its neighbourhood's least-squares plane.
+/// Fast path: with `near` (a unit normal per point close to the answer, such as the
+/// previous smoothing pass's), the eigenvector is found by inverse iteration from it
+/// (multiplying by the covariance's adjugate, which amplifies the smallest eigenvector
+/// by lambda_1 / lambda_0 per step) until a step moves it by under 1e-5 rad, instead of
+/// the closed-form eigen-decomposition; a test bounds the difference. Points whose
+/// `near` is zero, whose iteration does not converge in 4 steps, or whose smallest
+/// eigenvalue exceeds a quarter of the sum (no plane) use the exact solver.
 void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph& graph,
                      const Eigen::Vector3f& viewpoint, std::vector<Eigen::Vector3f>& normals,
-                     std::vector<float>& curvature, std::vector<Eigen::Vector3f>* projected = nullptr);
+                     std::vector<float>& curvature, std::vector<Eigen::Vector3f>* projected = nullptr,
+                     const std::vector<Eigen::Vector3f>* near = nullptr);
 
 /// RGB-N colours (paper eq. 5): each normal component mapped to 0-255 with the
 /// cloud's own min and max of that component.
