@@ -106,6 +106,7 @@ class GridSearch {
       if (!any) continue;
       const Eigen::Vector3i cc = buckets_.cells[c];
       gather(cc, 1, block_);
+      float last_kth2 = 0.f;  // k-th squared distance of the previous point in this cell
       for (int s = buckets_.start[c]; s < buckets_.start[c + 1]; ++s) {
         const int i = buckets_.order[static_cast<std::size_t>(s)];
         if (!want(i)) continue;
@@ -116,7 +117,12 @@ class GridSearch {
         // inside it, and fewer candidates make the selection cheaper), then the
         // whole guaranteed radius of the block, then wider rings.
         distances(p, block_);
-        collect(i, block_, std::min(tight2_, max_r2_));
+        // Neighbouring points see the same density: a radius just above the previous
+        // point's k-th distance usually holds k candidates, and fewer candidates make
+        // the selection cheaper. Any radius within the block's guarantee is exact.
+        const float guess2 = 1.2f * last_kth2;
+        if (guess2 > 0.f && guess2 < tight2_) collect(i, block_, std::min(guess2, max_r2_));
+        if (!(guess2 > 0.f && guess2 < tight2_) || keys_.size() < k_) collect(i, block_, std::min(tight2_, max_r2_));
         if (keys_.size() < k_ && tight2_ < max_r2_) collect(i, block_, std::min(cell_ * cell_, max_r2_));
         int ring = 1;
         while (keys_.size() < k_ && ring < max_ring_) {
@@ -127,6 +133,7 @@ class GridSearch {
           collect(i, wide_, std::min(r * r, max_r2_));
         }
         selectSmallest(keys_, k_);
+        if (keys_.size() == k_ && ring == 1) last_kth2 = keyDistance(keys_.back());
         storeKeys(g, static_cast<std::size_t>(row_of(i)), keys_);
       }
     }
