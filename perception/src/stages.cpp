@@ -66,7 +66,7 @@ std::vector<bool> statisticalOutlierMask(const KnnGraph& g, double alpha, int k)
 namespace {
 
 // Smallest eigenvector of a symmetric 3x3 `cov` from a nearby unit vector: x <- adj(cov) x
-// until it stops moving (at most 4 steps).
+// until it stops moving (at most 8 steps).
 // adj(cov) has the eigenvalues l1 l2, l0 l2, l0 l1 on the eigenvectors v0, v1, v2, so each
 // step shrinks the other components by l0 / l1 and l0 / l2; it is defined for singular
 // matrices too (an exact plane: one step lands on v0). False (use the exact solver) if
@@ -82,7 +82,7 @@ bool inverseIteration(const Eigen::Matrix3d& c, const Eigen::Vector3d& start, Ei
   adj(1, 2) = adj(2, 1) = c(0, 1) * c(0, 2) - c(0, 0) * c(1, 2);
   Eigen::Vector3d x = start;
   const double scale = adj.cwiseAbs().maxCoeff();
-  for (int step = 0; step < 4; ++step) {
+  for (int step = 0; step < 8; ++step) {
     const Eigen::Vector3d y = adj * x;
     const double norm = y.norm();
     if (!(norm > 1e-30 * scale) || !std::isfinite(norm)) return false;

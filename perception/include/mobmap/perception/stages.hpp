@@ -37,7 +37,7 @@ std::vector<bool> statisticalOutlierMask(const KnnGraph& graph, double alpha, in
 /// (multiplying by the covariance's adjugate, which amplifies the smallest eigenvector
 /// by lambda_1 / lambda_0 per step) until a step moves it by under 1e-5 rad, instead of
 /// the closed-form eigen-decomposition; a test bounds the difference. Points whose
-/// `near` is zero, whose iteration does not converge in 4 steps, or whose smallest
+/// `near` is zero, whose iteration does not converge in 8 steps, or whose smallest
 /// eigenvalue exceeds a quarter of the sum (no plane) use the exact solver.
 void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph& graph,
                      const Eigen::Vector3f& viewpoint, std::vector<Eigen::Vector3f>& normals,
