@@ -240,6 +240,51 @@ TEST(MobilityMap, SeenThroughVoxelsBecomeFreeSoMovedObstaclesDisappear) {
   EXPECT_EQ(map.query({1.3, 0.0, 0.01}).state, VoxelState::kSurface);
 }
 
+// Clearing skips blocks of voxels outside the view: every voxel it skips must be one
+// the per-voxel rule rejects. Voxels scattered all round the camera, then a view where
+// everything in sight is seen through (a wall 10 m away): exactly the voxels whose
+// centre projects into the image, 0.1 m to the range ahead, turn free.
+TEST(MobilityMap, ClearingTouchesExactlyTheVoxelsInView) {
+  MapParams p;
+  p.max_range_m = 3.5;
+  MobilityMap map(p);
+  const Eigen::Isometry3d T = cameraLookingForward();
+  perception::FrameResult hits;
+  std::vector<Eigen::Vector3d> world;
+  for (double x = -2.89; x <= 3.0; x += 0.22) {  // voxel centres, 11 voxels apart
+    for (double y = -2.89; y <= 3.0; y += 0.22) {
+      for (double z = -0.89; z <= 3.0; z += 0.22) {
+        const Eigen::Vector3d w(x, y, z);
+        if ((w - T.translation()).norm() > 3.4 || (w - T.translation()).norm() < 0.2) continue;
+        world.push_back(w);
+        hits.points.push_back((T.inverse() * w).cast<float>());
+      }
+    }
+  }
+  for (int i = 0; i < 3; ++i) map.integrate(hits, T);
+  for (const auto& w : world) ASSERT_EQ(map.query(w).state, VoxelState::kSurface) << w.transpose();
+  const perception::PinholeIntrinsics k{160, 120, 100, 100, 80, 60};
+  perception::DepthImage far;
+  far.width = k.width, far.height = k.height;
+  far.depth_m.assign(static_cast<std::size_t>(k.width * k.height), 10.f);
+  const perception::FrameResult nothing;
+  for (int i = 0; i < 10; ++i) map.integrate(nothing, T, &far, &k);
+  int in_view = 0, out_of_view = 0;
+  for (const auto& w : world) {
+    const PointQuery q = map.query(w);
+    const Eigen::Vector3f c = (T.inverse() * q.centre).cast<float>();
+    bool visible = c.z() >= 0.1f && c.z() <= 3.5f;
+    if (visible) {
+      const long u = std::lround(100.f * c.x() / c.z() + 80.f), v = std::lround(100.f * c.y() / c.z() + 60.f);
+      visible = u >= 0 && v >= 0 && u < k.width && v < k.height;
+    }
+    (visible ? in_view : out_of_view)++;
+    EXPECT_EQ(q.state, visible ? VoxelState::kFree : VoxelState::kSurface) << w.transpose();
+  }
+  EXPECT_GT(in_view, 100);
+  EXPECT_GT(out_of_view, 1000);
+}
+
 TEST(MobilityMap, QueriesFromSeveralThreadsEqualSingleThreadedAnswers) {
   const MobilityMap map = builtMap();
   std::vector<Eigen::Vector3d> pts;

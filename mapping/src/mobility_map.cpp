@@ -20,6 +20,13 @@ void fail(const char* field, double value, const char* rule) {
   throw std::invalid_argument(msg.str());
 }
 
+constexpr int kBlock = 16;  // voxels per block edge in the occupied-voxel index
+
+std::uint64_t blockOf(const octomap::OcTreeKey& key) {
+  return (static_cast<std::uint64_t>(key[0] / kBlock) << 32) | (static_cast<std::uint64_t>(key[1] / kBlock) << 16) |
+         static_cast<std::uint64_t>(key[2] / kBlock);
+}
+
 octomap::point3d toOcto(const Eigen::Vector3d& p) {
   return {static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())};
 }
@@ -69,7 +76,7 @@ MobilityMap::MobilityMap(std::unique_ptr<MobilityOcTree> tree, MapParams params,
     for (unsigned int dx = 0; dx < span; ++dx) {
       for (unsigned int dy = 0; dy < span; ++dy) {
         for (unsigned int dz = 0; dz < span; ++dz) {
-          occupied_.insert(octomap::OcTreeKey(static_cast<octomap::key_type>(base[0] + dx),
+          addOccupied(octomap::OcTreeKey(static_cast<octomap::key_type>(base[0] + dx),
                                               static_cast<octomap::key_type>(base[1] + dy),
                                               static_cast<octomap::key_type>(base[2] + dz)));
         }
@@ -122,7 +129,7 @@ void MobilityMap::integrate(const perception::FrameResult& frame, const Eigen::I
   for (const auto& [key, h] : hits) {
     MobilityOcTreeNode* node = tree_->updateNode(key, true, true);
     if (!node) continue;
-    if (tree_->isNodeOccupied(node)) occupied_.insert(key);
+    if (tree_->isNodeOccupied(node)) addOccupied(key);
     if (h.segment < 0) continue;
     const auto& s = frame.segments[static_cast<std::size_t>(h.segment)];
     node->fuse(s.mobility, s.variance + params_.range_variance_per_m2 * h.range * h.range, params_.max_weight);
@@ -132,6 +139,23 @@ void MobilityMap::integrate(const perception::FrameResult& frame, const Eigen::I
     if (params_.free_space_ray_stride_px > 0) castFreeRays(T_map_camera, *depth, *k);
   }
   ++frames_;
+}
+
+void MobilityMap::addOccupied(const octomap::OcTreeKey& key) {
+  if (occupied_.insert(key).second) occupied_blocks_[blockOf(key)].push_back(key);
+}
+
+void MobilityMap::removeOccupied(const octomap::OcTreeKey& key) {
+  if (occupied_.erase(key) == 0) return;
+  const auto it = occupied_blocks_.find(blockOf(key));
+  if (it == occupied_blocks_.end()) return;
+  auto& keys = it->second;
+  const auto at = std::find(keys.begin(), keys.end(), key);
+  if (at != keys.end()) {
+    *at = keys.back();
+    keys.pop_back();
+  }
+  if (keys.empty()) occupied_blocks_.erase(it);
 }
 
 void MobilityMap::clearSeenThrough(const Eigen::Isometry3d& T_map_camera, const perception::DepthImage& depth,
@@ -145,24 +169,47 @@ void MobilityMap::clearSeenThrough(const Eigen::Isometry3d& T_map_camera, const 
   const float fx = static_cast<float>(k.fx), fy = static_cast<float>(k.fy);
   const float cx = static_cast<float>(k.cx), cy = static_cast<float>(k.cy);
   std::vector<octomap::OcTreeKey> seen_through;
-  for (const auto& key : occupied_) {
+  const auto visit = [&](const octomap::OcTreeKey& key) {
     const octomap::point3d c = tree_->keyToCoord(key);
     const Eigen::Vector3f pc = R * Eigen::Vector3f(c.x(), c.y(), c.z()) + t;
-    if (pc.z() < 0.1f || pc.z() > max_range) continue;
+    if (pc.z() < 0.1f || pc.z() > max_range) return;
     const int ui = static_cast<int>(std::lround(fx * pc.x() / pc.z() + cx));
     const int vi = static_cast<int>(std::lround(fy * pc.y() / pc.z() + cy));
-    if (ui < 0 || vi < 0 || ui >= k.width || vi >= k.height) continue;
+    if (ui < 0 || vi < 0 || ui >= k.width || vi >= k.height) return;
     const float d = depth.at(ui, vi);
-    if (!(d > 0.f) || !std::isfinite(d)) continue;
+    if (!(d > 0.f) || !std::isfinite(d)) return;
     // Depth noise grows with the square of the distance (Kinect: ~1.5 mm at 1 m plus
     // quantisation ~2.3 mm): 0.5 cm/m^2 is several sigma.
     const float margin = base_margin + 0.005f * pc.z() * pc.z();
     if (d > pc.z() + margin) seen_through.push_back(key);
+  };
+  // A block is skipped when its bounding sphere (plus 1 cm, more than the half pixel the
+  // rounding above lets in) lies behind the camera, beyond the range or outside one of
+  // the four planes through the image borders: none of its voxels could pass `visit`.
+  const float block_radius = static_cast<float>((kBlock / 2 + 1) * res * std::sqrt(3.0) + 0.01);
+  const Eigen::Vector3f planes[4] = {Eigen::Vector3f(fx, 0, cx).normalized(),
+                                     Eigen::Vector3f(-fx, 0, static_cast<float>(k.width) - cx).normalized(),
+                                     Eigen::Vector3f(0, fy, cy).normalized(),
+                                     Eigen::Vector3f(0, -fy, static_cast<float>(k.height) - cy).normalized()};
+  for (const auto& [block, keys] : occupied_blocks_) {
+    const octomap::OcTreeKey& first = keys.front();
+    const auto centre = [&](unsigned axis) {
+      return static_cast<octomap::key_type>((first[axis] & ~static_cast<unsigned>(kBlock - 1)) + kBlock / 2);
+    };
+    // The key at the block's centre names the voxel just past the middle: half a voxel
+    // off, inside the 1 cm allowance.
+    const octomap::point3d bc = tree_->keyToCoord(octomap::OcTreeKey(centre(0), centre(1), centre(2)));
+    const Eigen::Vector3f bp = R * Eigen::Vector3f(bc.x(), bc.y(), bc.z()) + t;
+    if (bp.z() + block_radius < 0.1f || bp.z() - block_radius > max_range) continue;
+    bool outside = false;
+    for (const auto& n : planes) outside = outside || n.dot(bp) < -block_radius;
+    if (outside) continue;
+    for (const auto& key : keys) visit(key);
   }
   for (const auto& key : seen_through) {
     MobilityOcTreeNode* node = tree_->updateNode(key, false, true);
     if (node && !tree_->isNodeOccupied(node)) {
-      occupied_.erase(key);
+      removeOccupied(key);
       node->clearMobility();  // no longer a surface: its mobility described what was there
     }
   }

@@ -11,6 +11,8 @@
 
 #include <memory>
 #include <optional>
+#include <cstdint>
+#include <unordered_map>
 #include <unordered_set>
 #include <stdexcept>
 #include <string>
@@ -133,13 +135,17 @@ class MobilityMap {
   void castFreeRays(const Eigen::Isometry3d& T_map_camera, const perception::DepthImage& depth,
                     const perception::PinholeIntrinsics& k);
   PointQuery describe(const octomap::OcTreeKey& key, const MobilityOcTreeNode* node, unsigned int depth) const;
+  void addOccupied(const octomap::OcTreeKey& key);
+  void removeOccupied(const octomap::OcTreeKey& key);
 
   MapParams params_;
   Eigen::Matrix3d R_map_world_;
   std::unique_ptr<MobilityOcTree> tree_;
   /// Keys (finest level) of occupied voxels: free-space clearing visits these instead
-  /// of every leaf in the view.
+  /// of every leaf in the view. The set answers "is it listed"; the same keys grouped
+  /// by block of 16^3 voxels let clearing skip whole blocks outside the camera's view.
   std::unordered_set<octomap::OcTreeKey, octomap::OcTreeKey::KeyHash> occupied_;
+  std::unordered_map<std::uint64_t, std::vector<octomap::OcTreeKey>> occupied_blocks_;
   int frames_ = 0;
 };
 
