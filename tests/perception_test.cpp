@@ -485,6 +485,34 @@ TEST(RoughMerge, ASteepGroupIsNotRoughGroundUnlessLevelIsUnknown) {
   EXPECT_EQ(std::count(rough.begin(), rough.end(), true), 1);
 }
 
+// Two rough pieces of one surface cut apart by a 2 cm strip the ground took (a valley
+// in the floor's RANSAC band), next to a smooth region: the strip goes to the rough
+// pieces, which become one region; the smooth region stays apart.
+TEST(RoughMerge, PiecesSeparatedByAGroundValleyBecomeOneRegion) {
+  std::vector<Eigen::Vector3f> pts;
+  std::vector<int> labels;
+  std::vector<bool> ground;
+  for (int x = 0; x < 40; ++x) {
+    for (int y = 0; y < 10; ++y) {
+      pts.emplace_back(0.01f * static_cast<float>(x), 0.01f * static_cast<float>(y), 0.f);
+      const bool valley = x == 14 || x == 15;
+      ground.push_back(valley);
+      labels.push_back(valley ? -1 : x < 14 ? 0 : x < 30 ? 1 : 2);
+    }
+  }
+  const KnnGraph g = bruteForceKnnGraph(pts, 16);
+  std::vector<bool> rough = {true, true, false};
+  int regions = 3;
+  EXPECT_EQ(absorbGroundIntoRough(g, 0.025, rough, 0.5, 3, labels, ground), 20u);
+  EXPECT_GT(joinTouchingRoughRegions(g, 0.025, rough, labels, &regions), 0);
+  ASSERT_EQ(regions, 2);
+  EXPECT_EQ(rough, (std::vector<bool>{true, false}));
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    EXPECT_FALSE(ground[i]);
+    EXPECT_EQ(labels[i], pts[i].x() < 0.295f ? 0 : 1) << pts[i].transpose();
+  }
+}
+
 TEST(RoughMerge, APyramidFieldIsOneLevelSegmentWithItsExactAreaRatio) {
   // 6 x 6 pyramids of 10 cm pitch with 48-degree faces (A/A' = 1.5 exactly), sampled
   // every 2 mm, seen from 1 m above; no floor around it, gravity known.

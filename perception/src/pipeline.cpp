@@ -295,6 +295,7 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
   std::size_t moved = 0;
   if (!ground_points.empty() && std::find(region_rough.begin(), region_rough.end(), true) != region_rough.end()) {
     moved += absorbGroundIntoRough(graph, p.neighbour_distance_m, region_rough, 0.5, 3, labels, is_ground);
+    joinTouchingRoughRegions(graph, p.neighbour_distance_m, region_rough, labels, &regions);
   }
   if (out.ground_plane && regions > 0 && p.ground_reclaim_min_angle_deg > 0) {
     std::vector<std::vector<int>> region_points(static_cast<std::size_t>(regions));

@@ -5,6 +5,7 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <deque>
 #include <limits>
@@ -512,16 +513,27 @@ std::size_t absorbGroundIntoRough(const KnnGraph& g, double max_neighbour_distan
     for (std::size_t i = 0; i < n; ++i) {
       if (!ground[i]) continue;
       const std::size_t base = i * static_cast<std::size_t>(g.k);
-      int near = 0, votes = 0, region = -1;
+      // Votes for rough regions as a whole (a valley between two pieces of one rough
+      // surface has both around it); the point joins the one most of them belong to.
+      int near = 0, votes = 0;
+      std::array<std::pair<int, int>, 4> tally{};  // (region, count), the first few seen
+      int kinds = 0;
       for (int j = 0; j < g.count[i]; ++j) {
         if (g.sq_dist[base + static_cast<std::size_t>(j)] > max_d2) continue;
         ++near;
         const int l = labels[static_cast<std::size_t>(g.indices[base + static_cast<std::size_t>(j)])];
         if (l < 0 || static_cast<std::size_t>(l) >= region_is_rough.size() || !region_is_rough[static_cast<std::size_t>(l)]) continue;
-        if (region < 0) region = l;
-        votes += l == region;
+        ++votes;
+        int t = 0;
+        while (t < kinds && tally[static_cast<std::size_t>(t)].first != l) ++t;
+        if (t == kinds && kinds < static_cast<int>(tally.size())) tally[static_cast<std::size_t>(kinds++)] = {l, 0};
+        if (t < kinds) ++tally[static_cast<std::size_t>(t)].second;
       }
-      if (region >= 0 && votes > min_fraction * near) moves.emplace_back(i, region);
+      if (kinds > 0 && votes > min_fraction * near) {
+        const auto best = std::max_element(tally.begin(), tally.begin() + kinds,
+                                           [](const auto& a, const auto& b) { return a.second < b.second; });
+        moves.emplace_back(i, best->first);
+      }
     }
     if (moves.empty()) break;
     for (const auto& [i, region] : moves) {
@@ -531,6 +543,51 @@ std::size_t absorbGroundIntoRough(const KnnGraph& g, double max_neighbour_distan
     moved += moves.size();
   }
   return moved;
+}
+
+int joinTouchingRoughRegions(const KnnGraph& g, double max_neighbour_distance_m, std::vector<bool>& region_is_rough,
+                             std::vector<int>& labels, int* regions) {
+  const std::size_t n = labels.size();
+  if (g.count.size() != n || !regions || static_cast<std::size_t>(*regions) != region_is_rough.size()) {
+    throw std::invalid_argument("joinTouchingRoughRegions: graph, labels and region counts differ");
+  }
+  std::vector<int> parent(region_is_rough.size());
+  for (std::size_t r = 0; r < parent.size(); ++r) parent[r] = static_cast<int>(r);
+  const auto root = [&](int r) {
+    while (parent[static_cast<std::size_t>(r)] != r) r = parent[static_cast<std::size_t>(r)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(r)])];
+    return r;
+  };
+  const auto rough = [&](int l) { return l >= 0 && region_is_rough[static_cast<std::size_t>(l)]; };
+  const float max_d2 = static_cast<float>(max_neighbour_distance_m * max_neighbour_distance_m);
+  int joins = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!rough(labels[i])) continue;
+    const std::size_t base = i * static_cast<std::size_t>(g.k);
+    for (int j = 0; j < g.count[i]; ++j) {
+      if (g.sq_dist[base + static_cast<std::size_t>(j)] > max_d2) continue;
+      const int l = labels[static_cast<std::size_t>(g.indices[base + static_cast<std::size_t>(j)])];
+      if (!rough(l)) continue;
+      const int a = root(labels[i]), b = root(l);
+      if (a == b) continue;
+      parent[static_cast<std::size_t>(std::max(a, b))] = std::min(a, b);
+      ++joins;
+    }
+  }
+  if (joins == 0) return 0;
+  // Renumber: surviving regions keep their order.
+  std::vector<int> new_id(parent.size(), -1);
+  std::vector<bool> new_rough;
+  for (std::size_t r = 0; r < parent.size(); ++r) {
+    if (root(static_cast<int>(r)) != static_cast<int>(r)) continue;
+    new_id[r] = static_cast<int>(new_rough.size());
+    new_rough.push_back(region_is_rough[r]);
+  }
+  for (auto& l : labels) {
+    if (l >= 0) l = new_id[static_cast<std::size_t>(root(l))];
+  }
+  region_is_rough.swap(new_rough);
+  *regions = static_cast<int>(region_is_rough.size());
+  return joins;
 }
 
 std::size_t reclaimGroundPoints(const std::vector<Eigen::Vector3f>& points, const KnnGraph& g,

@@ -133,8 +133,16 @@ std::vector<int> mergeFragments(const std::vector<Eigen::Vector3f>& points, cons
 /// in it (the valleys of a pyramid field standing on the floor, whose normals average
 /// to "up"), which cuts the surface into pieces and its creases out of its area. A
 /// ground point most of whose graph neighbours within `max_neighbour_distance_m`
-/// (more than `min_fraction`) belong to one rough region moves into that region;
-/// repeated up to `passes` times. Updates `labels` and `ground`; returns how many moved.
+/// (more than `min_fraction`) belong to rough regions moves into the one most of them
+/// belong to; repeated up to `passes` times. Updates `labels` and `ground`; returns how
+/// many moved. Follow with joinTouchingRoughRegions: a valley filled in this way
+/// connects the pieces it separated.
+/// Rough regions with graph neighbours (within `max_neighbour_distance_m`) in another
+/// rough region become one region. Labels are renumbered (survivors keep their
+/// order); `region_is_rough` and `regions` are updated. Returns the number of joins.
+int joinTouchingRoughRegions(const KnnGraph& graph, double max_neighbour_distance_m, std::vector<bool>& region_is_rough,
+                             std::vector<int>& labels, int* regions);
+
 std::size_t absorbGroundIntoRough(const KnnGraph& graph, double max_neighbour_distance_m,
                                   const std::vector<bool>& region_is_rough, double min_fraction, int passes,
                                   std::vector<int>& labels, std::vector<bool>& ground);
