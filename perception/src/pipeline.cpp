@@ -276,16 +276,16 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
   std::vector<bool> region_rough;
   std::optional<Eigen::Vector3f> level = up;
   if (!level && out.ground_plane) level = out.ground_plane->head<3>();
-  if (p.rough_fragment_max_points > 0) {
-    labels = growRegions(out.points, out.colours, graph, eligible, p.colour_threshold, p.neighbour_distance_m, 1,
-                         &regions, &out.normals, p.region_max_normal_deviation_deg);
+  // With rough joining on, every region is kept (min size 1) so that the small ones
+  // can be judged as fragments; mergeFragments applies the size limit afterwards.
+  const bool join_rough = p.rough_fragment_max_points > 0;
+  labels = growRegions(out.points, out.colours, graph, eligible, p.colour_threshold, p.neighbour_distance_m,
+                       join_rough ? 1 : p.min_segment_points, &regions, &out.normals, p.region_max_normal_deviation_deg);
+  if (join_rough) {
     labels = mergeFragments(out.points, out.normals, graph, p.neighbour_distance_m, labels, p.min_segment_points,
                             p.rough_fragment_max_points, p.rough_fragment_max_width_m, p.rough_min_fragments, p.rough_min_points,
                             p.rough_min_width_m, p.rough_min_normal_spread_deg, level, p.rough_max_slope_deg, &regions,
                             &region_rough);
-  } else {
-    labels = growRegions(out.points, out.colours, graph, eligible, p.colour_threshold, p.neighbour_distance_m,
-                         p.min_segment_points, &regions, &out.normals, p.region_max_normal_deviation_deg);
   }
   // Rough segments absorb the ground points among them, then tilted regions take back
   // the ground points that continue them; both edit one ground mask (the ground is

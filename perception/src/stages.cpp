@@ -12,6 +12,22 @@
 #include <stdexcept>
 
 namespace mobmap::perception {
+namespace {
+
+// Calls f(neighbour index) for the graph neighbours of point i closer than
+// sqrt(max_d2). Rows are sorted by distance (neighbours.hpp), so the scan stops at the
+// first one beyond.
+template <typename F>
+void forNeighboursWithin(const KnnGraph& g, std::size_t i, float max_d2, F&& f) {
+  const std::size_t base = i * static_cast<std::size_t>(g.k);
+  for (int j = 0; j < g.count[i]; ++j) {
+    const std::size_t e = base + static_cast<std::size_t>(j);
+    if (g.sq_dist[e] > max_d2) break;
+    f(static_cast<std::size_t>(g.indices[e]));
+  }
+}
+
+}  // namespace
 
 std::vector<Eigen::Vector3f> voxelReduce(const std::vector<Eigen::Vector3f>& points, float voxel_m,
                                          std::vector<int>* voxel_of_point) {
@@ -329,16 +345,13 @@ std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
         normal_sum += (*normals)[static_cast<std::size_t>(i)];
         mean_dir = normal_sum.normalized();
       }
-      const std::size_t base = static_cast<std::size_t>(i) * static_cast<std::size_t>(g.k);
-      for (int j = 0; j < g.count[static_cast<std::size_t>(i)]; ++j) {
-        const int nb = g.indices[base + static_cast<std::size_t>(j)];
-        if (g.sq_dist[base + static_cast<std::size_t>(j)] > max_d2) break;  // sorted by distance
-        if (!eligible[static_cast<std::size_t>(nb)] || label[static_cast<std::size_t>(nb)] != -1) continue;
-        if ((ycc[static_cast<std::size_t>(i)] - ycc[static_cast<std::size_t>(nb)]).squaredNorm() > thr2) continue;
-        if (gate && (*normals)[static_cast<std::size_t>(nb)].dot(mean_dir) < min_cos) continue;
-        label[static_cast<std::size_t>(nb)] = next;
-        queue.push_back(nb);
-      }
+      forNeighboursWithin(g, static_cast<std::size_t>(i), max_d2, [&](std::size_t nb) {
+        if (!eligible[nb] || label[nb] != -1) return;
+        if ((ycc[static_cast<std::size_t>(i)] - ycc[nb]).squaredNorm() > thr2) return;
+        if (gate && (*normals)[nb].dot(mean_dir) < min_cos) return;
+        label[nb] = next;
+        queue.push_back(static_cast<int>(nb));
+      });
     }
     if (static_cast<int>(members.size()) < min_points) {
       for (int i : members) label[static_cast<std::size_t>(i)] = -2;  // visited, too small
@@ -432,14 +445,11 @@ std::vector<int> mergeFragments(const std::vector<Eigen::Vector3f>& points, cons
           stamp = id;
           ++fragments;
         }
-        const std::size_t base = i * static_cast<std::size_t>(g.k);
-        for (int j = 0; j < g.count[i]; ++j) {
-          if (g.sq_dist[base + static_cast<std::size_t>(j)] > max_d2) continue;
-          const auto nb = static_cast<std::size_t>(g.indices[base + static_cast<std::size_t>(j)]);
-          if (group[nb] >= 0 || !is_fragment(nb)) continue;
+        forNeighboursWithin(g, i, max_d2, [&](std::size_t nb) {
+          if (group[nb] >= 0 || !is_fragment(nb)) return;
           group[nb] = id;
           queue.push_back(static_cast<int>(nb));
-        }
+        });
       }
       bool keep = fragments >= min_fragments && static_cast<int>(queue.size()) >= min_points;
       if (keep) {
@@ -512,23 +522,21 @@ std::size_t absorbGroundIntoRough(const KnnGraph& g, double max_neighbour_distan
     moves.clear();
     for (std::size_t i = 0; i < n; ++i) {
       if (!ground[i]) continue;
-      const std::size_t base = i * static_cast<std::size_t>(g.k);
       // Votes for rough regions as a whole (a valley between two pieces of one rough
       // surface has both around it); the point joins the one most of them belong to.
       int near = 0, votes = 0;
       std::array<std::pair<int, int>, 4> tally{};  // (region, count), the first few seen
       int kinds = 0;
-      for (int j = 0; j < g.count[i]; ++j) {
-        if (g.sq_dist[base + static_cast<std::size_t>(j)] > max_d2) continue;
+      forNeighboursWithin(g, i, max_d2, [&](std::size_t nb) {
         ++near;
-        const int l = labels[static_cast<std::size_t>(g.indices[base + static_cast<std::size_t>(j)])];
-        if (l < 0 || static_cast<std::size_t>(l) >= region_is_rough.size() || !region_is_rough[static_cast<std::size_t>(l)]) continue;
+        const int l = labels[nb];
+        if (l < 0 || static_cast<std::size_t>(l) >= region_is_rough.size() || !region_is_rough[static_cast<std::size_t>(l)]) return;
         ++votes;
         int t = 0;
         while (t < kinds && tally[static_cast<std::size_t>(t)].first != l) ++t;
         if (t == kinds && kinds < static_cast<int>(tally.size())) tally[static_cast<std::size_t>(kinds++)] = {l, 0};
         if (t < kinds) ++tally[static_cast<std::size_t>(t)].second;
-      }
+      });
       if (kinds > 0 && votes > min_fraction * near) {
         const auto best = std::max_element(tally.begin(), tally.begin() + kinds,
                                            [](const auto& a, const auto& b) { return a.second < b.second; });
@@ -562,16 +570,13 @@ int joinTouchingRoughRegions(const KnnGraph& g, double max_neighbour_distance_m,
   int joins = 0;
   for (std::size_t i = 0; i < n; ++i) {
     if (!rough(labels[i])) continue;
-    const std::size_t base = i * static_cast<std::size_t>(g.k);
-    for (int j = 0; j < g.count[i]; ++j) {
-      if (g.sq_dist[base + static_cast<std::size_t>(j)] > max_d2) continue;
-      const int l = labels[static_cast<std::size_t>(g.indices[base + static_cast<std::size_t>(j)])];
-      if (!rough(l)) continue;
-      const int a = root(labels[i]), b = root(l);
-      if (a == b) continue;
+    forNeighboursWithin(g, i, max_d2, [&](std::size_t nb) {
+      if (!rough(labels[nb])) return;
+      const int a = root(labels[i]), b = root(labels[nb]);
+      if (a == b) return;
       parent[static_cast<std::size_t>(std::max(a, b))] = std::min(a, b);
       ++joins;
-    }
+    });
   }
   if (joins == 0) return 0;
   // Renumber: surviving regions keep their order.
@@ -626,20 +631,17 @@ std::size_t reclaimGroundPoints(const std::vector<Eigen::Vector3f>& points, cons
     const auto i = static_cast<std::size_t>(queue[head]);
     const auto r = static_cast<std::size_t>(labels[i]);
     const Eigen::Vector4f& pl = unit[r];
-    const std::size_t base = i * static_cast<std::size_t>(g.k);
-    for (int j = 0; j < g.count[i]; ++j) {
-      if (g.sq_dist[base + static_cast<std::size_t>(j)] > max_d2) continue;
-      const auto nb = static_cast<std::size_t>(g.indices[base + static_cast<std::size_t>(j)]);
-      if (!ground[nb]) continue;
+    forNeighboursWithin(g, i, max_d2, [&](std::size_t nb) {
+      if (!ground[nb]) return;
       const Eigen::Vector3f& q = points[nb];
       const float to_region = std::abs(pl.head<3>().dot(q) + pl(3));
       const float to_ground = std::abs(gn.dot(q) + gd);
-      if (to_region >= to_ground || to_region > max_plane) continue;
+      if (to_region >= to_ground || to_region > max_plane) return;
       ground[nb] = false;
       labels[nb] = static_cast<int>(r);
       queue.push_back(static_cast<int>(nb));
       ++moved;
-    }
+    });
   }
   return moved;
 }
