@@ -44,6 +44,31 @@ TEST(Neighbours, GridKnnEqualsBruteForce) {
   }
 }
 
+TEST(Neighbours, GridKnnEqualsBruteForceOnALatticeFullOfTies) {
+  // Voxel centroids of a flat floor sit on a lattice: many neighbours share a distance
+  // exactly, and the search's distance bands then hold runs of equal keys. Ties must
+  // still resolve by index, as in the brute-force reference. Two lattices: a plane
+  // (in the cell size the pipeline uses for k = 30) and a thin 3D slab.
+  std::vector<Eigen::Vector3f> plane, slab;
+  for (int i = 0; i < 45; ++i) {
+    for (int j = 0; j < 45; ++j) plane.emplace_back(0.01f * i, 0.01f * j, 1.0f);
+  }
+  for (int i = 0; i < 16; ++i) {
+    for (int j = 0; j < 16; ++j) {
+      for (int l = 0; l < 4; ++l) slab.emplace_back(0.01f * i, 0.01f * j, 0.01f * l);
+    }
+  }
+  for (const auto* pts : {&plane, &slab}) {
+    for (int k : {4, 16, 30}) {
+      const KnnGraph fast = buildKnnGraph(*pts, k, 0.0375f, 0.2f);
+      const KnnGraph ref = bruteForceKnnGraph(*pts, k);
+      EXPECT_EQ(fast.count, ref.count) << "k " << k;
+      EXPECT_EQ(fast.indices, ref.indices) << "k " << k;
+      EXPECT_EQ(fast.sq_dist, ref.sq_dist) << "k " << k;
+    }
+  }
+}
+
 TEST(Neighbours, MaxRadiusDropsFarNeighbours) {
   std::vector<Eigen::Vector3f> pts = {{0, 0, 0}, {0.01f, 0, 0}, {1, 0, 0}};
   const KnnGraph g = buildKnnGraph(pts, 2, 0.05f, 0.1f);
@@ -302,10 +327,18 @@ TEST(RegionGrowing, TheMeanNormalGateStopsARegionAtARoundedEdge) {
   const int top = majority(gated, 0), side = majority(gated, 2);
   EXPECT_NE(top, side);
   for (std::size_t i = 0; i < pts.size(); ++i) {
-    if (face[i] == 0) EXPECT_EQ(gated[i], top);
-    if (face[i] == 2) EXPECT_EQ(gated[i], side);
-    if (gated[i] == top) EXPECT_GT(normals[i].z(), std::cos(50 * kDeg));
-    if (gated[i] == side) EXPECT_GT(normals[i].x(), std::cos(50 * kDeg));
+    if (face[i] == 0) {
+      EXPECT_EQ(gated[i], top);
+    }
+    if (face[i] == 2) {
+      EXPECT_EQ(gated[i], side);
+    }
+    if (gated[i] == top) {
+      EXPECT_GT(normals[i].z(), std::cos(50 * kDeg));
+    }
+    if (gated[i] == side) {
+      EXPECT_GT(normals[i].x(), std::cos(50 * kDeg));
+    }
   }
 }
 
