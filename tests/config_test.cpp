@@ -38,6 +38,8 @@ TEST(Config, ShippedDefaultYamlEqualsTheStructDefaults) {
   EXPECT_EQ(c.perception.neighbour_distance_m, p.neighbour_distance_m);
   EXPECT_EQ(c.perception.min_segment_points, p.min_segment_points);
   EXPECT_EQ(c.perception.region_max_normal_deviation_deg, p.region_max_normal_deviation_deg);
+  EXPECT_EQ(c.perception.adopt_max_angle_deg, p.adopt_max_angle_deg);
+  EXPECT_EQ(c.perception.adopt_max_distance_m, p.adopt_max_distance_m);
   EXPECT_EQ(c.perception.rough_fragment_max_points, p.rough_fragment_max_points);
   EXPECT_EQ(c.perception.rough_min_fragments, p.rough_min_fragments);
   EXPECT_EQ(c.perception.rough_fragment_max_width_m, p.rough_fragment_max_width_m);

@@ -546,6 +546,89 @@ TEST(RoughMerge, PiecesSeparatedByAGroundValleyBecomeOneRegion) {
   }
 }
 
+// A floor region (z = 0) and a wall region (x = 0.3 m) on a 1 cm grid, with a band of
+// floor points region growing left out, and around it the cases that must stay out.
+TEST(Adoption, UnsegmentedPointsJoinTheRegionWhosePlaneTheyLieOn) {
+  struct Case {
+    std::vector<Eigen::Vector3f> pts, normals;
+    std::vector<int> labels;
+    std::vector<bool> ground;
+  };
+  auto build = [](bool reversed) {
+    Case c;
+    auto add = [&](float x, float y, float z, Eigen::Vector3f n, int label, bool ground = false) {
+      c.pts.emplace_back(x, y, z);
+      c.normals.push_back(n.normalized());
+      c.labels.push_back(label);
+      c.ground.push_back(ground);
+    };
+    const Eigen::Vector3f up(0, 0, 1), tilted(std::sin(60 * kDeg), 0, std::cos(60 * kDeg));
+    for (int y = 0; y < 10; ++y) {
+      const float fy = 0.01f * static_cast<float>(y);
+      for (int x = 0; x < 30; ++x) {
+        const float fx = 0.01f * static_cast<float>(x);
+        if (x >= 10 && x < 15) {  // the left-out band
+          if (x == 12 && y == 5) add(fx, fy, 0.03f, up, -1);         // 3 cm above the plane
+          else if (x == 13 && y == 5) add(fx, fy, 0.f, tilted, -1);  // normal 60 degrees off
+          else if (x == 11 && y == 2) add(fx, fy, 0.f, up, -1, true);  // ground: never moves
+          else add(fx, fy, 0.f, up, -1);
+        } else if (x >= 25) {
+          add(fx, fy, 0.f, up, 2);  // a rough region on the same plane: takes nothing
+        } else if (x >= 20 && x < 25) {
+          add(fx, fy, 0.f, up, -1);  // left out between the floor and the rough region
+        } else {
+          add(fx, fy, 0.f, up, 0);
+        }
+      }
+      for (int z = 1; z < 10; ++z) add(0.305f, fy, 0.01f * static_cast<float>(z), Eigen::Vector3f::UnitX(), z < 3 ? -1 : 1);
+    }
+    if (reversed) {
+      std::reverse(c.pts.begin(), c.pts.end());
+      std::reverse(c.normals.begin(), c.normals.end());
+      std::reverse(c.labels.begin(), c.labels.end());
+      std::reverse(c.ground.begin(), c.ground.end());
+    }
+    return c;
+  };
+  const std::vector<Eigen::Vector4f> planes = {{0, 0, 1, 0}, {2, 0, 0, -0.61f}, {0, 0, 1, 0}};
+  const std::vector<bool> rough = {false, false, true};
+  std::vector<std::vector<int>> results;
+  for (bool reversed : {false, true}) {
+    Case c = build(reversed);
+    const KnnGraph g = bruteForceKnnGraph(c.pts, 16);
+    const std::size_t adopted =
+        adoptUnsegmentedPoints(c.pts, c.normals, g, 0.025, planes, rough, 0.02, 40.0, c.labels, c.ground);
+    std::size_t expected_adopted = 0;
+    for (std::size_t i = 0; i < c.pts.size(); ++i) {
+      const Eigen::Vector3f& p = c.pts[i];
+      int want = -1;
+      const bool lifted = p.z() > 0.025f && p.x() < 0.3f;
+      const bool off_normal = c.normals[i].x() > 0.5f && p.x() < 0.3f;
+      if (c.ground[i] || lifted || off_normal) {
+        want = -1;
+      } else if (p.x() > 0.3f) {
+        want = 1;  // the wall's left-out foot joins the wall
+      } else if (p.x() < 0.245f) {
+        want = 0;  // the band and the gap before the rough region join the floor
+      } else {
+        want = 2;
+      }
+      EXPECT_EQ(c.labels[i], want) << p.transpose();
+      if (c.labels[i] >= 0 && (p.x() > 0.3f ? p.z() < 0.025f : (p.x() >= 0.095f && p.x() < 0.145f) || (p.x() >= 0.195f && p.x() < 0.245f))) {
+        ++expected_adopted;
+      }
+    }
+    EXPECT_EQ(adopted, expected_adopted);
+    std::vector<int> l = c.labels;
+    if (reversed) std::reverse(l.begin(), l.end());
+    results.push_back(l);
+  }
+  EXPECT_EQ(results[0], results[1]);  // visiting order does not matter
+  std::vector<int> labels(3, -1);
+  EXPECT_THROW(adoptUnsegmentedPoints({}, {}, KnnGraph{}, 0.025, planes, rough, 0.02, 40.0, labels, {}),
+               std::invalid_argument);
+}
+
 TEST(RoughMerge, APyramidFieldIsOneLevelSegmentWithItsExactAreaRatio) {
   // 6 x 6 pyramids of 10 cm pitch with 48-degree faces (A/A' = 1.5 exactly), sampled
   // every 2 mm, seen from 1 m above; no floor around it, gravity known.
@@ -716,18 +799,25 @@ TEST_P(CorridorFrames, SurfacesAreCoveredByOneSegmentEach) {
       cover[id].second += best;
     }
   }
-  // Surfaces one segment covers (>= 90 %) with and without noise today. The others are
-  // printed and recorded in docs/PERCEPTION.md as gaps: the low end of the 5-degree ramp
-  // goes to the ground, the rough patch splits into facets, and under noise the
-  // 15-35 degree ramps (82-88 %), box fronts and the first riser fragment.
-  const std::set<std::string> asserted = {"floor", "box top", "box -y face", "moving box top"};
+  // Every surface is covered >= 90 % by one segment except three known gaps, printed
+  // and recorded in docs/PERCEPTION.md: under noise the foot of the 5-degree ramp goes
+  // to the floor's RANSAC band and the first riser (far, 15 cm tall) breaks up; without
+  // noise a part of the rough patch stays apart.
+  const bool noisy = GetParam() != sim::NoiseModel::kNone;
+  const std::set<std::string> gaps =
+      noisy ? std::set<std::string>{"ramp 5 deg", "stair riser 1"} : std::set<std::string>{"rough patch"};
+  int asserted = 0;
   for (const auto& [id, c] : cover) {
     const double frac = static_cast<double>(c.second) / c.first;
-    std::printf("[ info ] %-22s %6d points, %5.1f %% in one segment\n", scene.surface(id).name.c_str(), c.first, 100 * frac);
-    if (asserted.count(scene.surface(id).name)) {
-      EXPECT_GE(frac, 0.9) << scene.surface(id).name;
+    const std::string& name = scene.surface(id).name;
+    std::printf("[ info ] %-22s %6d points, %5.1f %% in one segment%s\n", name.c_str(), c.first, 100 * frac,
+                gaps.count(name) ? " (known gap)" : "");
+    if (!gaps.count(name)) {
+      EXPECT_GE(frac, 0.9) << name;
+      ++asserted;
     }
   }
+  EXPECT_GE(asserted, 10);  // of 13 surfaces with >= 500 points
 }
 
 INSTANTIATE_TEST_SUITE_P(NoiseOffAndOn, CorridorFrames,

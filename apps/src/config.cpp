@@ -65,6 +65,7 @@ static Config parseConfigUnchecked(const std::string& text, const std::string& o
          {"ground_reclaim_max_angle_deg", bind(p.ground_reclaim_max_angle_deg)},
          {"colour_threshold", bind(p.colour_threshold)}, {"neighbour_distance_m", bind(p.neighbour_distance_m)},
          {"min_segment_points", bind(p.min_segment_points)}, {"region_max_normal_deviation_deg", bind(p.region_max_normal_deviation_deg)},
+         {"adopt_max_angle_deg", bind(p.adopt_max_angle_deg)}, {"adopt_max_distance_m", bind(p.adopt_max_distance_m)},
          {"rough_fragment_max_points", bind(p.rough_fragment_max_points)}, {"rough_min_fragments", bind(p.rough_min_fragments)},
          {"rough_fragment_max_width_m", bind(p.rough_fragment_max_width_m)},
          {"rough_min_points", bind(p.rough_min_points)},

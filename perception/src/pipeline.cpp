@@ -71,6 +71,8 @@ void validate(const PerceptionParams& p) {
   if (!(p.neighbour_distance_m > 0) || !std::isfinite(p.neighbour_distance_m)) fail("neighbour_distance_m", p.neighbour_distance_m, "must be finite and > 0");
   if (p.min_segment_points < 3) fail("min_segment_points", p.min_segment_points, "must be >= 3");
   if (!(p.region_max_normal_deviation_deg > 0 && p.region_max_normal_deviation_deg <= 180)) fail("region_max_normal_deviation_deg", p.region_max_normal_deviation_deg, "must be in (0, 180]");
+  if (!(p.adopt_max_angle_deg >= 0 && p.adopt_max_angle_deg <= 90)) fail("adopt_max_angle_deg", p.adopt_max_angle_deg, "must be in [0, 90]");
+  if (!(p.adopt_max_distance_m > 0) || !std::isfinite(p.adopt_max_distance_m)) fail("adopt_max_distance_m", p.adopt_max_distance_m, "must be finite and > 0");
   if (p.rough_fragment_max_points < 0) fail("rough_fragment_max_points", p.rough_fragment_max_points, "must be >= 0");
   if (!(p.rough_fragment_max_width_m >= 0) || !std::isfinite(p.rough_fragment_max_width_m)) fail("rough_fragment_max_width_m", p.rough_fragment_max_width_m, "must be finite and >= 0");
   if (p.rough_min_fragments < 2) fail("rough_min_fragments", p.rough_min_fragments, "must be >= 2");
@@ -297,16 +299,26 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
     moved += absorbGroundIntoRough(graph, p.neighbour_distance_m, region_rough, 0.5, 3, labels, is_ground);
     joinTouchingRoughRegions(graph, p.neighbour_distance_m, region_rough, labels, &regions);
   }
-  if (out.ground_plane && regions > 0 && p.ground_reclaim_min_angle_deg > 0) {
+  // Least-squares plane of every region, for the two plane-based steps below.
+  std::vector<Eigen::Vector4f> planes;
+  if (regions > 0 && ((out.ground_plane && p.ground_reclaim_min_angle_deg > 0) || p.adopt_max_angle_deg > 0)) {
     std::vector<std::vector<int>> region_points(static_cast<std::size_t>(regions));
     for (std::size_t i = 0; i < n; ++i) {
       if (labels[i] >= 0) region_points[static_cast<std::size_t>(labels[i])].push_back(static_cast<int>(i));
     }
-    std::vector<Eigen::Vector4f> planes(region_points.size());
+    planes.resize(region_points.size());
     for (std::size_t r = 0; r < planes.size(); ++r) planes[r] = leastSquaresPlane(out.points, region_points[r]);
+  }
+  if (out.ground_plane && !planes.empty() && p.ground_reclaim_min_angle_deg > 0) {
     moved += reclaimGroundPoints(out.points, graph, p.neighbour_distance_m, *out.ground_plane, planes,
                                  p.ground_reclaim_min_angle_deg, p.ground_reclaim_max_angle_deg, p.ground_distance_m,
                                  labels, is_ground);
+  }
+  // Points that colour growing left out next to a region whose plane they lie on
+  // join it (not rough regions: their plane is only a mean).
+  if (!planes.empty() && p.adopt_max_angle_deg > 0) {
+    adoptUnsegmentedPoints(out.points, out.normals, graph, p.neighbour_distance_m, planes, region_rough,
+                           p.adopt_max_distance_m, p.adopt_max_angle_deg, labels, is_ground);
   }
   if (moved > 0) {
     ground_points.clear();

@@ -646,4 +646,86 @@ std::size_t reclaimGroundPoints(const std::vector<Eigen::Vector3f>& points, cons
   return moved;
 }
 
+std::size_t adoptUnsegmentedPoints(const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3f>& normals,
+                                   const KnnGraph& g, double max_neighbour_distance_m,
+                                   const std::vector<Eigen::Vector4f>& region_planes,
+                                   const std::vector<bool>& region_excluded, double max_plane_distance_m,
+                                   double max_angle_deg, std::vector<int>& labels, const std::vector<bool>& ground) {
+  const std::size_t n = points.size();
+  if (labels.size() != n || ground.size() != n || normals.size() != n || g.count.size() != n) {
+    throw std::invalid_argument("adoptUnsegmentedPoints: points, normals, graph, labels and ground mask sizes differ");
+  }
+  std::vector<Eigen::Vector4f> unit(region_planes.size(), Eigen::Vector4f::Zero());
+  std::vector<bool> open(region_planes.size(), false);
+  for (std::size_t r = 0; r < region_planes.size(); ++r) {
+    const float len = region_planes[r].head<3>().norm();
+    if (!(len > 0.f) || !region_planes[r].allFinite()) continue;
+    unit[r] = region_planes[r] / len;
+    open[r] = !(r < region_excluded.size() && region_excluded[r]);
+  }
+  const float max_d2 = static_cast<float>(max_neighbour_distance_m * max_neighbour_distance_m);
+  const float max_plane = static_cast<float>(max_plane_distance_m);
+  const float min_cos = static_cast<float>(std::cos(max_angle_deg * M_PI / 180.0));
+  std::vector<int> orphans;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (labels[i] < 0 && !ground[i] && !normals[i].isZero()) orphans.push_back(static_cast<int>(i));
+  }
+  // For each point, the orphans that have it as a neighbour (CSR): only those can
+  // change their mind when it joins a region.
+  std::vector<int> watch_start(n + 1, 0), watchers;
+  for (int o : orphans) {
+    forNeighboursWithin(g, static_cast<std::size_t>(o), max_d2, [&](std::size_t nb) { ++watch_start[nb + 1]; });
+  }
+  for (std::size_t i = 0; i < n; ++i) watch_start[i + 1] += watch_start[i];
+  watchers.resize(static_cast<std::size_t>(watch_start[n]));
+  {
+    std::vector<int> fill(watch_start.begin(), watch_start.end() - 1);
+    for (int o : orphans) {
+      forNeighboursWithin(g, static_cast<std::size_t>(o), max_d2,
+                          [&](std::size_t nb) { watchers[static_cast<std::size_t>(fill[nb]++)] = o; });
+    }
+  }
+  // Rounds: each round, every orphan next to a region it fits joins the closest such
+  // region (by distance to the plane), decided on the labels of the round before, so
+  // the result does not depend on the order points are visited in. After the first
+  // round only orphans next to a point that joined in the last round are looked at.
+  std::size_t adopted = 0;
+  std::vector<std::pair<int, int>> joins;
+  std::vector<int> stamp(n, -1);
+  for (int round = 0; !orphans.empty(); ++round) {
+    joins.clear();
+    for (int o : orphans) {
+      const auto j = static_cast<std::size_t>(o);
+      const Eigen::Vector3f& q = points[j];
+      int best = -1;
+      float best_d = max_plane;
+      forNeighboursWithin(g, j, max_d2, [&](std::size_t nb) {
+        const int r = labels[nb];
+        if (r < 0 || static_cast<std::size_t>(r) >= open.size() || !open[static_cast<std::size_t>(r)]) return;
+        const Eigen::Vector4f& pl = unit[static_cast<std::size_t>(r)];
+        const float d = std::abs(pl.head<3>().dot(q) + pl(3));
+        if (d > best_d || (d == best_d && best >= 0 && r >= best)) return;
+        if (std::abs(pl.head<3>().dot(normals[j])) < min_cos) return;
+        best = r;
+        best_d = d;
+      });
+      if (best >= 0) joins.emplace_back(o, best);
+    }
+    if (joins.empty()) break;
+    for (const auto& [o, r] : joins) labels[static_cast<std::size_t>(o)] = r;
+    adopted += joins.size();
+    orphans.clear();
+    for (const auto& jr : joins) {
+      const auto a = static_cast<std::size_t>(jr.first);
+      for (int w = watch_start[a]; w < watch_start[a + 1]; ++w) {
+        const int o = watchers[static_cast<std::size_t>(w)];
+        if (labels[static_cast<std::size_t>(o)] >= 0 || stamp[static_cast<std::size_t>(o)] == round) continue;
+        stamp[static_cast<std::size_t>(o)] = round;
+        orphans.push_back(o);
+      }
+    }
+  }
+  return adopted;
+}
+
 }  // namespace mobmap::perception

@@ -147,6 +147,20 @@ std::size_t absorbGroundIntoRough(const KnnGraph& graph, double max_neighbour_di
                                   const std::vector<bool>& region_is_rough, double min_fraction, int passes,
                                   std::vector<int>& labels, std::vector<bool>& ground);
 
+/// Gives points that region growing left out (colour jumps between neighbours under
+/// sensor noise break a plane into a large region and many specks below the size
+/// limit) to the region next to them whose plane they lie on. In rounds, every
+/// unsegmented point that is not ground, has a normal, and has a graph neighbour
+/// within `max_neighbour_distance_m` in region r joins the r (not excluded by
+/// `region_excluded`) whose plane `region_planes[r]` it is closest to, if that
+/// distance is at most `max_plane_distance_m` and its normal is within
+/// `max_angle_deg` of the plane's. Updates `labels`; returns how many points joined.
+std::size_t adoptUnsegmentedPoints(const std::vector<Eigen::Vector3f>& points,
+                                   const std::vector<Eigen::Vector3f>& normals, const KnnGraph& graph,
+                                   double max_neighbour_distance_m, const std::vector<Eigen::Vector4f>& region_planes,
+                                   const std::vector<bool>& region_excluded, double max_plane_distance_m,
+                                   double max_angle_deg, std::vector<int>& labels, const std::vector<bool>& ground);
+
 /// Gives back to a tilted region the ground inliers that continue it. RANSAC takes
 /// every point within its distance of the floor plane, which includes the foot of a
 /// gentle ramp (a 5 degree ramp stays within 2 cm of the floor for its first 23 cm).
