@@ -161,6 +161,45 @@ TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   fs::remove_all(dir);
 }
 
+// An organized cloud of a wall 2 m ahead over a floor 0.4 m below, the wall the larger.
+TEST(Cli, AnalyzeWithoutGravityWarnsWhenTheLargestPlaneIsAWall) {
+  const std::string dir = tempDir("wall");
+  fs::create_directories(dir);
+  const std::string pcd = dir + "/wall.pcd";
+  {
+    std::ofstream out(pcd);
+    const int w = 160, h = 120;
+    const double f = 120, cx = 80, cy = 60;
+    out << "VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH " << w << "\nHEIGHT " << h
+        << "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << w * h << "\nDATA ascii\n";
+    for (int v = 0; v < h; ++v) {
+      for (int u = 0; u < w; ++u) {
+        const double dx = (u - cx) / f, dy = (v - cy) / f;
+        const double t = dy > 0 ? std::min(2.0, 0.4 / dy) : 2.0;
+        out << dx * t << " " << dy * t << " " << t << "\n";
+      }
+    }
+  }
+  const Result plain = run("analyze " + pcd + " --json");
+  ASSERT_EQ(plain.code, 0) << plain.out;
+  EXPECT_NE(plain.out.find("may be a wall"), std::string::npos) << plain.out;
+  EXPECT_NE(plain.out.find("--gravity 0,1,0"), std::string::npos);
+  const Result level = run("analyze " + pcd + " --gravity 0,1,0 --json");
+  ASSERT_EQ(level.code, 0) << level.out;
+  EXPECT_EQ(level.out.find("may be a wall"), std::string::npos) << level.out;
+  const auto j = nlohmann::json::parse(level.out);
+  ASSERT_TRUE(j.contains("ground_plane")) << level.out;
+  EXPECT_NEAR(j["ground_plane"][3].get<double>(), 0.4, 0.02);  // the floor, 0.4 m below
+  // `build` takes "down" from the ground plane of a lone PCD: the same note.
+  const Result b = run("build " + pcd + " --out " + dir + "/m.ot --quiet");
+  ASSERT_EQ(b.code, 0) << b.out;
+  EXPECT_NE(b.out.find("may be a wall"), std::string::npos) << b.out;
+  const Result bg = run("build " + pcd + " --out " + dir + "/g.ot --gravity 0,1,0 --quiet");
+  ASSERT_EQ(bg.code, 0) << bg.out;
+  EXPECT_EQ(bg.out.find("may be a wall"), std::string::npos) << bg.out;
+  fs::remove_all(dir);
+}
+
 TEST(Cli, BadSequencesAndMapsGiveErrorsNamingTheFile) {
   const std::string dir = tempDir("bad");
   ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 3 --noise none --quiet").code, 0);

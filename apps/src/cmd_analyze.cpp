@@ -122,7 +122,7 @@ Command addAnalyzeCommand(CLI::App& app) {
   auto o = std::make_shared<Options>();
   cmd->add_option("INPUT", o->input, "A .pcd, a 16-bit depth .png (millimetres) or a 7-Scenes layout directory")->required();
   cmd->add_option("--frame", o->frame, "Frame number in a directory (default: the first)");
-  cmd->add_option("--gravity", o->gravity, "Gravity (down) in the camera frame, X,Y,Z (default: from the pose and gravity-direction.txt if present)");
+  cmd->add_option("--gravity", o->gravity, "Gravity (down) in the camera frame, X,Y,Z (default: from the pose and gravity-direction.txt if present; without gravity the largest plane is the ground; 0,1,0 for a level camera)");
   cmd->add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy or a camera-intrinsics.txt file (required for a PNG)");
   cmd->add_option("--max-range", o->max_range, "Maximum range in metres (default 3)");
   cmd->add_option("--config", o->config, "YAML file with any of the parameters of `mobmap config --print-default`");
@@ -152,6 +152,12 @@ Command addAnalyzeCommand(CLI::App& app) {
       height = f.height;
     } else {
       r = pipeline.process(f.points, f.gravity_camera);
+    }
+    // Without gravity the paper's rule takes the largest plane as the ground, which in
+    // a corridor seen end-on is the far wall. Say so when the plane faces the camera.
+    if (!f.gravity_camera && r.ground_plane) {
+      const std::string note = groundMayBeAWallNote(*r.ground_plane, "--gravity");
+      if (!note.empty()) std::fprintf(stderr, "%s\n", note.c_str());
     }
     if (!o->segments.empty()) writeSegmentsPcd(o->segments, r);
     if (!o->overlay.empty()) {

@@ -178,6 +178,10 @@ Command addBuildCommand(CLI::App& app) {
                                         : pipeline.process(single.points);
       gravity_world = single_result->ground_plane ? Eigen::Vector3d(-single_result->ground_plane->head<3>().cast<double>())
                                                   : Eigen::Vector3d(0, 1, 0);
+      if (single_result->ground_plane) {
+        const std::string note = groundMayBeAWallNote(*single_result->ground_plane, "--gravity");
+        if (!note.empty()) std::fprintf(stderr, "%s\n", note.c_str());
+      }
     }
     const Eigen::Vector3d g_world = gravity_world.value_or(Eigen::Vector3d(0, 0, -1));
     const Eigen::Matrix3d R_map_world = mapping::gravityAlignment(g_world);

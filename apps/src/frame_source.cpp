@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <sstream>
 
@@ -132,6 +133,22 @@ LoadedFrame loadSingleFrame(const std::string& input, int frame, const std::stri
   }
   if (!fs::exists(input, ec)) throw IoError(input, "no such file or directory");
   throw IoError(input, "unknown input type (expected a .pcd, a 16-bit depth .png or a 7-Scenes directory)");
+}
+
+}  // namespace mobmap::app
+
+namespace mobmap::app {
+
+std::string groundMayBeAWallNote(const Eigen::Vector4f& ground_plane, const std::string& flag) {
+  const double tilt =
+      std::acos(std::clamp(static_cast<double>(-ground_plane(1) / ground_plane.head<3>().norm()), -1.0, 1.0)) * 180.0 / M_PI;
+  if (!(tilt > 45.0)) return {};
+  char buf[320];
+  std::snprintf(buf, sizeof buf,
+                "note: no gravity given, so the ground is the largest plane; this one is %.0f degrees from the image's "
+                "up axis and may be a wall. If the camera was held level, pass %s 0,1,0.",
+                tilt, flag.c_str());
+  return buf;
 }
 
 }  // namespace mobmap::app
