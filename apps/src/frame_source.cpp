@@ -135,10 +135,6 @@ LoadedFrame loadSingleFrame(const std::string& input, int frame, const std::stri
   throw IoError(input, "unknown input type (expected a .pcd, a 16-bit depth .png or a 7-Scenes directory)");
 }
 
-}  // namespace mobmap::app
-
-namespace mobmap::app {
-
 std::string groundMayBeAWallNote(const Eigen::Vector4f& ground_plane, const std::string& flag) {
   const double tilt =
       std::acos(std::clamp(static_cast<double>(-ground_plane(1) / ground_plane.head<3>().norm()), -1.0, 1.0)) * 180.0 / M_PI;
