@@ -399,11 +399,11 @@ std::vector<int> mergeFragments(const std::vector<Eigen::Vector3f>& points, cons
                                 int min_segment_points, int fragment_max_points, double fragment_max_width_m,
                                 int min_fragments, int min_points, double min_width_m, double min_spread_deg,
                                 const std::optional<Eigen::Vector3f>& up, double max_slope_deg, int* regions,
-                                std::vector<bool>* rough) {
+                                std::vector<bool>* rough, const std::vector<bool>* ground) {
   const double cos_max_slope = std::cos(max_slope_deg * M_PI / 180.0);
   const std::size_t n = points.size();
-  if (labels.size() != n || normals.size() != n || g.count.size() != n) {
-    throw std::invalid_argument("mergeFragments: points, normals, graph and labels sizes differ");
+  if (labels.size() != n || normals.size() != n || g.count.size() != n || (ground && ground->size() != n)) {
+    throw std::invalid_argument("mergeFragments: points, normals, graph, labels and ground mask sizes differ");
   }
   int n_in = 0;
   for (int l : labels) n_in = std::max(n_in, l + 1);
@@ -432,6 +432,7 @@ std::vector<int> mergeFragments(const std::vector<Eigen::Vector3f>& points, cons
     const float max_d2 = static_cast<float>(max_neighbour_distance_m * max_neighbour_distance_m);
     std::vector<int> queue;
     std::vector<int> seen_stamp(static_cast<std::size_t>(n_in), -1);
+    std::vector<int> bridge_stamp(ground ? n : 0, -1);
     for (std::size_t seed = 0; seed < n; ++seed) {
       if (group[seed] >= 0 || !is_fragment(seed)) continue;
       const int id = static_cast<int>(group_kept.size());
@@ -445,10 +446,18 @@ std::vector<int> mergeFragments(const std::vector<Eigen::Vector3f>& points, cons
           stamp = id;
           ++fragments;
         }
-        forNeighboursWithin(g, i, max_d2, [&](std::size_t nb) {
+        auto take = [&](std::size_t nb) {
           if (group[nb] >= 0 || !is_fragment(nb)) return;
           group[nb] = id;
           queue.push_back(static_cast<int>(nb));
+        };
+        forNeighboursWithin(g, i, max_d2, [&](std::size_t nb) {
+          take(nb);
+          // Across one ground point to the fragments on its other side.
+          if (ground && (*ground)[nb] && bridge_stamp[nb] != id) {
+            bridge_stamp[nb] = id;
+            forNeighboursWithin(g, nb, max_d2, take);
+          }
         });
       }
       bool keep = fragments >= min_fragments && static_cast<int>(queue.size()) >= min_points;

@@ -119,7 +119,11 @@ std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
 /// horizontal (walking surfaces: a staircase or wall seen at a range where noise
 /// fragments it is not rough ground), becomes one region, whose slope and roughness
 /// are then those of the rough surface as a whole. Other regions under
-/// `min_segment_points` are dropped. Returns the final labels (0.. in order of first
+/// `min_segment_points` are dropped. If `ground` (a mask of the ground's points) is
+/// given, fragments on either side of one ground point within that distance of both
+/// connect: the floor's RANSAC band takes the bottoms of a rough surface's valleys,
+/// and without noise the strips it leaves cut the surface into rows too narrow to
+/// pass the width test. Returns the final labels (0.. in order of first
 /// point, -1 none); `regions` gets their number and `rough` (if given) a flag per
 /// region for the merged ones.
 std::vector<int> mergeFragments(const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3f>& normals,
@@ -127,7 +131,7 @@ std::vector<int> mergeFragments(const std::vector<Eigen::Vector3f>& points, cons
                                 int min_segment_points, int fragment_max_points, double fragment_max_width_m,
                                 int min_fragments, int min_points, double min_width_m, double min_spread_deg,
                                 const std::optional<Eigen::Vector3f>& up, double max_slope_deg, int* regions,
-                                std::vector<bool>* rough = nullptr);
+                                std::vector<bool>* rough = nullptr, const std::vector<bool>* ground = nullptr);
 
 /// The ground plane's RANSAC band also takes the creases of a rough surface that lie
 /// in it (the valleys of a pyramid field standing on the floor, whose normals average
