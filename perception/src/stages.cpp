@@ -608,7 +608,7 @@ std::size_t reclaimGroundPoints(const std::vector<Eigen::Vector3f>& points, cons
                                 double max_neighbour_distance_m, const Eigen::Vector4f& ground_plane,
                                 const std::vector<Eigen::Vector4f>& region_planes, double min_angle_deg,
                                 double max_angle_deg, double max_plane_distance_m, std::vector<int>& labels,
-                                std::vector<bool>& ground) {
+                                std::vector<bool>& ground, const std::vector<Eigen::Vector3f>* normals) {
   const std::size_t n = points.size();
   if (labels.size() != n || ground.size() != n || g.count.size() != n) {
     throw std::invalid_argument("reclaimGroundPoints: points, graph, labels and ground mask sizes differ");
@@ -646,6 +646,10 @@ std::size_t reclaimGroundPoints(const std::vector<Eigen::Vector3f>& points, cons
       const float to_region = std::abs(pl.head<3>().dot(q) + pl(3));
       const float to_ground = std::abs(gn.dot(q) + gd);
       if (to_region >= to_ground || to_region > max_plane) return;
+      if (normals && !(*normals)[nb].isZero() &&
+          std::abs((*normals)[nb].dot(pl.head<3>())) <= std::abs((*normals)[nb].dot(gn))) {
+        return;  // its normal says floor
+      }
       ground[nb] = false;
       labels[nb] = static_cast<int>(r);
       queue.push_back(static_cast<int>(nb));

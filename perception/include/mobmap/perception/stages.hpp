@@ -174,13 +174,18 @@ std::size_t adoptUnsegmentedPoints(const std::vector<Eigen::Vector3f>& points,
 /// must stay floor), a breadth-first walk over graph neighbours
 /// within `max_neighbour_distance_m` moves a ground point into the region when it
 /// is closer to the region's plane than to the ground plane and within
-/// `max_plane_distance_m` of it. Updates `labels` (region per point, -1 none) and
-/// `ground` (ground mask); returns how many points moved.
+/// `max_plane_distance_m` of it, and, if `normals` are given, when the point's normal
+/// is closer to the region's plane normal than to the ground's (along the line where a
+/// ramp's plane meets the floor, extended past the ramp's sides, noisy floor points are
+/// as close to one plane as to the other, and without this test the walk spreads
+/// along that line). Updates `labels` (region per point, -1 none) and `ground`
+/// (ground mask); returns how many points moved.
 std::size_t reclaimGroundPoints(const std::vector<Eigen::Vector3f>& points, const KnnGraph& graph,
                                 double max_neighbour_distance_m, const Eigen::Vector4f& ground_plane,
                                 const std::vector<Eigen::Vector4f>& region_planes, double min_angle_deg,
                                 double max_angle_deg, double max_plane_distance_m, std::vector<int>& labels,
-                                std::vector<bool>& ground);
+                                std::vector<bool>& ground,
+                                const std::vector<Eigen::Vector3f>* normals = nullptr);
 
 
 /// Roughness r = A / A' (paper eqs. 8-10) of a segment: CGAL 2D Delaunay triangulation
