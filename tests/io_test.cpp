@@ -281,7 +281,9 @@ TEST(Evaluate, EdgeVoxelsAreScoredApartAndFacesNeverInViewTakeNoVoxels) {
   surface(0.51, 0.99, 0.03, 1.0);  // floor noise 1 cm from the back face, 3 cm above the floor
   const mapping::MobilityMap map(std::move(tree), mapping::MapParams{}, Eigen::Matrix3d::Identity());
 
-  const Evaluation ev = evaluateMap(map, loadGroundTruth(with_views), 3, 0.04);
+  // The evaluation points into the ground truth: both must outlive the checks.
+  const GroundTruth truth = loadGroundTruth(with_views);
+  const Evaluation ev = evaluateMap(map, truth, 3, 0.04);
   ASSERT_EQ(ev.surfaces.size(), 3u);
   EXPECT_FALSE(ev.surfaces[2].surface->seen);
   EXPECT_EQ(ev.surfaces[0].voxels, 3);  // with the voxel beside the back face
@@ -297,7 +299,8 @@ TEST(Evaluate, EdgeVoxelsAreScoredApartAndFacesNeverInViewTakeNoVoxels) {
   EXPECT_EQ(ev.false_untraversable, 1);
 
   // Without pixels_seen every surface counts as seen: the back face takes its voxel.
-  const Evaluation all = evaluateMap(map, loadGroundTruth(without_views), 3, 0.04);
+  const GroundTruth truth_all = loadGroundTruth(without_views);
+  const Evaluation all = evaluateMap(map, truth_all, 3, 0.04);
   EXPECT_TRUE(all.surfaces[2].surface->seen);
   EXPECT_EQ(all.surfaces[2].voxels, 1);
   EXPECT_NEAR(all.surfaces[2].mean_abs_error, 1.0, 0.005);

@@ -55,5 +55,8 @@ struct Evaluation {
 /// the nearest ground-truth surface within `tolerance_m` and scores it.
 Evaluation evaluateMap(const mapping::MobilityMap& map, const GroundTruth& truth, int min_count, double tolerance_m,
                        double edge_band_m = -1);
+/// The result points into `truth`, so a temporary cannot be evaluated.
+Evaluation evaluateMap(const mapping::MobilityMap& map, GroundTruth&& truth, int min_count, double tolerance_m,
+                       double edge_band_m = -1) = delete;
 
 }  // namespace mobmap::app
