@@ -156,7 +156,7 @@ Command addAnalyzeCommand(CLI::App& app) {
     // Without gravity the paper's rule takes the largest plane as the ground, which in
     // a corridor seen end-on is the far wall. Say so when the plane faces the camera.
     if (!f.gravity_camera && r.ground_plane) {
-      const std::string note = groundMayBeAWallNote(*r.ground_plane, "--gravity");
+      const std::string note = groundMayBeAWallNote(*r.ground_plane);
       if (!note.empty()) std::fprintf(stderr, "%s\n", note.c_str());
     }
     if (!o->segments.empty()) writeSegmentsPcd(o->segments, r);

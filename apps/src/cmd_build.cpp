@@ -179,7 +179,7 @@ Command addBuildCommand(CLI::App& app) {
       gravity_world = single_result->ground_plane ? Eigen::Vector3d(-single_result->ground_plane->head<3>().cast<double>())
                                                   : Eigen::Vector3d(0, 1, 0);
       if (single_result->ground_plane) {
-        const std::string note = groundMayBeAWallNote(*single_result->ground_plane, "--gravity");
+        const std::string note = groundMayBeAWallNote(*single_result->ground_plane);
         if (!note.empty()) std::fprintf(stderr, "%s\n", note.c_str());
       }
     }

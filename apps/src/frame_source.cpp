@@ -135,15 +135,15 @@ LoadedFrame loadSingleFrame(const std::string& input, int frame, const std::stri
   throw IoError(input, "unknown input type (expected a .pcd, a 16-bit depth .png or a 7-Scenes directory)");
 }
 
-std::string groundMayBeAWallNote(const Eigen::Vector4f& ground_plane, const std::string& flag) {
+std::string groundMayBeAWallNote(const Eigen::Vector4f& ground_plane) {
   const double tilt =
       std::acos(std::clamp(static_cast<double>(-ground_plane(1) / ground_plane.head<3>().norm()), -1.0, 1.0)) * 180.0 / M_PI;
   if (!(tilt > 45.0)) return {};
   char buf[320];
   std::snprintf(buf, sizeof buf,
                 "note: no gravity given, so the ground is the largest plane; this one is %.0f degrees from the image's "
-                "up axis and may be a wall. If the camera was held level, pass %s 0,1,0.",
-                tilt, flag.c_str());
+                "up axis and may be a wall. If the camera was held level, pass --gravity 0,1,0.",
+                tilt);
   return buf;
 }
 

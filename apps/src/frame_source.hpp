@@ -37,9 +37,9 @@ perception::PinholeIntrinsics parseIntrinsics(const std::string& spec, int width
 
 /// For a ground plane found without gravity (the largest plane, camera frame, normal
 /// towards the camera): a note for the user when it is more than 45 degrees from the
-/// image's up axis (-y), i.e. probably a wall; empty otherwise. `flag` is the option
-/// that supplies gravity in the calling command.
-std::string groundMayBeAWallNote(const Eigen::Vector4f& ground_plane, const std::string& flag);
+/// image's up axis (-y), i.e. probably a wall; empty otherwise. `analyze` and `build`
+/// both take gravity as `--gravity`.
+std::string groundMayBeAWallNote(const Eigen::Vector4f& ground_plane);
 
 /// Parses "X,Y,Z" (non-zero, finite). Throws UsageError.
 Eigen::Vector3f parseVector3(const std::string& spec, const std::string& what);

@@ -281,15 +281,15 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
   // 6. Colour region growing on what is not ground.
   clock.start();
   int regions = 0;
-  std::vector<int> labels;
   std::vector<bool> region_rough;
   std::optional<Eigen::Vector3f> level = up;
   if (!level && out.ground_plane) level = out.ground_plane->head<3>();
   // With rough joining on, every region is kept (min size 1) so that the small ones
   // can be judged as fragments; mergeFragments applies the size limit afterwards.
   const bool join_rough = p.rough_fragment_max_points > 0;
-  labels = growRegions(out.points, out.colours, graph, eligible, p.colour_threshold, p.neighbour_distance_m,
-                       join_rough ? 1 : p.min_segment_points, &regions, &out.normals, p.region_max_normal_deviation_deg);
+  std::vector<int> labels =
+      growRegions(out.points, out.colours, graph, eligible, p.colour_threshold, p.neighbour_distance_m,
+                  join_rough ? 1 : p.min_segment_points, &regions, &out.normals, p.region_max_normal_deviation_deg);
   std::vector<bool> is_ground(n);
   for (std::size_t i = 0; i < n; ++i) is_ground[i] = !eligible[i];
   if (join_rough) {
