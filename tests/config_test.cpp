@@ -51,6 +51,7 @@ TEST(Config, ShippedDefaultYamlEqualsTheStructDefaults) {
   EXPECT_EQ(c.perception.max_triangle_edge_m, p.max_triangle_edge_m);
   EXPECT_EQ(c.perception.roughness_smoothing, p.roughness_smoothing);
   EXPECT_EQ(c.perception.roughness_smoothing_passes, p.roughness_smoothing_passes);
+  EXPECT_EQ(c.perception.rough_smoothing_k, p.rough_smoothing_k);
   EXPECT_EQ(c.perception.random_seed, p.random_seed);
   const mapping::MapParams m;
   EXPECT_EQ(c.mapping.resolution_m, m.resolution_m);

@@ -262,6 +262,31 @@ TEST(Normals, InverseIterationFromANearbyNormalEqualsTheExactEigenvector) {
               *std::max_element(planar_angles.begin(), planar_angles.end()), worst_shift);
 }
 
+// Rough segments in coarse voxels are projected with fewer neighbours than the normals
+// use: the first k of each row of the wide graph must give what a k-graph gives.
+TEST(Normals, ProjectionOnTheFirstKNeighboursEqualsTheProjectionOfAKGraph) {
+  const auto pts = randomCloud(2000, 5);
+  const KnnGraph wide = buildKnnGraph(pts, 30, 0.05f, 1.f);
+  const KnnGraph narrow = bruteForceKnnGraph(pts, 7);
+  std::vector<Eigen::Vector3f> n, reference;
+  std::vector<float> curv;
+  estimateNormals(pts, narrow, Eigen::Vector3f(0, 0, 5), n, curv, &reference);
+  std::vector<int> which;
+  for (int i = 0; i < static_cast<int>(pts.size()); i += 3) which.push_back(i);
+  std::vector<Eigen::Vector3f> projected = pts;
+  projectOntoLocalPlanes(pts, wide, 7, which, projected);
+  std::size_t moved = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    if (i % 3 == 0) {
+      EXPECT_LT((projected[i] - reference[i]).norm(), 1e-6f) << i;
+      moved += (projected[i] - pts[i]).norm() > 1e-4f;
+    } else {
+      EXPECT_EQ(projected[i], pts[i]) << i << " is not in `which`";
+    }
+  }
+  EXPECT_GT(moved, which.size() / 2);  // a random cloud is not planar: the projection moves points
+}
+
 TEST(RgbN, PerCloudMinMaxNormalisation) {
   const std::vector<Eigen::Vector3f> n = {{0, 0, 1}, {0.6f, 0, 0.8f}, {-0.6f, 0.8f, 0}};
   const auto c = normalColours(n);
@@ -1013,6 +1038,42 @@ TEST(PerceptionParams, RejectsAbsurdValuesNamingTheField) {
   p = {};
   p.ground_probability = 1.0;
   EXPECT_THROW(FramePipeline{p}, std::invalid_argument);
+}
+
+TEST(PerceptionParams, ScaledToCoarserVoxelsKeepTheirPhysicalSizes) {
+  const PerceptionParams d;
+  const PerceptionParams c = scaledToVoxel(d, 0.02);
+  EXPECT_NO_THROW(validate(c));
+  EXPECT_EQ(c.voxel_size_m, 0.02);
+  // Counts of points on an area: a quarter (rounded).
+  EXPECT_EQ(c.min_segment_points, 13);     // 50 / 4
+  EXPECT_EQ(c.ground_min_points, 125);     // 500 / 4
+  EXPECT_EQ(c.rough_fragment_max_points, 38);
+  EXPECT_EQ(c.rough_min_points, 25);
+  EXPECT_EQ(c.rough_smoothing_k, 7);       // 31 points on the same disc: 31 / 4 - 1
+  // Spacing-tied distances double; neighbour counts and physical sizes stay.
+  EXPECT_DOUBLE_EQ(c.neighbour_distance_m, 2 * d.neighbour_distance_m);
+  EXPECT_DOUBLE_EQ(c.max_triangle_edge_m, 2 * d.max_triangle_edge_m);
+  EXPECT_EQ(c.normal_k, d.normal_k);
+  EXPECT_EQ(c.outlier_k, d.outlier_k);
+  EXPECT_EQ(c.ground_distance_m, d.ground_distance_m);
+  EXPECT_EQ(c.rough_min_width_m, d.rough_min_width_m);
+  EXPECT_EQ(c.adopt_max_distance_m, d.adopt_max_distance_m);
+  // The same voxel size changes nothing.
+  const PerceptionParams same = scaledToVoxel(d, 0.01);
+  EXPECT_EQ(same.min_segment_points, d.min_segment_points);
+  EXPECT_EQ(same.ground_min_points, d.ground_min_points);
+  EXPECT_EQ(same.rough_fragment_max_points, d.rough_fragment_max_points);
+  EXPECT_EQ(same.rough_min_points, d.rough_min_points);
+  EXPECT_EQ(same.rough_smoothing_k, d.rough_smoothing_k);
+  EXPECT_DOUBLE_EQ(same.neighbour_distance_m, d.neighbour_distance_m);
+  EXPECT_DOUBLE_EQ(same.max_triangle_edge_m, d.max_triangle_edge_m);
+  // Rough joining switched off stays off.
+  PerceptionParams off;
+  off.rough_fragment_max_points = 0;
+  EXPECT_EQ(scaledToVoxel(off, 0.02).rough_fragment_max_points, 0);
+  EXPECT_THROW((void)scaledToVoxel(d, 0.0), std::invalid_argument);
+  EXPECT_THROW((void)scaledToVoxel(d, std::nan("")), std::invalid_argument);
 }
 
 }  // namespace

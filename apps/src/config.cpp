@@ -72,6 +72,7 @@ static Config parseConfigUnchecked(const std::string& text, const std::string& o
          {"rough_min_width_m", bind(p.rough_min_width_m)}, {"rough_max_slope_deg", bind(p.rough_max_slope_deg)},
          {"rough_min_normal_spread_deg", bind(p.rough_min_normal_spread_deg)}, {"plane_ransac_distance_m", bind(p.plane_ransac_distance_m)},
          {"max_triangle_edge_m", bind(p.max_triangle_edge_m)}, {"roughness_smoothing", bind(p.roughness_smoothing)}, {"roughness_smoothing_passes", bind(p.roughness_smoothing_passes)},
+         {"rough_smoothing_k", bind(p.rough_smoothing_k)},
          {"random_seed", bind(p.random_seed)}},
         origin);
   auto& m = c.mapping;

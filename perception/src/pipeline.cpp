@@ -88,8 +88,30 @@ void validate(const PerceptionParams& p) {
   if (!(p.rough_min_normal_spread_deg >= 0 && p.rough_min_normal_spread_deg <= 90)) fail("rough_min_normal_spread_deg", p.rough_min_normal_spread_deg, "must be in [0, 90]");
   if (!(p.rough_max_slope_deg >= 0 && p.rough_max_slope_deg <= 90)) fail("rough_max_slope_deg", p.rough_max_slope_deg, "must be in [0, 90]");
   if (p.roughness_smoothing_passes < 1 || p.roughness_smoothing_passes > 10) fail("roughness_smoothing_passes", p.roughness_smoothing_passes, "must be 1..10");
+  if (p.rough_smoothing_k < 3 || p.rough_smoothing_k > 200) fail("rough_smoothing_k", p.rough_smoothing_k, "must be 3..200");
   if (!(p.plane_ransac_distance_m > 0) || !std::isfinite(p.plane_ransac_distance_m)) fail("plane_ransac_distance_m", p.plane_ransac_distance_m, "must be finite and > 0");
   if (!(p.max_triangle_edge_m > 0) || !std::isfinite(p.max_triangle_edge_m)) fail("max_triangle_edge_m", p.max_triangle_edge_m, "must be finite and > 0");
+}
+
+PerceptionParams scaledToVoxel(const PerceptionParams& params, double voxel_m) {
+  if (!(voxel_m >= 0.001 && voxel_m <= 1.0)) fail("voxel_size_m", voxel_m, "must be in [0.001, 1]");
+  if (!(params.voxel_size_m > 0)) fail("voxel_size_m", params.voxel_size_m, "must be > 0");
+  PerceptionParams p = params;
+  const double f = voxel_m / params.voxel_size_m;
+  const auto area = [f](int count, int at_least) {
+    return std::max(at_least, static_cast<int>(std::lround(count / (f * f))));
+  };
+  p.voxel_size_m = voxel_m;
+  p.min_segment_points = area(params.min_segment_points, 3);
+  p.ground_min_points = area(params.ground_min_points, 3);
+  // 0 switches rough joining off and must stay 0.
+  p.rough_fragment_max_points = params.rough_fragment_max_points > 0 ? area(params.rough_fragment_max_points, 1) : 0;
+  p.rough_min_points = area(params.rough_min_points, 3);
+  // k neighbours and the point itself cover the same disc: (k + 1) / f^2 - 1.
+  p.rough_smoothing_k = std::max(3, static_cast<int>(std::lround((params.rough_smoothing_k + 1) / (f * f) - 1)));
+  p.neighbour_distance_m = params.neighbour_distance_m * f;
+  p.max_triangle_edge_m = params.max_triangle_edge_m * f;
+  return p;
 }
 
 double FrameResult::totalMilliseconds() const {
@@ -231,7 +253,8 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
   // roughness is creases at the fragments' scale, which the widening passes below
   // round off (docs/PERCEPTION.md, "Rough surfaces", gives the numbers).
   std::vector<Eigen::Vector3f> first_planes;
-  if (p.roughness_smoothing && p.rough_fragment_max_points > 0 && p.roughness_smoothing_passes > 1) {
+  if (p.roughness_smoothing && p.rough_fragment_max_points > 0 && p.rough_smoothing_k >= p.normal_k &&
+      p.roughness_smoothing_passes > 1) {
     first_planes = smoothed;
   }
   // Each pass starts its eigenvectors from the previous pass's normals (the fast path
@@ -367,6 +390,18 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
   } else if (out.ground_plane) {
     reference = out.ground_plane->head<3>();
     out.reference = SlopeReference::kGround;
+  }
+  // With a narrower rough neighbourhood than the normals' (coarse voxels, see
+  // scaledToVoxel), the rough segments' points get their own projection.
+  if (p.roughness_smoothing && p.rough_smoothing_k < p.normal_k) {
+    std::vector<int> rough_points;
+    for (const Segment& seg : out.segments) {
+      if (seg.is_rough) rough_points.insert(rough_points.end(), seg.points.begin(), seg.points.end());
+    }
+    if (!rough_points.empty()) {
+      first_planes = out.points;
+      projectOntoLocalPlanes(out.points, graph, p.rough_smoothing_k, rough_points, first_planes);
+    }
   }
   Eigen::MatrixX2d features(static_cast<Eigen::Index>(out.segments.size()), 2);
   for (std::size_t s = 0; s < out.segments.size(); ++s) {

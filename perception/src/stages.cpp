@@ -123,6 +123,47 @@ bool inverseIteration(const Eigen::Matrix3d& c, const Eigen::Vector3d& start, Ei
 
 }  // namespace
 
+namespace {
+
+// The least-squares plane of point i and its first `c` graph neighbours `nb`: unit
+// normal (unoriented), curvature, and the neighbourhood mean relative to the point.
+struct LocalPlane {
+  Eigen::Vector3d normal;
+  Eigen::Vector3d mean;
+  float curvature = 1.f;
+};
+
+LocalPlane fitLocalPlane(const std::vector<Eigen::Vector3f>& points, std::size_t i, const int* nb, int c,
+                         const Eigen::Vector3f* near) {
+  // Covariance about the mean, accumulated relative to the point: offsets are a few
+  // centimetres, so single precision sums lose nothing that matters (relative error
+  // ~1e-7 of entries ~1e-4 m^2); the eigen-decomposition runs in double.
+  const Eigen::Vector3f pf = points[i];
+  float sx = 0, sy = 0, sz = 0, xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0;
+  for (int j = 0; j < c; ++j) {
+    const Eigen::Vector3f d = points[static_cast<std::size_t>(nb[j])] - pf;
+    sx += d.x(), sy += d.y(), sz += d.z();
+    xx += d.x() * d.x(), xy += d.x() * d.y(), xz += d.x() * d.z();
+    yy += d.y() * d.y(), yz += d.y() * d.z(), zz += d.z() * d.z();
+  }
+  LocalPlane out;
+  const double m = c + 1.0;  // the point itself contributes d = 0
+  out.mean = Eigen::Vector3d(sx, sy, sz) / m;
+  Eigen::Matrix3d ss;
+  ss << xx, xy, xz, xy, yy, yz, xz, yz, zz;
+  const Eigen::Matrix3d cov = ss / m - out.mean * out.mean.transpose();
+  if (!(near && inverseIteration(cov, near->cast<double>(), out.normal, out.curvature))) {
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+    es.computeDirect(cov);
+    out.normal = es.eigenvectors().col(0);
+    const double total = es.eigenvalues().sum();
+    out.curvature = total > 0 ? static_cast<float>(std::max(0.0, es.eigenvalues()(0)) / total) : 0.f;
+  }
+  return out;
+}
+
+}  // namespace
+
 void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph& g, const Eigen::Vector3f& viewpoint,
                      std::vector<Eigen::Vector3f>& normals, std::vector<float>& curvature,
                      std::vector<Eigen::Vector3f>* projected, const std::vector<Eigen::Vector3f>* near) {
@@ -134,37 +175,27 @@ void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph&
   for (std::size_t i = 0; i < n; ++i) {
     const int c = g.count[i];
     if (c < 2) continue;  // with the point itself, 3 points make a plane
-    // Covariance about the mean, accumulated relative to the point: offsets are a few
-    // centimetres, so single precision sums lose nothing that matters (relative error
-    // ~1e-7 of entries ~1e-4 m^2); the eigen-decomposition runs in double.
-    const Eigen::Vector3f pf = points[i];
-    const int* nb = &g.indices[i * static_cast<std::size_t>(g.k)];
-    float sx = 0, sy = 0, sz = 0, xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0;
-    for (int j = 0; j < c; ++j) {
-      const Eigen::Vector3f d = points[static_cast<std::size_t>(nb[j])] - pf;
-      sx += d.x(), sy += d.y(), sz += d.z();
-      xx += d.x() * d.x(), xy += d.x() * d.y(), xz += d.x() * d.z();
-      yy += d.y() * d.y(), yz += d.y() * d.z(), zz += d.z() * d.z();
-    }
-    const Eigen::Vector3d p0 = pf.cast<double>();
-    const double m = c + 1.0;  // the point itself contributes d = 0
-    const Eigen::Vector3d mean = Eigen::Vector3d(sx, sy, sz) / m;
-    Eigen::Matrix3d ss;
-    ss << xx, xy, xz, xy, yy, yz, xz, yz, zz;
-    const Eigen::Matrix3d cov = ss / m - mean * mean.transpose();
-    Eigen::Vector3d normal;
-    if (!(near && inverseIteration(cov, (*near)[i].cast<double>(), normal, curvature[i]))) {
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-      es.computeDirect(cov);
-      normal = es.eigenvectors().col(0);
-      const double total = es.eigenvalues().sum();
-      curvature[i] = total > 0 ? static_cast<float>(std::max(0.0, es.eigenvalues()(0)) / total) : 0.f;
-    }
+    const LocalPlane lp = fitLocalPlane(points, i, &g.indices[i * static_cast<std::size_t>(g.k)], c, near ? &(*near)[i] : nullptr);
+    Eigen::Vector3d normal = lp.normal;
+    curvature[i] = lp.curvature;
     if (normal.dot((viewpoint - points[i]).cast<double>()) < 0) normal = -normal;  // eq. 4
     normals[i] = normal.normalized().cast<float>();
-    // Move the point along the normal onto the plane through the neighbourhood mean
-    // (`mean` is relative to the point).
-    if (projected) (*projected)[i] = (p0 + normal * normal.dot(mean)).cast<float>();
+    // Move the point along the normal onto the plane through the neighbourhood mean.
+    if (projected) (*projected)[i] = (points[i].cast<double>() + normal * normal.dot(lp.mean)).cast<float>();
+  }
+}
+
+void projectOntoLocalPlanes(const std::vector<Eigen::Vector3f>& points, const KnnGraph& g, int max_neighbours,
+                            const std::vector<int>& which, std::vector<Eigen::Vector3f>& projected) {
+  if (projected.size() != points.size() || g.count.size() != points.size()) {
+    throw std::invalid_argument("projectOntoLocalPlanes: graph, points and output sizes differ");
+  }
+  for (int idx : which) {
+    const auto i = static_cast<std::size_t>(idx);
+    const int c = std::min(g.count[i], max_neighbours);
+    if (c < 2) continue;
+    const LocalPlane lp = fitLocalPlane(points, i, &g.indices[i * static_cast<std::size_t>(g.k)], c, nullptr);
+    projected[i] = (points[i].cast<double>() + lp.normal * lp.normal.dot(lp.mean)).cast<float>();
   }
 }
 

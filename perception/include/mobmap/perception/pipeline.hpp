@@ -76,11 +76,27 @@ struct PerceptionParams {
   /// How many times the projection is applied (each pass re-fits the planes on the
   /// previous pass's points with the same neighbours, widening the smoothing scale).
   int roughness_smoothing_passes = 3;
+  /// Rough segments (joined fragments) are measured after one projection only, with
+  /// this many nearest neighbours (at most normal_k): their roughness is creases at
+  /// the fragments' scale, which wider or repeated smoothing rounds off.
+  int rough_smoothing_k = 30;
   std::uint32_t random_seed = 42;         ///< RANSAC sampling (results are deterministic)
 };
 
 /// Throws std::invalid_argument "PerceptionParams: <field> is <value> (<rule>)".
 void validate(const PerceptionParams& params);
+
+/// `params` (taken as tuned for its own voxel_size_m) moved to voxels of `voxel_m`,
+/// keeping the physical sizes: with f = voxel_m / params.voxel_size_m, the point
+/// counts that stand for an area (min_segment_points, ground_min_points,
+/// rough_fragment_max_points, rough_min_points; rough_smoothing_k with the point
+/// itself: (k + 1) / f^2 - 1) are divided by f^2
+/// and the distances tied to the sample spacing (neighbour_distance_m,
+/// max_triangle_edge_m) multiplied by f. normal_k and outlier_k stay: at 2 cm, 30
+/// neighbours span ~6 cm, the normal radius of the paper's own code. Everything else
+/// is physical (metres of noise or width, degrees) and stays. Throws
+/// std::invalid_argument unless voxel_m is in [0.001, 1].
+[[nodiscard]] PerceptionParams scaledToVoxel(const PerceptionParams& params, double voxel_m);
 
 /// What the slope of a segment is measured against.
 enum class SlopeReference {

@@ -44,6 +44,14 @@ void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph&
                      std::vector<float>& curvature, std::vector<Eigen::Vector3f>* projected = nullptr,
                      const std::vector<Eigen::Vector3f>* near = nullptr);
 
+/// For the points listed in `which` only: `projected[i]` = point i moved onto the
+/// least-squares plane of itself and its first `max_neighbours` graph neighbours (the
+/// nearest, graph rows being sorted), as estimateNormals' `projected` with a
+/// narrower neighbourhood. Other entries are left as they are. `projected` must have
+/// one entry per point.
+void projectOntoLocalPlanes(const std::vector<Eigen::Vector3f>& points, const KnnGraph& graph, int max_neighbours,
+                            const std::vector<int>& which, std::vector<Eigen::Vector3f>& projected);
+
 /// RGB-N colours (paper eq. 5): each normal component mapped to 0-255 with the
 /// cloud's own min and max of that component.
 std::vector<std::array<std::uint8_t, 3>> normalColours(const std::vector<Eigen::Vector3f>& normals);
