@@ -162,24 +162,27 @@ TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
 }
 
 // An organized cloud of a wall 2 m ahead over a floor 0.4 m below, the wall the larger.
+// `scale` multiplies the image size (160 x 120 pixels) and the focal length.
+void writeWallOverFloorPcd(const std::string& pcd, int scale = 1) {
+  std::ofstream out(pcd);
+  const int w = 160 * scale, h = 120 * scale;
+  const double f = 120.0 * scale, cx = 80.0 * scale, cy = 60.0 * scale;
+  out << "VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH " << w << "\nHEIGHT " << h
+      << "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << w * h << "\nDATA ascii\n";
+  for (int v = 0; v < h; ++v) {
+    for (int u = 0; u < w; ++u) {
+      const double dx = (u - cx) / f, dy = (v - cy) / f;
+      const double t = dy > 0 ? std::min(2.0, 0.4 / dy) : 2.0;
+      out << dx * t << " " << dy * t << " " << t << "\n";
+    }
+  }
+}
+
 TEST(Cli, AnalyzeWithoutGravityWarnsWhenTheLargestPlaneIsAWall) {
   const std::string dir = tempDir("wall");
   fs::create_directories(dir);
   const std::string pcd = dir + "/wall.pcd";
-  {
-    std::ofstream out(pcd);
-    const int w = 160, h = 120;
-    const double f = 120, cx = 80, cy = 60;
-    out << "VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH " << w << "\nHEIGHT " << h
-        << "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << w * h << "\nDATA ascii\n";
-    for (int v = 0; v < h; ++v) {
-      for (int u = 0; u < w; ++u) {
-        const double dx = (u - cx) / f, dy = (v - cy) / f;
-        const double t = dy > 0 ? std::min(2.0, 0.4 / dy) : 2.0;
-        out << dx * t << " " << dy * t << " " << t << "\n";
-      }
-    }
-  }
+  writeWallOverFloorPcd(pcd);
   const Result plain = run("analyze " + pcd + " --json");
   ASSERT_EQ(plain.code, 0) << plain.out;
   EXPECT_NE(plain.out.find("may be a wall"), std::string::npos) << plain.out;
@@ -197,6 +200,40 @@ TEST(Cli, AnalyzeWithoutGravityWarnsWhenTheLargestPlaneIsAWall) {
   const Result bg = run("build " + pcd + " --out " + dir + "/g.ot --gravity 0,1,0 --quiet");
   ASSERT_EQ(bg.code, 0) << bg.out;
   EXPECT_EQ(bg.out.find("may be a wall"), std::string::npos) << bg.out;
+  fs::remove_all(dir);
+}
+
+// --voxel: the same scene in 2 cm voxels holds about a quarter of the points, finds
+// the same floor, and the map's metadata records the voxel size.
+TEST(Cli, CoarserVoxelsReduceTheCloudAndKeepTheFloor) {
+  const std::string dir = tempDir("voxel");
+  fs::create_directories(dir);
+  const std::string pcd = dir + "/wall.pcd";
+  writeWallOverFloorPcd(pcd, 3);  // pixels 6 mm apart on the wall: every 1 cm voxel holds one
+  const auto reduced = [](const Result& r) {
+    const auto j = nlohmann::json::parse(r.out);
+    for (const auto& s : j["stages"]) {
+      if (s["stage"] == "reduction") return s["points_out"].get<double>();
+    }
+    return -1.0;
+  };
+  const Result fine = run("analyze " + pcd + " --gravity 0,1,0 --json");
+  const Result coarse = run("analyze " + pcd + " --gravity 0,1,0 --voxel 0.02 --json");
+  ASSERT_EQ(fine.code, 0) << fine.out;
+  ASSERT_EQ(coarse.code, 0) << coarse.out;
+  const double ratio = reduced(coarse) / reduced(fine);
+  EXPECT_GT(ratio, 0.2) << coarse.out;
+  EXPECT_LT(ratio, 0.4) << coarse.out;
+  const auto j = nlohmann::json::parse(coarse.out);
+  ASSERT_TRUE(j.contains("ground_plane")) << coarse.out;
+  EXPECT_NEAR(j["ground_plane"][3].get<double>(), 0.4, 0.02);
+  const Result bad = run("analyze " + pcd + " --voxel 2");
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.out.find("voxel_size_m is 2"), std::string::npos) << bad.out;
+  const Result b = run("build " + pcd + " --out " + dir + "/m.ot --gravity 0,1,0 --voxel 0.02 --quiet");
+  ASSERT_EQ(b.code, 0) << b.out;
+  std::ifstream meta(dir + "/m.json");
+  EXPECT_DOUBLE_EQ(nlohmann::json::parse(meta)["perception"]["voxel_size_m"].get<double>(), 0.02);
   fs::remove_all(dir);
 }
 

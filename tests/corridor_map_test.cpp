@@ -17,15 +17,25 @@
 namespace mobmap {
 namespace {
 
+// Bounds of the per-surface check: the 0.1 mean error for every surface
+// in view; 100 voxels and 85 % on the right side of 0.5 for each large one. Coarser
+// perception voxels blur small surfaces and edges (the moving box's front face
+// most), and see the rough patch's 10 cm pyramids less rough.
+struct SurfaceBounds {
+  double mean_error = 0.1;
+  double rough_patch_mean_error = 0.1;
+  int large_surface_voxels = 100;
+  double large_surface_right_side = 0.85;
+};
 // ctest runs each TEST in its own process, so the (expensive) map is built once, in
 // one TEST, and checked in three parts.
 struct CorridorMap {
-  CorridorMap() {
+  explicit CorridorMap(const perception::PerceptionParams& params = {}) {
     sim::CorridorParams p;
     p.noise = sim::NoiseModel::kKinect;
     scene_ = new sim::CorridorScene(p);
     map_ = new mapping::MobilityMap();
-    const perception::FramePipeline pipeline;
+    const perception::FramePipeline pipeline(params);
     // Every third frame: the moving box's old front face is in view for only ~30
     // frames after it leaves, and clamped occupancy needs ~9 misses to turn free.
     std::vector<long long> pixels_seen;
@@ -51,12 +61,12 @@ struct CorridorMap {
   mapping::MobilityMap* map_ = nullptr;
   app::GroundTruth* truth_ = nullptr;
 
-  void walkableAndUntraversableSurfacesScoreAsTheTableSays() const;
+  void walkableAndUntraversableSurfacesScoreAsTheTableSays(const SurfaceBounds& bounds = SurfaceBounds()) const;
   void theMovingBoxLeavesNoSurfaceAtItsOldPlace() const;
   void footprintsOnFloorAndAcrossTheStairs() const;
 };
 
-void CorridorMap::walkableAndUntraversableSurfacesScoreAsTheTableSays() const {
+void CorridorMap::walkableAndUntraversableSurfacesScoreAsTheTableSays(const SurfaceBounds& bounds) const {
   const app::Evaluation ev = app::evaluateMap(*map_, *truth_, 3, 0.04);
   // The large surfaces must be well observed.
   const std::set<std::string> large = {"floor", "rough patch", "ramp 5 deg", "ramp 15 deg", "ramp 25 deg", "ramp 35 deg", "ramp 45 deg",
@@ -66,13 +76,14 @@ void CorridorMap::walkableAndUntraversableSurfacesScoreAsTheTableSays() const {
   int checked = 0;
   for (const auto& s : ev.surfaces) {
     if (large.count(s.surface->name)) {
-      ASSERT_GE(s.voxels, 100) << s.surface->name << " was hardly observed";
-      EXPECT_GE(s.right_side, 0.85) << s.surface->name;
+      ASSERT_GE(s.voxels, bounds.large_surface_voxels) << s.surface->name << " was hardly observed";
+      EXPECT_GE(s.right_side, bounds.large_surface_right_side) << s.surface->name;
     }
     // Every surface in view, down to 20 voxels (0.008 m2): the per-surface bound.
     if (s.voxels < 20) continue;
     ++checked;
-    EXPECT_LE(s.mean_abs_error, 0.1) << s.surface->name << " (" << s.voxels << " voxels)";
+    EXPECT_LE(s.mean_abs_error, s.surface->name == "rough patch" ? bounds.rough_patch_mean_error : bounds.mean_error)
+        << s.surface->name << " (" << s.voxels << " voxels)";
   }
   EXPECT_GE(checked, static_cast<int>(large.size()));
   // Voxels on an edge between surfaces with different answers are scored apart; most
@@ -122,6 +133,30 @@ TEST(CorridorMap, FusedKinectSequenceMatchesTheGroundTruth) {
   {
     SCOPED_TRACE("surface scores");
     m.walkableAndUntraversableSurfacesScoreAsTheTableSays();
+  }
+  {
+    SCOPED_TRACE("moving box");
+    m.theMovingBoxLeavesNoSurfaceAtItsOldPlace();
+  }
+  {
+    SCOPED_TRACE("footprints");
+    m.footprintsOnFloorAndAcrossTheStairs();
+  }
+}
+
+// `--voxel 0.02` (perception in 2 cm voxels, the map's resolution, ~3x faster): as
+// many voxels on the right side of 0.5, but small surfaces and edges blur and the
+// rough patch reads less rough (docs/PERCEPTION.md, "Coarser voxels", has the numbers).
+TEST(CorridorMap, TwoCentimetrePerceptionVoxelsMatchTheGroundTruthToo) {
+  const CorridorMap m(perception::scaledToVoxel(perception::PerceptionParams{}, 0.02));
+  {
+    SCOPED_TRACE("surface scores");
+    SurfaceBounds coarse;
+    coarse.mean_error = 0.25;
+    coarse.rough_patch_mean_error = 0.2;
+    coarse.large_surface_voxels = 50;
+    coarse.large_surface_right_side = 0.75;
+    m.walkableAndUntraversableSurfacesScoreAsTheTableSays(coarse);
   }
   {
     SCOPED_TRACE("moving box");

@@ -117,6 +117,7 @@ Command addAnalyzeCommand(CLI::App& app) {
     std::string segments;
     std::string overlay;
     double max_range = -1;
+    double voxel = 0;
     std::string config;
   };
   auto o = std::make_shared<Options>();
@@ -126,15 +127,17 @@ Command addAnalyzeCommand(CLI::App& app) {
   cmd->add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy or a camera-intrinsics.txt file (required for a PNG)");
   cmd->add_option("--max-range", o->max_range, "Maximum range in metres (default 3)");
   cmd->add_option("--config", o->config, "YAML file with any of the parameters of `mobmap config --print-default`");
+  auto* voxel = cmd->add_option("--voxel", o->voxel, kVoxelHelp);
   cmd->add_flag("--json", o->json, "Print one JSON object instead of tables");
   cmd->add_option("--segments", o->segments, "Write the segmented points as PCD (x y z rgb segment mobility)");
   cmd->add_option("--overlay", o->overlay, "Write a PNG of the frame coloured by mobility (red 0, green 1)");
-  return [o]() {
+  return [o, voxel]() {
     LoadedFrame f = loadSingleFrame(o->input, o->frame, o->intrinsics);
     if (!o->gravity.empty()) f.gravity_camera = parseVector3(o->gravity, "--gravity");
     Config config = o->config.empty() ? Config{} : loadConfig(o->config);
     if (o->max_range > 0) config.perception.max_range_m = o->max_range;
     try {
+      if (voxel->count() > 0) config.perception = perception::scaledToVoxel(config.perception, o->voxel);
       perception::validate(config.perception);
     } catch (const std::invalid_argument& e) {
       throw UsageError(e.what());

@@ -74,6 +74,7 @@ Command addBuildCommand(CLI::App& app) {
     std::string frames;
     double max_range = 3.0;
     double resolution = 0.02;
+    double voxel = 0;
     std::string gravity;
     bool force = false;
     bool quiet = false;
@@ -106,11 +107,12 @@ Command addBuildCommand(CLI::App& app) {
   auto* max_range = cmd->add_option("--max-range", o->max_range, "Maximum range of points, metres")->capture_default_str();
   auto* resolution = cmd->add_option("--resolution", o->resolution, "Voxel size of the map, metres")->capture_default_str();
   cmd->add_option("--config", o->config, "YAML file with any of the parameters of `mobmap config --print-default`");
+  auto* voxel = cmd->add_option("--voxel", o->voxel, kVoxelHelp);
   cmd->add_option("--gravity", o->gravity, "Gravity (down) in the data's world frame X,Y,Z (default: gravity-direction.txt, else -z; a single PCD: the ground plane's normal; OpenNI2 without --poses: the camera's +y)");
   cmd->add_flag("--force", o->force, "Overwrite an existing map");
   cmd->add_flag("--no-free-space", o->no_free_space, "Skip free-space updates (faster; moved obstacles stay)");
   cmd->add_flag("--quiet,-q", o->quiet, "No progress output");
-  return [o, max_range, resolution, device]() {
+  return [o, max_range, resolution, device, voxel]() {
     namespace fs = std::filesystem;
     std::error_code ec;
     if (fs::path(o->out).extension() != ".ot") throw UsageError("--out must end in .ot, got '" + o->out + "'");
@@ -123,6 +125,7 @@ Command addBuildCommand(CLI::App& app) {
     if (!config.mapping_max_range_set || max_range->count() > 0) mp.max_range_m = pp.max_range_m;
     if (o->no_free_space) mp.free_space_ray_stride_px = 0;
     try {
+      if (voxel->count() > 0) pp = perception::scaledToVoxel(pp, o->voxel);
       perception::validate(pp);
       mapping::validate(mp);
     } catch (const std::invalid_argument& e) {

@@ -2,10 +2,11 @@
 // configured as the paper's original code (b), on the same VGA frames, in one run.
 // Prints per-frame times and the medians of (a), (b) and (b)/(a). Release builds only.
 //
-//   perception_bench [SHARED_DATA_DIR] [--all] [--ours-only] [--repeat N] [--config FILE]
+//   perception_bench [SHARED_DATA_DIR] [--all] [--ours-only] [--repeat N] [--config FILE] [--voxel M]
 //
 // (a) runs N times per frame (default 3) and its median is reported; (b) runs once.
-// --config FILE changes (a)'s parameters (for experiments; the reference is fixed).
+// --config FILE changes (a)'s parameters (for experiments; the reference is fixed);
+// --voxel M then rescales them to M-metre voxels as `mobmap build --voxel` does.
 // The allocator is set up as in `mobmap` (apps/src/main.cpp), so large buffers are
 // reused instead of being mapped and faulted in afresh for every frame.
 //
@@ -158,12 +159,14 @@ int main(int argc, char** argv) {
   bool all = false, ours_only = false;
   int repeat = 3;
   std::string config_path;
+  double voxel = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--all") all = true;
     else if (a == "--ours-only") ours_only = true;
     else if (a == "--repeat" && i + 1 < argc) repeat = std::max(1, std::atoi(argv[++i]));
     else if (a == "--config" && i + 1 < argc) config_path = argv[++i];
+    else if (a == "--voxel" && i + 1 < argc) voxel = std::atof(argv[++i]);
     else data = a;
   }
   mallopt(M_MMAP_THRESHOLD, 256 << 20);  // as apps/src/main.cpp
@@ -197,6 +200,7 @@ int main(int argc, char** argv) {
   }
   app::Config config;
   if (!config_path.empty()) config = app::loadConfig(config_path);
+  if (voxel != 0) config.perception = perception::scaledToVoxel(config.perception, voxel);
   const perception::FramePipeline pipeline(config.perception, app::makeModel(config));  // 3 m range, one thread
   std::printf("%-40s %10s %10s %8s\n", "frame (VGA)", "(a) ms", "(b) ms", "(b)/(a)");
   std::vector<double> a_all, b_all, ratio;
