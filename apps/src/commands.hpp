@@ -16,7 +16,7 @@ using Command = std::function<int()>;
 inline constexpr const char* kVoxelHelp =
     "Perception voxel size, metres (default: perception.voxel_size_m, 0.01 as in the paper). The point counts and "
     "sample spacings of the configuration are rescaled to keep their physical sizes (docs/PERCEPTION.md, \"Coarser "
-    "voxels\"). 0.02 makes perception ~3x faster; texture finer than ~10 cm then reads less rough";
+    "voxels\"). 0.02 makes perception ~3x faster, but texture at the 10 cm scale then reads less rough and small surfaces blur";
 
 /// Parses `args` (a subcommand and its options) with `app` and runs it, as if typed;
 /// `demo` uses it to run `build`. Defined in main.cpp, which owns the command table.
