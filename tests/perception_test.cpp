@@ -770,6 +770,31 @@ TEST(RoughMerge, APyramidFieldIsOneLevelSegmentWithItsExactAreaRatio) {
   }
 }
 
+// Points in row order are inserted one after another, each located from the last;
+// any other order goes through CGAL's spatially sorted insertion. Both must give the
+// same triangulation (generic points: no four on a circle) and so the same areas.
+TEST(Roughness, RowOrderAndShuffledOrderGiveTheSameTriangulation) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> jitter(-0.003f, 0.003f);
+  std::vector<Eigen::Vector3f> pts;
+  for (int i = 0; i < 60; ++i) {
+    for (int j = 0; j < 45; ++j) {
+      const float x = 0.01f * i + jitter(rng), y = 0.01f * j + jitter(rng);
+      pts.emplace_back(x, y, 0.02f * std::sin(40.f * x) * std::cos(30.f * y) + jitter(rng));
+    }
+  }
+  std::vector<int> rows(pts.size());
+  for (std::size_t i = 0; i < rows.size(); ++i) rows[i] = static_cast<int>(i);
+  std::vector<int> shuffled = rows;
+  std::shuffle(shuffled.begin(), shuffled.end(), rng);
+  const Eigen::Vector4f plane(0, 0, 1, 0);
+  const auto in_rows = delaunayRoughness(pts, rows, plane, 0.05);
+  const auto in_shuffle = delaunayRoughness(pts, shuffled, plane, 0.05);
+  EXPECT_GT(in_rows.first, 1.05);  // a bumpy surface: the test would notice a lost triangle
+  EXPECT_NEAR(in_rows.first, in_shuffle.first, 1e-9);
+  EXPECT_NEAR(in_rows.second, in_shuffle.second, 1e-9);
+}
+
 TEST(Roughness, FlatAndCorrugatedSurfacesMatchTheirExactRatio) {
   // A zigzag z = a * tri(x / P) sampled at its kinks: Delaunay reproduces it exactly,
   // so A/A' = sqrt(1 + (2a / (P/2))^2 ... per facet slope s = a / (P / 2).

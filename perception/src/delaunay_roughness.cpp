@@ -31,8 +31,26 @@ std::pair<double, double> delaunayRoughness(const std::vector<Eigen::Vector3f>& 
     const Eigen::Vector3d p = points[static_cast<std::size_t>(i)].cast<double>();
     projected.emplace_back(Kernel::Point_2(p.dot(e1), p.dot(e2)), i);
   }
+  // Segments arrive in a spatially coherent order (voxels in the order the image's rows
+  // first reached them): then inserting in that order, each point located from the
+  // previous one, skips CGAL's Hilbert sort (~2 ms of ~21 per frame). Any other order
+  // (an unorganized cloud) gets the sorted insertion. The triangulation is the same
+  // unless four or more points lie on one circle (then which diagonal is drawn may
+  // depend on the order).
+  double step_sum = 0.0;
+  for (std::size_t j = 1; j < projected.size(); ++j) {
+    step_sum += std::sqrt(CGAL::squared_distance(projected[j].first, projected[j - 1].first));
+  }
   Delaunay dt;
-  dt.insert(projected.begin(), projected.end());  // spatially sorted insertion
+  if (step_sum <= 2.0 * max_edge_m * static_cast<double>(projected.size() - 1)) {
+    Delaunay::Vertex_handle last;
+    for (const auto& [q, i] : projected) {
+      last = dt.insert(q, last == Delaunay::Vertex_handle() ? Delaunay::Face_handle() : last->face());
+      last->info() = i;
+    }
+  } else {
+    dt.insert(projected.begin(), projected.end());  // spatially sorted insertion
+  }
   const double max_edge2 = max_edge_m * max_edge_m;
   double true_area = 0.0, projected_area = 0.0;
   for (auto f = dt.finite_faces_begin(); f != dt.finite_faces_end(); ++f) {
