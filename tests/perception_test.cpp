@@ -1097,6 +1097,9 @@ TEST(PerceptionParams, ScaledToCoarserVoxelsKeepTheirPhysicalSizes) {
   PerceptionParams off;
   off.rough_fragment_max_points = 0;
   EXPECT_EQ(scaledToVoxel(off, 0.02).rough_fragment_max_points, 0);
+  // Much finer voxels: counts grow, and the result still validates.
+  EXPECT_NO_THROW(validate(scaledToVoxel(d, 0.001)));
+  EXPECT_EQ(scaledToVoxel(d, 0.001).min_segment_points, 5000);
   EXPECT_THROW((void)scaledToVoxel(d, 0.0), std::invalid_argument);
   EXPECT_THROW((void)scaledToVoxel(d, std::nan("")), std::invalid_argument);
 }

@@ -107,8 +107,9 @@ PerceptionParams scaledToVoxel(const PerceptionParams& params, double voxel_m) {
   // 0 switches rough joining off and must stay 0.
   p.rough_fragment_max_points = params.rough_fragment_max_points > 0 ? area(params.rough_fragment_max_points, 1) : 0;
   p.rough_min_points = area(params.rough_min_points, 3);
-  // k neighbours and the point itself cover the same disc: (k + 1) / f^2 - 1.
-  p.rough_smoothing_k = std::max(3, static_cast<int>(std::lround((params.rough_smoothing_k + 1) / (f * f) - 1)));
+  // k neighbours and the point itself cover the same disc: (k + 1) / f^2 - 1. Finer
+  // voxels may ask for more than normal_k, which is then what is used (at most 200).
+  p.rough_smoothing_k = static_cast<int>(std::clamp(std::lround((params.rough_smoothing_k + 1) / (f * f) - 1), 3L, 200L));
   p.neighbour_distance_m = params.neighbour_distance_m * f;
   p.max_triangle_edge_m = params.max_triangle_edge_m * f;
   return p;

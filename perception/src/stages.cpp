@@ -121,10 +121,6 @@ bool inverseIteration(const Eigen::Matrix3d& c, const Eigen::Vector3d& start, Ei
   return false;
 }
 
-}  // namespace
-
-namespace {
-
 // The least-squares plane of point i and its first `c` graph neighbours `nb`: unit
 // normal (unoriented), curvature, and the neighbourhood mean relative to the point.
 struct LocalPlane {
