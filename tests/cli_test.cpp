@@ -232,8 +232,12 @@ TEST(Cli, CoarserVoxelsReduceTheCloudAndKeepTheFloor) {
   EXPECT_NE(bad.out.find("voxel_size_m is 2"), std::string::npos) << bad.out;
   const Result b = run("build " + pcd + " --out " + dir + "/m.ot --gravity 0,1,0 --voxel 0.02 --quiet");
   ASSERT_EQ(b.code, 0) << b.out;
-  std::ifstream meta(dir + "/m.json");
-  EXPECT_DOUBLE_EQ(nlohmann::json::parse(meta)["perception"]["voxel_size_m"].get<double>(), 0.02);
+  EXPECT_NE(b.out.find("frames/s)"), std::string::npos) << b.out;  // the summary's rate
+  std::ifstream meta_file(dir + "/m.json");
+  const auto meta = nlohmann::json::parse(meta_file);
+  EXPECT_DOUBLE_EQ(meta["perception"]["voxel_size_m"].get<double>(), 0.02);
+  EXPECT_EQ(meta["perception"]["min_segment_points"].get<int>(), 13);  // rescaled from 50
+  EXPECT_GT(meta["frames_per_second"].get<double>(), 0.0);
   fs::remove_all(dir);
 }
 

@@ -14,6 +14,7 @@
 #include "mobmap/perception/pipeline.hpp"
 
 #include <atomic>
+#include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <deque>
@@ -235,6 +236,7 @@ Command addBuildCommand(CLI::App& app) {
     auto launch = [&] {
       if (next < frames.size()) in_flight.push_back(std::async(std::launch::async, process, frames[next++]));
     };
+    const auto run_start = std::chrono::steady_clock::now();
     launch();
     launch();
     while (!in_flight.empty() && !g_interrupted.load()) {
@@ -261,6 +263,9 @@ Command addBuildCommand(CLI::App& app) {
     }
     for (auto& f : in_flight) f.wait();  // let started frames finish before saving
     std::signal(SIGINT, SIG_DFL);
+    // Reading, perception and fusion of every frame, as the user waited for them.
+    const double run_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - run_start).count();
+    const double frames_per_s = run_s > 0 ? (used + no_pose) / run_s : 0.0;
 
     if (used == 0 && no_pose > 0 && !g_interrupted.load()) {
       std::ostringstream msg;
@@ -290,8 +295,15 @@ Command addBuildCommand(CLI::App& app) {
     meta["R_map_world"] = {{R_map_world(0, 0), R_map_world(0, 1), R_map_world(0, 2)},
                            {R_map_world(1, 0), R_map_world(1, 1), R_map_world(1, 2)},
                            {R_map_world(2, 0), R_map_world(2, 1), R_map_world(2, 2)}};
+    meta["seconds"] = run_s;
+    meta["frames_per_second"] = frames_per_s;
+    // The configuration's values that --voxel rescales are recorded with the rest.
     meta["perception"] = {{"max_range_m", pp.max_range_m}, {"voxel_size_m", pp.voxel_size_m},
-                          {"normal_k", pp.normal_k}, {"outlier_k", pp.outlier_k}, {"colour_threshold", pp.colour_threshold}};
+                          {"normal_k", pp.normal_k}, {"outlier_k", pp.outlier_k}, {"colour_threshold", pp.colour_threshold},
+                          {"min_segment_points", pp.min_segment_points}, {"ground_min_points", pp.ground_min_points},
+                          {"neighbour_distance_m", pp.neighbour_distance_m}, {"max_triangle_edge_m", pp.max_triangle_edge_m},
+                          {"rough_fragment_max_points", pp.rough_fragment_max_points}, {"rough_min_points", pp.rough_min_points},
+                          {"rough_smoothing_k", pp.rough_smoothing_k}};
     meta["mapping"] = {{"resolution_m", mp.resolution_m}, {"max_range_m", mp.max_range_m},
                        {"free_space_ray_stride_px", mp.free_space_ray_stride_px}, {"max_weight", mp.max_weight}};
     meta["model"] = {{"kind", config.model.model == gp::ModelKind::kGaussianProcess ? "gp" : "rule"},
@@ -302,9 +314,9 @@ Command addBuildCommand(CLI::App& app) {
     meta["trajectory_map"] = trajectory;
     writeTextFileAtomically(stem + ".json", meta.dump(1) + "\n");
 
-    std::printf("\n%d of %zu frames fused (%d without a ground plane)%s, %zu points, %zu map nodes (%zu leaves)\n", used,
-                frames.size(), no_ground, g_interrupted.load() ? ", INTERRUPTED" : "", points, map.tree().size(),
-                map.tree().getNumLeafNodes());
+    std::printf("\n%d of %zu frames fused (%d without a ground plane)%s in %.1f s (%.1f frames/s), %zu points, %zu map nodes (%zu leaves)\n",
+                used, frames.size(), no_ground, g_interrupted.load() ? ", INTERRUPTED" : "", run_s, frames_per_s, points,
+                map.tree().size(), map.tree().getNumLeafNodes());
     if (no_pose > 0) {
       std::printf("%d frames skipped: no pose within %g s of their time stamp in %s\n", no_pose, o->max_pose_gap,
                   o->poses.c_str());
