@@ -19,7 +19,7 @@ namespace {
 
 // Bounds of the per-surface check: the 0.1 mean error for every surface
 // in view; 100 voxels and 85 % on the right side of 0.5 for each large one. Coarser
-// perception voxels blur small surfaces and edges (the moving box's front face
+// perception voxels blur small surfaces and edges (the moving box's -y face
 // most), and see the rough patch's 10 cm pyramids less rough.
 struct SurfaceBounds {
   double mean_error = 0.1;
