@@ -161,8 +161,9 @@ class GridSearch {
         // point's k-th distance usually holds k candidates, and fewer candidates make
         // the selection cheaper. Any radius within the block's guarantee is exact.
         const float guess2 = 1.2f * last_kth2;
-        if (guess2 > 0.f && guess2 < tight2_) collect(i, block_, std::min(guess2, max_r2_));
-        if (!(guess2 > 0.f && guess2 < tight2_) || n_keys_ < k_) collect(i, block_, std::min(tight2_, max_r2_));
+        const bool guessed = guess2 > 0.f && guess2 < tight2_;
+        if (guessed) collect(i, block_, std::min(guess2, max_r2_));
+        if (!guessed || n_keys_ < k_) collect(i, block_, std::min(tight2_, max_r2_));
         if (n_keys_ < k_ && tight2_ < max_r2_) collect(i, block_, std::min(cell_ * cell_, max_r2_));
         int ring = 1;
         while (n_keys_ < k_ && ring < max_ring_) {

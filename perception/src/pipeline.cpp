@@ -250,14 +250,6 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
   std::vector<Eigen::Vector3f> smoothed;
   estimateNormals(out.points, graph, Eigen::Vector3f::Zero(), out.normals, out.curvature,
                   p.roughness_smoothing ? &smoothed : nullptr);
-  // Rough segments (joined fragments) are measured after the first pass only: their
-  // roughness is creases at the fragments' scale, which the widening passes below
-  // round off (docs/PERCEPTION.md, "Rough surfaces", gives the numbers).
-  std::vector<Eigen::Vector3f> first_planes;
-  if (p.roughness_smoothing && p.rough_fragment_max_points > 0 && p.rough_smoothing_k >= p.normal_k &&
-      p.roughness_smoothing_passes > 1) {
-    first_planes = smoothed;
-  }
   // Each pass starts its eigenvectors from the previous pass's normals (the fast path
   // of estimateNormals: the planes move little between passes).
   std::vector<Eigen::Vector3f> previous_normals = out.normals;
@@ -392,16 +384,20 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
     reference = out.ground_plane->head<3>();
     out.reference = SlopeReference::kGround;
   }
-  // With a narrower rough neighbourhood than the normals' (coarse voxels, see
-  // scaledToVoxel), the rough segments' points get their own projection.
-  if (p.roughness_smoothing && p.rough_smoothing_k < p.normal_k) {
+  // Rough segments (joined fragments) are not measured after the widening passes:
+  // their roughness is creases at the fragments' scale, which those round off. Their
+  // points are projected once, onto the plane of their rough_smoothing_k nearest
+  // neighbours (at most normal_k, where this is the first normals pass's projection;
+  // docs/PERCEPTION.md, "Rough surfaces" and "Coarser voxels").
+  std::vector<Eigen::Vector3f> rough_measured;
+  if (p.roughness_smoothing) {
     std::vector<int> rough_points;
     for (const Segment& seg : out.segments) {
       if (seg.is_rough) rough_points.insert(rough_points.end(), seg.points.begin(), seg.points.end());
     }
     if (!rough_points.empty()) {
-      first_planes = out.points;
-      projectOntoLocalPlanes(out.points, graph, p.rough_smoothing_k, rough_points, first_planes);
+      rough_measured = out.points;
+      projectOntoLocalPlanes(out.points, graph, p.rough_smoothing_k, rough_points, rough_measured);
     }
   }
   Eigen::MatrixX2d features(static_cast<Eigen::Index>(out.segments.size()), 2);
@@ -432,7 +428,7 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
     seg.normal = normal;
     seg.slope_deg = std::acos(std::clamp(static_cast<double>(normal.dot(reference)), -1.0, 1.0)) * kRadToDeg;
     const std::vector<Eigen::Vector3f>& measured =
-        !p.roughness_smoothing ? out.points : seg.is_rough && !first_planes.empty() ? first_planes : smoothed;
+        !p.roughness_smoothing ? out.points : seg.is_rough ? rough_measured : smoothed;
     const auto [r, area] = delaunayRoughness(measured, seg.points, plane,
                                              p.max_triangle_edge_m);
     seg.roughness = r;
