@@ -2,6 +2,7 @@
 #include "dataset.hpp"
 #include "ground_truth.hpp"
 #include "files.hpp"
+#include "frame_source.hpp"
 #include "io_error.hpp"
 #include "png_io.hpp"
 #include "simulation_writer.hpp"
@@ -121,6 +122,23 @@ TEST(PoseFile, RoundTripAndValidation) {
   EXPECT_NE(errorOf([&] { readPoseFile(dir.file("scaled.txt")); }).find("not a rigid transform"), std::string::npos);
   writeBytes(dir.file("mirror.txt"), "-1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n");
   EXPECT_NE(errorOf([&] { readPoseFile(dir.file("mirror.txt")); }).find("reflection"), std::string::npos);
+}
+
+// A direction file is normalised without squaring its components (which overflows to
+// infinity above ~1e154 and turned a valid direction into zero; found by fuzz_poses).
+TEST(GravityFile, HugeAndOrdinaryDirectionsAreNormalisedAndZeroIsAnError) {
+  TempDir dir;
+  writeBytes(dir.file("g.txt"), "0 -3 4\n");
+  EXPECT_LT((readGravityFile(dir.file("g.txt")) - Eigen::Vector3d(0, -0.6, 0.8)).norm(), 1e-15);
+  writeBytes(dir.file("huge.txt"), "0 0 9e158\n");
+  EXPECT_LT((readGravityFile(dir.file("huge.txt")) - Eigen::Vector3d(0, 0, 1)).norm(), 1e-15);
+  writeBytes(dir.file("zero.txt"), "0 0 0\n");
+  EXPECT_NE(errorOf([&] { readGravityFile(dir.file("zero.txt")); }).find("zero.txt: gravity direction is the zero vector"),
+            std::string::npos);
+  // --gravity: the same, with components beyond a float's range.
+  EXPECT_LT((parseVector3("0,1e39,0", "--gravity") - Eigen::Vector3f(0, 1, 0)).norm(), 1e-7f);
+  EXPECT_LT((parseVector3("3,0,-4", "--gravity") - Eigen::Vector3f(0.6f, 0, -0.8f)).norm(), 1e-7f);
+  EXPECT_THROW(parseVector3("0,0,0", "--gravity"), UsageError);
 }
 
 TEST(IntrinsicsFile, RoundTripAndValidation) {

@@ -1046,6 +1046,11 @@ TEST(FramePipeline, ASinglePlaneIsOneGroundSegmentWithFiniteFeatures) {
   EXPECT_NEAR(r.segments[0].slope_deg, 0.0, 0.1);
   EXPECT_NEAR(r.segments[0].roughness, 1.0, 0.01);
   EXPECT_GT(r.segments[0].mobility, 0.95);
+  // Gravity is a direction: 1e30 long (its squared norm overflows a float) is the same.
+  const FrameResult huge = FramePipeline().process(pts, Eigen::Vector3f(0, 1e30f, 0));
+  ASSERT_EQ(huge.segments.size(), 1u);
+  EXPECT_TRUE(huge.segments[0].is_ground);
+  EXPECT_EQ(huge.segments[0].slope_deg, r.segments[0].slope_deg);
 }
 
 TEST(PerceptionParams, RejectsAbsurdValuesNamingTheField) {

@@ -102,8 +102,11 @@ Eigen::Vector3d readGravityFile(const std::string& path) {
   }
   std::string extra;
   if (in >> extra) throw IoError(path, "more than 3 numbers");
-  if (g.norm() < 1e-9) throw IoError(path, "gravity direction is the zero vector");
-  return g.normalized();
+  // stableNorm: a plain norm squares the components and overflows to infinity for
+  // values above ~1e154, which would normalise a valid direction to zero.
+  const double length = g.stableNorm();
+  if (length < 1e-9) throw IoError(path, "gravity direction is the zero vector");
+  return g / length;
 }
 
 void writeIntrinsicsFile(const std::string& path, const perception::PinholeIntrinsics& k) {

@@ -21,7 +21,8 @@ namespace mobmap::app {
 perception::PinholeIntrinsics readIntrinsicsFile(const std::string& path, int width, int height);
 /// Parses a 4x4 camera-to-world pose and checks it is rigid (mapping::checkRigid).
 Eigen::Matrix4d readPoseFile(const std::string& path);
-/// Parses three numbers (a direction); IoError if missing, non-finite or zero.
+/// Parses three numbers (a direction), returned as a unit vector; IoError if missing,
+/// non-finite or zero.
 Eigen::Vector3d readGravityFile(const std::string& path);
 
 void writeIntrinsicsFile(const std::string& path, const perception::PinholeIntrinsics& k);

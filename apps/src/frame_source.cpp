@@ -34,9 +34,12 @@ std::vector<double> splitNumbers(const std::string& spec) {
 Eigen::Vector3f parseVector3(const std::string& spec, const std::string& what) {
   const auto v = splitNumbers(spec);
   if (v.size() != 3) throw UsageError(what + " must be three numbers X,Y,Z, got '" + spec + "'");
-  const Eigen::Vector3f out(static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2]));
-  if (out.norm() < 1e-6f) throw UsageError(what + " must not be the zero vector");
-  return out;
+  // Normalised in double (stableNorm does not overflow): 1e39 is finite as a double
+  // but not as a float, and squaring 1e20 overflows a float.
+  const Eigen::Vector3d d(v[0], v[1], v[2]);
+  const double length = d.stableNorm();
+  if (length < 1e-6) throw UsageError(what + " must not be the zero vector");
+  return (d / length).cast<float>();
 }
 
 perception::PinholeIntrinsics parseIntrinsics(const std::string& spec, int width, int height) {

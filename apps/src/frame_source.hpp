@@ -41,7 +41,8 @@ perception::PinholeIntrinsics parseIntrinsics(const std::string& spec, int width
 /// both take gravity as `--gravity`.
 std::string groundMayBeAWallNote(const Eigen::Vector4f& ground_plane);
 
-/// Parses "X,Y,Z" (non-zero, finite). Throws UsageError.
+/// Parses "X,Y,Z" (non-zero, finite), a direction: returned as a unit vector. Throws
+/// UsageError.
 Eigen::Vector3f parseVector3(const std::string& spec, const std::string& what);
 
 /// Loads INPUT as `mobmap analyze` describes it. `frame` picks the frame of a

@@ -187,7 +187,7 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
                                const std::optional<Eigen::Vector3f>& gravity) const {
   std::optional<Eigen::Vector3f> up;
   if (gravity) {
-    const float norm = gravity->norm();
+    const float norm = gravity->stableNorm();  // a plain norm overflows for components above ~1e19
     if (!gravity->allFinite() || norm < 1e-6f) {
       throw std::invalid_argument("FramePipeline::process: gravity vector must be finite and non-zero");
     }
