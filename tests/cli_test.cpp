@@ -241,6 +241,35 @@ TEST(Cli, CoarserVoxelsReduceTheCloudAndKeepTheFloor) {
   fs::remove_all(dir);
 }
 
+// A lone 16-bit depth PNG is mapped like a lone PCD: in its camera frame, "down" from
+// the ground plane. The simulator's first frame looks at the floor from 1.35 m.
+TEST(Cli, BuildMapsASingleDepthPngWithItsIntrinsics) {
+  const std::string dir = tempDir("png");
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 1 --noise none --quiet").code, 0);
+  const std::string png = dir + "/seq/frame-000000.depth.png";
+  const Result bare = run("build " + png + " --out " + dir + "/m.ot --quiet");
+  EXPECT_EQ(bare.code, 2);
+  EXPECT_NE(bare.out.find("--intrinsics"), std::string::npos) << bare.out;
+  EXPECT_FALSE(fs::exists(dir + "/m.ot"));
+  const Result b = run("build " + png + " --intrinsics " + dir + "/seq/camera-intrinsics.txt --out " + dir + "/m.ot --quiet");
+  ASSERT_EQ(b.code, 0) << b.out;
+  EXPECT_NE(b.out.find("1 of 1 frames fused (0 without a ground plane)"), std::string::npos) << b.out;
+  // Map frame: origin at the camera, z up, the camera's forward axis along +y.
+  const Result q = run("query " + dir + "/m.ot 0 1.8 -1.0 --snap 1.0 --json");
+  ASSERT_EQ(q.code, 0) << q.out;
+  const auto j = nlohmann::json::parse(q.out);
+  EXPECT_EQ(j["state"], "surface") << q.out;
+  EXPECT_NEAR(j["voxel_centre"][2].get<double>(), -1.35, 0.02) << q.out;
+  EXPECT_GT(j["mobility"].get<double>(), 0.9) << q.out;
+  // A directory of depth PNGs that is not in the 7-Scenes layout: the error says what to do.
+  fs::create_directories(dir + "/loose");
+  fs::copy_file(png, dir + "/loose/depth_image_1.png");
+  const Result loose = run("build " + dir + "/loose --out " + dir + "/l.ot --quiet");
+  EXPECT_EQ(loose.code, 1);
+  EXPECT_NE(loose.out.find("pass the .png itself with --intrinsics"), std::string::npos) << loose.out;
+  fs::remove_all(dir);
+}
+
 TEST(Cli, BadSequencesAndMapsGiveErrorsNamingTheFile) {
   const std::string dir = tempDir("bad");
   ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 3 --noise none --quiet").code, 0);

@@ -89,8 +89,8 @@ Command addBuildCommand(CLI::App& app) {
   auto o = std::make_shared<Options>();
   cmd->add_option("INPUT", o->input,
                   "A 7-Scenes / 3DMatch layout directory (frame-NNNNNN.depth.png + .pose.txt), a TUM RGB-D directory "
-                  "(depth.txt + groundtruth.txt), a directory of .pcd frames with --poses, one .pcd frame, or an "
-                  "OpenNI2 .oni recording");
+                  "(depth.txt + groundtruth.txt), a directory of .pcd frames with --poses, one .pcd frame, one 16-bit "
+                  "depth .png in millimetres (with --intrinsics), or an OpenNI2 .oni recording");
   auto* device = cmd->add_option("--device", o->device,
                                  "Read a live OpenNI2 depth sensor instead of INPUT: the first attached one, or the "
                                  "given device URI. Stops after --frames LAST (default 300 frames) or Ctrl-C")
@@ -109,7 +109,7 @@ Command addBuildCommand(CLI::App& app) {
   auto* resolution = cmd->add_option("--resolution", o->resolution, "Voxel size of the map, metres")->capture_default_str();
   cmd->add_option("--config", o->config, "YAML file with any of the parameters of `mobmap config --print-default`");
   auto* voxel = cmd->add_option("--voxel", o->voxel, kVoxelHelp);
-  cmd->add_option("--gravity", o->gravity, "Gravity (down) in the data's world frame X,Y,Z (default: gravity-direction.txt, else -z; a single PCD: the ground plane's normal; OpenNI2 without --poses: the camera's +y)");
+  cmd->add_option("--gravity", o->gravity, "Gravity (down) in the data's world frame X,Y,Z (default: gravity-direction.txt, else -z; a single .pcd or .png frame: the ground plane's normal; OpenNI2 without --poses: the camera's +y)");
   cmd->add_flag("--force", o->force, "Overwrite an existing map");
   cmd->add_flag("--no-free-space", o->no_free_space, "Skip free-space updates (faster; moved obstacles stay)");
   cmd->add_flag("--quiet,-q", o->quiet, "No progress output");
@@ -135,7 +135,7 @@ Command addBuildCommand(CLI::App& app) {
     const perception::FramePipeline pipeline(pp, makeModel(config));
 
     // Inputs: a posed sequence (7-Scenes or TUM directory, .pcd frames with --poses), or
-    // a single PCD frame in its camera frame.
+    // a single .pcd or depth .png frame in its camera frame.
     std::unique_ptr<Sequence> dir;
     std::vector<int> frames;
     std::optional<Eigen::Vector3d> gravity_world;
@@ -168,7 +168,7 @@ Command addBuildCommand(CLI::App& app) {
       if (!o->quiet) std::fprintf(stderr, "%s\n", dir->describe().c_str());
       if (!dir->skipped().empty()) std::fprintf(stderr, "note: %s\n", dir->skipped().c_str());
     } else {
-      single = loadSingleFrame(o->input, -1, "");
+      single = loadSingleFrame(o->input, -1, o->intrinsics);
       frames.push_back(0);
       if (!o->frames.empty()) throw UsageError("--frames needs a directory input");
     }
@@ -176,10 +176,17 @@ Command addBuildCommand(CLI::App& app) {
     // A single frame is mapped in its camera frame; without --gravity, "down" is the
     // normal of the ground plane the pipeline finds, else the camera's +y axis. That run
     // measured slopes against the same ground normal, so its result is the frame's.
+    // A lone frame is a depth image (a .png) or a cloud (a .pcd, organized or not).
+    auto perceiveSingle = [&](const std::optional<Eigen::Vector3f>& g_cam) {
+      if (single.depth) return pipeline.process(*single.depth, single.intrinsics, g_cam);
+      return single.height > 1 ? pipeline.processOrganized(single.points, single.width, single.height, g_cam)
+                               : pipeline.process(single.points, g_cam);
+    };
+    // The run's clock starts here: a lone frame without --gravity is perceived next.
+    const auto run_start = std::chrono::steady_clock::now();
     std::optional<perception::FrameResult> single_result;
     if (!is_dir && !gravity_world) {
-      single_result = single.height > 1 ? pipeline.processOrganized(single.points, single.width, single.height)
-                                        : pipeline.process(single.points);
+      single_result = perceiveSingle(std::nullopt);
       gravity_world = single_result->ground_plane ? Eigen::Vector3d(-single_result->ground_plane->head<3>().cast<double>())
                                                   : Eigen::Vector3d(0, 1, 0);
       if (single_result->ground_plane) {
@@ -217,9 +224,9 @@ Command addBuildCommand(CLI::App& app) {
         s.result = std::move(*single_result);
       } else {
         g_cam = g_world.cast<float>();  // the camera frame is the world frame
-        s.result = single.height > 1 ? pipeline.processOrganized(single.points, single.width, single.height, g_cam)
-                                     : pipeline.process(single.points, g_cam);
+        s.result = perceiveSingle(g_cam);
       }
+      if (!is_dir && single.depth) s.depth = *single.depth;  // free space by projection, as for a sequence
       return s;
     };
 
@@ -236,7 +243,6 @@ Command addBuildCommand(CLI::App& app) {
     auto launch = [&] {
       if (next < frames.size()) in_flight.push_back(std::async(std::launch::async, process, frames[next++]));
     };
-    const auto run_start = std::chrono::steady_clock::now();
     launch();
     launch();
     while (!in_flight.empty() && !g_interrupted.load()) {
@@ -249,8 +255,9 @@ Command addBuildCommand(CLI::App& app) {
         continue;
       }
       const auto t0 = std::chrono::steady_clock::now();
-      const bool depth = is_dir && dir->hasDepth();
-      map.integrate(s.result, s.T_world_camera, depth ? &s.depth : nullptr, depth ? &dir->intrinsics() : nullptr);
+      const perception::PinholeIntrinsics* intrinsics =
+          is_dir ? (dir->hasDepth() ? &dir->intrinsics() : nullptr) : (single.depth ? &single.intrinsics : nullptr);
+      map.integrate(s.result, s.T_world_camera, intrinsics ? &s.depth : nullptr, intrinsics);
       fuse_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       for (const auto& st : s.result.stages) stage_ms[st.name] += st.milliseconds;
       const Eigen::Vector3d c = R_map_world * s.T_world_camera.translation();

@@ -156,7 +156,8 @@ SevenScenesDirectory::SevenScenesDirectory(std::string dir) : dir_(std::move(dir
     if (std::regex_match(name, m, pattern)) frames_.push_back(std::stoi(m[1]));
   }
   if (ec) throw IoError(dir_, "cannot list: " + ec.message());
-  if (frames_.empty()) throw IoError(dir_, "no frame-NNNNNN.depth.png files (not a 7-Scenes layout directory)");
+  if (frames_.empty()) throw IoError(dir_, "no frame-NNNNNN.depth.png files (not a 7-Scenes layout directory; for one depth image, "
+                                     "pass the .png itself with --intrinsics)");
   std::sort(frames_.begin(), frames_.end());
   std::string kpath = (fs::path(dir_) / "camera-intrinsics.txt").string();
   if (!fs::exists(kpath, ec)) {
