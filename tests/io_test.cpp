@@ -6,6 +6,7 @@
 #include "io_error.hpp"
 #include "png_io.hpp"
 #include "simulation_writer.hpp"
+#include "top_view.hpp"
 
 #include <Eigen/SVD>
 #include <gtest/gtest.h>
@@ -336,6 +337,61 @@ TEST(SevenScenesDirectory, MismatchedInputsNameTheFile) {
   EXPECT_NO_THROW((void)d.readDepth(0));
   EXPECT_NE(errorOf([&] { (void)d.readDepth(1); }).find("frame-000001.depth.png: depth image is 9x6"), std::string::npos);
   EXPECT_NE(errorOf([&] { (void)d.readPose(0); }).find("frame-000000.pose.txt: no such file"), std::string::npos);
+}
+
+// The top view's grid against the voxels it was drawn from: every occupied column gets
+// a cell of its own and shows its highest voxel, whatever the camera path adds.
+TEST(TopView, EveryColumnHasItsOwnCellWhereverTheCameraIs) {
+  const double res = 0.02;
+  mapping::MobilityOcTree tree(res);
+  const auto put = [&](double x, double y, double z, double mobility) {
+    mapping::MobilityOcTreeNode* n = tree.updateNode(octomap::point3d(x, y, z), true);
+    if (mobility >= 0) n->fuse(mobility, 0.01, 100.0);
+  };
+  // A floor of 12 x 8 columns (voxel centres at odd multiples of 1 cm), a box top on
+  // 3 of them 30 cm higher, and one floor voxel never scored.
+  for (int i = 0; i < 12; ++i) {
+    for (int j = 0; j < 8; ++j) put((i + 0.5) * res, (j + 0.5) * res, -0.01, i == 11 && j == 7 ? -1.0 : 1.0);
+  }
+  for (int i = 2; i < 5; ++i) put((i + 0.5) * res, 0.5 * res, 0.29, 0.0);
+  // A region far from the floor where 2 x 2 x 2 equal voxels are pruned into one leaf.
+  for (int i = 0; i < 2; ++i)
+    for (int j = 0; j < 2; ++j)
+      for (int k = 0; k < 2; ++k) put(0.8 + (i + 0.5) * res, 0.8 + (j + 0.5) * res, (k + 0.5) * res, 0.5);
+  tree.prune();
+  // Camera positions on a column edge (the origin: the case that drew empty lines),
+  // inside a column, and far outside the surfaces.
+  for (const Eigen::Vector2d camera : {Eigen::Vector2d(0, 0), Eigen::Vector2d(0.013, 0.007), Eigen::Vector2d(-0.517, 1.309)}) {
+    SCOPED_TRACE(camera.transpose());
+    const TopView v = computeTopView(tree, {camera});
+    const auto cellOf = [&](double x, double y) {
+      return std::make_pair(static_cast<int>(std::floor((x - v.x0) / res + 0.5)),
+                            static_cast<int>(std::floor((y - v.y0) / res + 0.5)));
+    };
+    int filled = 0;
+    for (int cy = 0; cy < v.rows; ++cy)
+      for (int cx = 0; cx < v.columns; ++cx) filled += !v.empty(cx, cy);
+    EXPECT_EQ(filled, 12 * 8 + 4);
+    for (int i = 0; i < 12; ++i) {
+      for (int j = 0; j < 8; ++j) {
+        const auto [cx, cy] = cellOf((i + 0.5) * res, (j + 0.5) * res);
+        ASSERT_TRUE(cx >= 0 && cy >= 0 && cx < v.columns && cy < v.rows);
+        const bool box = j == 0 && i >= 2 && i < 5;
+        EXPECT_NEAR(v.top[v.cell(cx, cy)], box ? 0.3 : 0.0, 1e-9) << i << " " << j;
+        const Rgb want = box ? mobilityColour(0.0) : (i == 11 && j == 7 ? kUnknownGrey : mobilityColour(1.0));
+        EXPECT_EQ(v.colour[v.cell(cx, cy)], want) << i << " " << j;
+      }
+    }
+    for (const double x : {0.81, 0.83}) {
+      for (const double y : {0.81, 0.83}) {
+        const auto [cx, cy] = cellOf(x, y);
+        EXPECT_EQ(v.colour[v.cell(cx, cy)], mobilityColour(0.5));
+      }
+    }
+    const auto [kx, ky] = cellOf(camera.x(), camera.y());  // the path is inside the picture
+    EXPECT_TRUE(kx >= 0 && ky >= 0 && kx < v.columns && ky < v.rows);
+  }
+  EXPECT_THROW(computeTopView(mapping::MobilityOcTree(res)), std::invalid_argument);
 }
 
 TEST(RealData, SevenScenesRedkitchenReadsWithGravityAndRigidPoses) {

@@ -6,6 +6,7 @@
 #include "frame_source.hpp"
 #include "io_error.hpp"
 #include "map_files.hpp"
+#include "top_view.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -14,10 +15,6 @@
 
 namespace mobmap::app {
 namespace {
-
-const Rgb kUnknownGrey{150, 150, 150};
-
-Rgb voxelColour(const mapping::MobilityOcTreeNode& n) { return n.hasMobility() ? mobilityColour(n.mobility()) : kUnknownGrey; }
 
 void drawColourBar(Canvas& c, int x0, int y0, int height) {
   for (int y = 0; y < height; ++y) c.fillRect(x0, y0 + y, x0 + 14, y0 + y, mobilityColour(1.0 - static_cast<double>(y) / (height - 1)));
@@ -52,74 +49,45 @@ Command addExportCommand(CLI::App& app) {
     const auto& t = map.tree();
     if (!o->pcd.empty()) mapping::saveSurfacePcd(t, o->pcd);
     if (o->png.empty()) return 0;
-    double x0 = 1e9, y0 = 1e9, x1 = -1e9, y1 = -1e9;
-    for (auto it = t.begin_leafs(); it != t.end_leafs(); ++it) {
-      if (!t.isNodeOccupied(*it)) continue;
-      x0 = std::min(x0, it.getX());
-      x1 = std::max(x1, it.getX());
-      y0 = std::min(y0, it.getY());
-      y1 = std::max(y1, it.getY());
-    }
-    if (x1 < x0) throw IoError(o->map, "has no surface voxels to draw");
     // The camera path may run outside the mapped surfaces: draw all of it.
     const auto meta = readMapMetadata(o->map);
+    std::vector<Eigen::Vector2d> path;
     if (meta.contains("trajectory_map")) {
-      for (const auto& p : meta["trajectory_map"]) {
-        x0 = std::min(x0, p[0].get<double>());
-        x1 = std::max(x1, p[0].get<double>());
-        y0 = std::min(y0, p[1].get<double>());
-        y1 = std::max(y1, p[1].get<double>());
-      }
+      for (const auto& p : meta["trajectory_map"]) path.emplace_back(p[0].get<double>(), p[1].get<double>());
     }
-    const double res = t.getResolution();
-    const double extent = std::max(x1 - x0, y1 - y0) + res;
+    TopView view;
+    try {
+      view = computeTopView(t, path);
+    } catch (const std::invalid_argument&) {
+      throw IoError(o->map, "has no surface voxels to draw");
+    }
+    const double res = view.resolution, x0 = view.x0, y0 = view.y0;
+    const double extent = std::max(view.columns, view.rows) * res;
     const int ppv = std::max(1, static_cast<int>(o->max_pixels * res / extent));  // pixels per voxel
-    const int w = static_cast<int>((x1 - x0) / res + 1) * ppv, h = static_cast<int>((y1 - y0) / res + 1) * ppv;
+    const int w = view.columns * ppv, h = view.rows * ppv;
     const int margin = 50, right = 110;
     Canvas c(w + 2 * margin + right, h + 2 * margin + 20);
     // Highest surface per column; x to the right, y up.
-    std::vector<double> top(static_cast<std::size_t>(w / ppv) * (h / ppv), -std::numeric_limits<double>::infinity());
-    std::vector<Rgb> colour(top.size(), {255, 255, 255});
-    for (auto it = t.begin_leafs(); it != t.end_leafs(); ++it) {
-      if (!t.isNodeOccupied(*it)) continue;
-      const int span = static_cast<int>(std::lround(it.getSize() / res));
-      const int cx0 = static_cast<int>(std::lround((it.getX() - it.getSize() / 2 + res / 2 - x0) / res));
-      const int cy0 = static_cast<int>(std::lround((it.getY() - it.getSize() / 2 + res / 2 - y0) / res));
-      for (int dx = 0; dx < span; ++dx) {
-        for (int dy = 0; dy < span; ++dy) {
-          const int cx = cx0 + dx, cy = cy0 + dy;
-          if (cx < 0 || cy < 0 || cx >= w / ppv || cy >= h / ppv) continue;
-          const std::size_t i = static_cast<std::size_t>(cy) * (w / ppv) + cx;
-          const double z = it.getZ() + it.getSize() / 2;
-          if (z > top[i]) {
-            top[i] = z;
-            colour[i] = voxelColour(*it);
-          }
-        }
-      }
-    }
-    for (int cy = 0; cy < h / ppv; ++cy) {
-      for (int cx = 0; cx < w / ppv; ++cx) {
-        const Rgb col = colour[static_cast<std::size_t>(cy) * (w / ppv) + cx];
-        const int px = margin + cx * ppv, py = margin + (h / ppv - 1 - cy) * ppv;
-        c.fillRect(px, py, px + ppv - 1, py + ppv - 1, col);
+    for (int cy = 0; cy < view.rows; ++cy) {
+      for (int cx = 0; cx < view.columns; ++cx) {
+        const int px = margin + cx * ppv, py = margin + (view.rows - 1 - cy) * ppv;
+        c.fillRect(px, py, px + ppv - 1, py + ppv - 1, view.colour[view.cell(cx, cy)]);
       }
     }
     c.rect(margin - 1, margin - 1, margin + w, margin + h, {0, 0, 0});
     // Camera path, from the metadata.
-    auto toPixel = [&](double x, double y) {
-      return std::make_pair(margin + static_cast<int>((x - x0) / res * ppv + ppv / 2),
-                            margin + static_cast<int>((h / ppv - 1 - (y - y0) / res) * ppv + ppv / 2));
+    auto toPixel = [&](const Eigen::Vector2d& p) {
+      return std::make_pair(margin + static_cast<int>((p.x() - x0) / res * ppv + ppv / 2),
+                            margin + static_cast<int>((view.rows - 1 - (p.y() - y0) / res) * ppv + ppv / 2));
     };
-    if (meta.contains("trajectory_map") && meta["trajectory_map"].size() > 1) {
-      const auto& tr = meta["trajectory_map"];
-      for (std::size_t i = 1; i < tr.size(); ++i) {
-        const auto a = toPixel(tr[i - 1][0].get<double>(), tr[i - 1][1].get<double>());
-        const auto b = toPixel(tr[i][0].get<double>(), tr[i][1].get<double>());
+    if (path.size() > 1) {
+      for (std::size_t i = 1; i < path.size(); ++i) {
+        const auto a = toPixel(path[i - 1]);
+        const auto b = toPixel(path[i]);
         c.line(a.first, a.second, b.first, b.second, {20, 60, 230});
         c.line(a.first, a.second + 1, b.first, b.second + 1, {20, 60, 230});
       }
-      const auto s = toPixel(tr[0][0].get<double>(), tr[0][1].get<double>());
+      const auto s = toPixel(path.front());
       c.fillRect(s.first - 3, s.second - 3, s.first + 3, s.second + 3, {20, 60, 230});
       c.text(margin + w + 10, margin + h - 10, "CAMERA PATH", {20, 60, 230});
     }
