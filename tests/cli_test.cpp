@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -267,6 +268,56 @@ TEST(Cli, BuildMapsASingleDepthPngWithItsIntrinsics) {
   const Result loose = run("build " + dir + "/loose --out " + dir + "/l.ot --quiet");
   EXPECT_EQ(loose.code, 1);
   EXPECT_NE(loose.out.find("pass the .png itself with --intrinsics"), std::string::npos) << loose.out;
+  fs::remove_all(dir);
+}
+
+// A posed sequence whose world frame has y down (as in 3DMatch) and no
+// gravity-direction.txt: "down" comes from the floor the frames see, not from -z.
+TEST(Cli, BuildFindsGravityFromTheFloorWhenTheSequenceDoesNotGiveIt) {
+  const std::string dir = tempDir("gravity");
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 6 --noise none --quiet").code, 0);
+  fs::remove(dir + "/seq/gravity-direction.txt");
+  // World' = Q world, Q a quarter turn about x: the simulator's z up becomes y down.
+  for (const auto& entry : fs::directory_iterator(dir + "/seq")) {
+    const std::string name = entry.path().filename().string();
+    if (name.size() < 9 || name.compare(name.size() - 9, 9, ".pose.txt") != 0) continue;
+    double t[16];
+    {
+      std::ifstream in(entry.path());
+      for (double& v : t) ASSERT_TRUE(in >> v) << name;
+    }
+    std::ofstream out(entry.path());
+    out.precision(17);
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 4; ++c) {
+        // Row r of Q T: Q's rows are (1 0 0), (0 0 -1), (0 1 0).
+        const double v = r == 0 ? t[c] : r == 1 ? -t[8 + c] : t[4 + c];
+        out << v << (c == 3 ? "\n" : " ");
+      }
+    }
+    out << "0 0 0 1\n";
+  }
+  const Result b = run("build " + dir + "/seq --out " + dir + "/m.ot --quiet");
+  ASSERT_EQ(b.code, 0) << b.out;
+  EXPECT_NE(b.out.find("from the floor in 6 of 6 sampled frames"), std::string::npos) << b.out;
+  std::ifstream meta_file(dir + "/m.json");
+  const auto meta = nlohmann::json::parse(meta_file);
+  const auto& g = meta["gravity_down_world"];
+  EXPECT_GT(g[1].get<double>(), std::cos(0.5 * 3.14159265358979 / 180.0)) << g;  // within half a degree of +y
+  EXPECT_NE(meta["gravity_source"].get<std::string>().find("the floor"), std::string::npos);
+  // The floor 2 m ahead of the first camera, asked in the data's own world frame.
+  const Result q = run("query " + dir + "/m.ot 2.0 -0.3 0.0 --input-frame world --snap 0.5 --json");
+  ASSERT_EQ(q.code, 0) << q.out;
+  const auto j = nlohmann::json::parse(q.out);
+  EXPECT_EQ(j["state"], "surface") << q.out;
+  EXPECT_NEAR(j["voxel_centre"][2].get<double>(), 0.0, 0.02) << q.out;
+  EXPECT_GT(j["mobility"].get<double>(), 0.9) << q.out;
+  // --gravity still wins, and says so.
+  const Result given = run("build " + dir + "/seq --out " + dir + "/g.ot --gravity 0,1,0 --quiet");
+  ASSERT_EQ(given.code, 0) << given.out;
+  EXPECT_EQ(given.out.find("from the floor"), std::string::npos) << given.out;
+  std::ifstream given_meta(dir + "/g.json");
+  EXPECT_EQ(nlohmann::json::parse(given_meta)["gravity_source"], "--gravity");
   fs::remove_all(dir);
 }
 

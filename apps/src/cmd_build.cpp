@@ -65,6 +65,63 @@ struct Scored {
   bool no_pose = false;  // a stream frame without a pose within the tolerance: not fused
 };
 
+perception::FrameResult perceive(const perception::FramePipeline& pipeline, const Sequence& dir, const SequenceFrame& f,
+                                 const std::optional<Eigen::Vector3f>& gravity_down_camera) {
+  if (dir.hasDepth()) return pipeline.process(f.depth, dir.intrinsics(), gravity_down_camera);
+  if (f.height > 1 && f.cloud.size() == static_cast<std::size_t>(f.width) * static_cast<std::size_t>(f.height)) {
+    return pipeline.processOrganized(f.cloud, f.width, f.height, gravity_down_camera);
+  }
+  return pipeline.process(f.cloud, gravity_down_camera);
+}
+
+struct GravityGuess {
+  Eigen::Vector3d down;
+  std::string how;  // for the note and MAP.json
+};
+
+// "Down" for a posed sequence that does not give it (no gravity-direction.txt, no
+// --gravity). World frames differ: 7-Scenes and 3DMatch keep the first camera's axes
+// (y down), a motion-capture frame has z up. The floor says which: up to 8 frames
+// spread over the selection look for a ground plane within 45 degrees of the image's
+// up axis (a camera held upright, tilted at most that much), and the floor normals,
+// taken to the world frame, vote. Without a floor in view, the cameras' mean +y axis.
+GravityGuess estimateGravity(const Sequence& dir, const std::vector<int>& frames, const perception::PerceptionParams& pp,
+                             const gp::MobilityModel& model) {
+  perception::PerceptionParams p = pp;
+  p.ground_max_tilt_deg = 45.0;
+  const perception::FramePipeline finder(p, model);
+  const std::size_t samples = std::min<std::size_t>(8, frames.size());
+  std::vector<mapping::DownObservation> floors;
+  Eigen::Vector3d camera_y_sum = Eigen::Vector3d::Zero();
+  int posed = 0;
+  for (std::size_t i = 0; i < samples; ++i) {
+    const std::size_t at = samples == 1 ? 0 : i * (frames.size() - 1) / (samples - 1);
+    const SequenceFrame f = dir.load(frames[at]);
+    if (!f.has_pose) continue;
+    ++posed;
+    const Eigen::Matrix3d r_wc = f.T_world_camera.linear();
+    camera_y_sum += r_wc.col(1);
+    const perception::FrameResult r = perceive(finder, dir, f, Eigen::Vector3f(0, 1, 0));
+    if (!r.ground_plane) continue;
+    double weight = 0.0;
+    for (const auto& s : r.segments) weight += s.is_ground ? static_cast<double>(s.points.size()) : 0.0;
+    floors.push_back({r_wc * -r.ground_plane->head<3>().cast<double>(), std::max(1.0, weight)});
+  }
+  const auto vote = mapping::consensusDown(floors, 5.0);
+  std::ostringstream how;
+  how.precision(2);
+  if (vote && vote->weight_share >= 0.5) {
+    how << "the floor in " << vote->agreeing << " of " << posed << " sampled frames (within " << std::fixed
+        << vote->spread_deg << " degrees of each other)";
+    return {vote->down, how.str()};
+  }
+  if (camera_y_sum.norm() > 1e-6) {
+    how << "the cameras' mean +y axis (no floor agreed on in " << posed << " sampled frames)";
+    return {camera_y_sum.normalized(), how.str()};
+  }
+  return {Eigen::Vector3d(0, 0, -1), "-z (no posed frame sampled)"};
+}
+
 }  // namespace
 
 Command addBuildCommand(CLI::App& app) {
@@ -109,7 +166,9 @@ Command addBuildCommand(CLI::App& app) {
   auto* resolution = cmd->add_option("--resolution", o->resolution, "Voxel size of the map, metres")->capture_default_str();
   cmd->add_option("--config", o->config, "YAML file with any of the parameters of `mobmap config --print-default`");
   auto* voxel = cmd->add_option("--voxel", o->voxel, kVoxelHelp);
-  cmd->add_option("--gravity", o->gravity, "Gravity (down) in the data's world frame X,Y,Z (default: gravity-direction.txt, else -z; a single .pcd or .png frame: the ground plane's normal; OpenNI2 without --poses: the camera's +y)");
+  cmd->add_option("--gravity", o->gravity, "Gravity (down) in the data's world frame X,Y,Z (default: gravity-direction.txt, else the floor's "
+                  "normal in up to 8 frames spread over the run, else the cameras' mean +y axis; a single .pcd or .png "
+                  "frame: its ground plane's normal; OpenNI2: the camera's +y without --poses, -z with them)");
   cmd->add_flag("--force", o->force, "Overwrite an existing map");
   cmd->add_flag("--no-free-space", o->no_free_space, "Skip free-space updates (faster; moved obstacles stay)");
   cmd->add_flag("--quiet,-q", o->quiet, "No progress output");
@@ -132,7 +191,8 @@ Command addBuildCommand(CLI::App& app) {
     } catch (const std::invalid_argument& e) {
       throw UsageError(e.what());
     }
-    const perception::FramePipeline pipeline(pp, makeModel(config));
+    const gp::MobilityModel model = makeModel(config);
+    const perception::FramePipeline pipeline(pp, model);
 
     // Inputs: a posed sequence (7-Scenes or TUM directory, .pcd frames with --poses), or
     // a single .pcd or depth .png frame in its camera frame.
@@ -172,7 +232,19 @@ Command addBuildCommand(CLI::App& app) {
       frames.push_back(0);
       if (!o->frames.empty()) throw UsageError("--frames needs a directory input");
     }
-    if (!o->gravity.empty()) gravity_world = parseVector3(o->gravity, "--gravity").cast<double>();
+    std::string gravity_source;
+    if (gravity_world) gravity_source = live || oni ? "the static camera's +y axis" : "gravity-direction.txt";
+    if (!o->gravity.empty()) {
+      gravity_world = parseVector3(o->gravity, "--gravity").cast<double>();
+      gravity_source = "--gravity";
+    }
+    if (is_dir && !gravity_world && !live && !oni) {
+      const GravityGuess guess = estimateGravity(*dir, frames, pp, model);
+      gravity_world = guess.down;
+      gravity_source = guess.how;
+      std::fprintf(stderr, "note: gravity (down) in the world frame (%.3f, %.3f, %.3f), from %s; --gravity X,Y,Z sets it\n",
+                   guess.down.x(), guess.down.y(), guess.down.z(), guess.how.c_str());
+    }
     // A single frame is mapped in its camera frame; without --gravity, "down" is the
     // normal of the ground plane the pipeline finds, else the camera's +y axis. That run
     // measured slopes against the same ground normal, so its result is the frame's.
@@ -189,11 +261,13 @@ Command addBuildCommand(CLI::App& app) {
       single_result = perceiveSingle(std::nullopt);
       gravity_world = single_result->ground_plane ? Eigen::Vector3d(-single_result->ground_plane->head<3>().cast<double>())
                                                   : Eigen::Vector3d(0, 1, 0);
+      gravity_source = single_result->ground_plane ? "the frame's ground plane" : "the camera's +y axis (no ground plane)";
       if (single_result->ground_plane) {
         const std::string note = groundMayBeAWallNote(*single_result->ground_plane);
         if (!note.empty()) std::fprintf(stderr, "%s\n", note.c_str());
       }
     }
+    if (!gravity_world) gravity_source = "-z (default)";
     const Eigen::Vector3d g_world = gravity_world.value_or(Eigen::Vector3d(0, 0, -1));
     const Eigen::Matrix3d R_map_world = mapping::gravityAlignment(g_world);
     mapping::MobilityMap map(mp, R_map_world);
@@ -209,17 +283,11 @@ Command addBuildCommand(CLI::App& app) {
           s.no_pose = true;
           return s;
         }
-        s.depth = std::move(f.depth);
         s.T_world_camera = f.T_world_camera;
         s.read_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
         g_cam = (s.T_world_camera.linear().transpose() * g_world).cast<float>();
-        if (dir->hasDepth()) {
-          s.result = pipeline.process(s.depth, dir->intrinsics(), g_cam);
-        } else if (f.height > 1 && f.cloud.size() == static_cast<std::size_t>(f.width) * static_cast<std::size_t>(f.height)) {
-          s.result = pipeline.processOrganized(f.cloud, f.width, f.height, g_cam);
-        } else {
-          s.result = pipeline.process(f.cloud, g_cam);
-        }
+        s.result = perceive(pipeline, *dir, f, g_cam);
+        s.depth = std::move(f.depth);  // for the free-space projection
       } else if (single_result) {
         s.result = std::move(*single_result);
       } else {
@@ -299,6 +367,7 @@ Command addBuildCommand(CLI::App& app) {
     meta["interrupted"] = g_interrupted.load();
     meta["resolution_m"] = map.tree().getResolution();
     meta["gravity_down_world"] = {g_world.x(), g_world.y(), g_world.z()};
+    meta["gravity_source"] = gravity_source;
     meta["R_map_world"] = {{R_map_world(0, 0), R_map_world(0, 1), R_map_world(0, 2)},
                            {R_map_world(1, 0), R_map_world(1, 1), R_map_world(1, 2)},
                            {R_map_world(2, 0), R_map_world(2, 1), R_map_world(2, 2)}};

@@ -2,6 +2,7 @@
 
 #include <Eigen/SVD>
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -19,6 +20,42 @@ Eigen::Matrix3d gravityAlignment(const Eigen::Vector3d& gravity_down_world) {
   // FromTwoVectors picks the minimal rotation and handles the antiparallel case.
   return Eigen::Quaterniond::FromTwoVectors(gravity_down_world / norm, Eigen::Vector3d(0, 0, -1))
       .toRotationMatrix();
+}
+
+std::optional<DownConsensus> consensusDown(const std::vector<DownObservation>& observations, double max_angle_deg) {
+  std::vector<DownObservation> valid;
+  double total = 0.0;
+  for (const DownObservation& o : observations) {
+    const double n = o.down.stableNorm();
+    if (!o.down.allFinite() || !(n > 0.0) || !std::isfinite(n) || !(o.weight > 0.0) || !std::isfinite(o.weight)) continue;
+    valid.push_back({o.down / n, o.weight});
+    total += o.weight;
+  }
+  if (valid.empty()) return std::nullopt;
+  const double cos_max = std::cos(max_angle_deg * M_PI / 180.0);
+  std::size_t best = 0;
+  double best_weight = -1.0;
+  for (std::size_t i = 0; i < valid.size(); ++i) {
+    double w = 0.0;
+    for (const DownObservation& o : valid) {
+      if (o.down.dot(valid[i].down) >= cos_max) w += o.weight;
+    }
+    if (w > best_weight) best_weight = w, best = i;
+  }
+  DownConsensus c;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const DownObservation& o : valid) {
+    if (o.down.dot(valid[best].down) < cos_max) continue;
+    sum += o.weight * o.down;
+    ++c.agreeing;
+  }
+  c.down = sum.normalized();  // members lie within a small cap: the sum is far from zero
+  c.weight_share = best_weight / total;
+  for (const DownObservation& o : valid) {
+    if (o.down.dot(valid[best].down) < cos_max) continue;
+    c.spread_deg = std::max(c.spread_deg, std::acos(std::clamp(o.down.dot(c.down), -1.0, 1.0)) * 180.0 / M_PI);
+  }
+  return c;
 }
 
 std::optional<std::string> checkRigid(const Eigen::Matrix4d& transform,

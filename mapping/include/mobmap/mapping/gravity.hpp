@@ -7,6 +7,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace mobmap::mapping {
 
@@ -16,6 +17,29 @@ namespace mobmap::mapping {
 /// frame that is already z-up gives the identity. `gravity_down_world` need not be
 /// unit length. Throws std::invalid_argument if it is zero or not finite.
 Eigen::Matrix3d gravityAlignment(const Eigen::Vector3d& gravity_down_world);
+
+/// One frame's evidence of "down" in the world frame (the normal of a floor it saw),
+/// with a weight (the floor's inlier count, say).
+struct DownObservation {
+  Eigen::Vector3d down = Eigen::Vector3d::Zero();
+  double weight = 1.0;
+};
+
+/// The agreement of several DownObservations.
+struct DownConsensus {
+  Eigen::Vector3d down = Eigen::Vector3d::Zero();  ///< unit: weighted mean of the agreeing ones
+  int agreeing = 0;          ///< observations within the angle of the winning one
+  double weight_share = 0;   ///< their share of the total weight, in (0, 1]
+  double spread_deg = 0;     ///< largest angle between an agreeing observation and `down`
+};
+
+/// Finds the direction most of the weight agrees on: each observation in turn gathers
+/// those within `max_angle_deg` of it, the heaviest group wins (ties: the first), and
+/// its weighted mean is the answer. Observations that are zero, not finite or of
+/// non-positive weight are ignored; nullopt if none is left. A wall seen as "the
+/// floor" in a few frames cannot outvote the floor of the others.
+[[nodiscard]] std::optional<DownConsensus> consensusDown(const std::vector<DownObservation>& observations,
+                                                         double max_angle_deg = 5.0);
 
 /// Tolerances of checkRigid().
 struct RigidTolerance {
