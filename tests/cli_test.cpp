@@ -9,8 +9,11 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <vector>
 #include <string>
 
 namespace {
@@ -318,6 +321,54 @@ TEST(Cli, BuildFindsGravityFromTheFloorWhenTheSequenceDoesNotGiveIt) {
   EXPECT_EQ(given.out.find("from the floor"), std::string::npos) << given.out;
   std::ifstream given_meta(dir + "/g.json");
   EXPECT_EQ(nlohmann::json::parse(given_meta)["gravity_source"], "--gravity");
+  fs::remove_all(dir);
+}
+
+// The real 3DMatch lounge (world frame y down, no gravity file): the carpet, the
+// lowest broad surface of the map, must come out walkable.
+TEST(Cli, LoungeFloorIsWalkableWithGravityFoundFromTheFloor) {
+  const std::string data = std::string(MOBMAP_SHARED_DATA_DIR) + "/3dmatch-lounge/seq-01";
+  if (!fs::exists(data)) GTEST_SKIP() << "shared data not found at " << data;
+  const std::string dir = tempDir("lounge");
+  fs::create_directories(dir);
+  const Result b = run("build " + data + " --out " + dir + "/m.ot --quiet");
+  ASSERT_EQ(b.code, 0) << b.out;
+  EXPECT_NE(b.out.find("from the floor in"), std::string::npos) << b.out;
+  ASSERT_EQ(run("export " + dir + "/m.ot --pcd " + dir + "/s.pcd").code, 0);
+  std::ifstream in(dir + "/s.pcd");
+  std::string line;
+  while (std::getline(in, line) && line.rfind("DATA", 0) != 0) {
+  }
+  std::vector<std::pair<double, double>> z_mobility;
+  while (std::getline(in, line)) {  // x y z mobility variance count; mobility "nan" if unknown
+    const char* p = line.c_str();
+    char* end = nullptr;
+    double v[4];
+    for (double& value : v) {
+      value = std::strtod(p, &end);
+      p = end;
+    }
+    if (std::isfinite(v[3])) z_mobility.emplace_back(v[2], v[3]);
+  }
+  ASSERT_GT(z_mobility.size(), 1000u);
+  // Heights in 4 cm bands; the floor is the lowest band holding a tenth of the voxels.
+  std::map<int, int> bands;
+  for (const auto& [zz, mm] : z_mobility) ++bands[static_cast<int>(std::floor(zz / 0.04))];
+  int floor_band = 0;
+  for (const auto& [band, n] : bands) {
+    if (n * 10 >= static_cast<int>(z_mobility.size())) {
+      floor_band = band;
+      break;
+    }
+  }
+  int on_floor = 0, walkable = 0;
+  for (const auto& [zz, mm] : z_mobility) {
+    if (std::abs(static_cast<int>(std::floor(zz / 0.04)) - floor_band) > 1) continue;
+    ++on_floor;
+    walkable += mm >= 0.75;
+  }
+  ASSERT_GT(on_floor, 500);
+  EXPECT_GT(walkable, 0.75 * on_floor) << walkable << " of " << on_floor;
   fs::remove_all(dir);
 }
 
