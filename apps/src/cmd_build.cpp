@@ -245,9 +245,6 @@ Command addBuildCommand(CLI::App& app) {
       std::fprintf(stderr, "note: gravity (down) in the world frame (%.3f, %.3f, %.3f), from %s; --gravity X,Y,Z sets it\n",
                    guess.down.x(), guess.down.y(), guess.down.z(), guess.how.c_str());
     }
-    // A single frame is mapped in its camera frame; without --gravity, "down" is the
-    // normal of the ground plane the pipeline finds, else the camera's +y axis. That run
-    // measured slopes against the same ground normal, so its result is the frame's.
     // A lone frame is a depth image (a .png) or a cloud (a .pcd, organized or not).
     auto perceiveSingle = [&](const std::optional<Eigen::Vector3f>& g_cam) {
       if (single.depth) return pipeline.process(*single.depth, single.intrinsics, g_cam);
@@ -256,6 +253,9 @@ Command addBuildCommand(CLI::App& app) {
     };
     // The run's clock starts here: a lone frame without --gravity is perceived next.
     const auto run_start = std::chrono::steady_clock::now();
+    // A single frame is mapped in its camera frame; without --gravity, "down" is the
+    // normal of the ground plane the pipeline finds, else the camera's +y axis. That run
+    // measured slopes against the same ground normal, so its result is the frame's.
     std::optional<perception::FrameResult> single_result;
     if (!is_dir && !gravity_world) {
       single_result = perceiveSingle(std::nullopt);
