@@ -143,19 +143,10 @@ Command addAnalyzeCommand(CLI::App& app) {
       throw UsageError(e.what());
     }
     const perception::FramePipeline pipeline(config.perception, makeModel(config));
-    perception::FrameResult r;
-    int width = 0, height = 0;
-    if (f.depth) {
-      r = pipeline.process(*f.depth, f.intrinsics, f.gravity_camera);
-      width = f.depth->width;
-      height = f.depth->height;
-    } else if (f.height > 1) {
-      r = pipeline.processOrganized(f.points, f.width, f.height, f.gravity_camera);
-      width = f.width;
-      height = f.height;
-    } else {
-      r = pipeline.process(f.points, f.gravity_camera);
-    }
+    const perception::FrameResult r = perceiveFrame(pipeline, f, f.gravity_camera);
+    // The image grid for --overlay; 0 for an unorganized cloud.
+    const int width = f.depth ? f.depth->width : f.height > 1 ? f.width : 0;
+    const int height = f.depth ? f.depth->height : f.height > 1 ? f.height : 0;
     // Without gravity the paper's rule takes the largest plane as the ground, which in
     // a corridor seen end-on is the far wall. Say so when the plane faces the camera.
     if (!f.gravity_camera && r.ground_plane) {

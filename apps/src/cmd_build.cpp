@@ -245,12 +245,6 @@ Command addBuildCommand(CLI::App& app) {
       std::fprintf(stderr, "note: gravity (down) in the world frame (%.3f, %.3f, %.3f), from %s; --gravity X,Y,Z sets it\n",
                    guess.down.x(), guess.down.y(), guess.down.z(), guess.how.c_str());
     }
-    // A lone frame is a depth image (a .png) or a cloud (a .pcd, organized or not).
-    auto perceiveSingle = [&](const std::optional<Eigen::Vector3f>& g_cam) {
-      if (single.depth) return pipeline.process(*single.depth, single.intrinsics, g_cam);
-      return single.height > 1 ? pipeline.processOrganized(single.points, single.width, single.height, g_cam)
-                               : pipeline.process(single.points, g_cam);
-    };
     // The run's clock starts here: a lone frame without --gravity is perceived next.
     const auto run_start = std::chrono::steady_clock::now();
     // A single frame is mapped in its camera frame; without --gravity, "down" is the
@@ -258,7 +252,7 @@ Command addBuildCommand(CLI::App& app) {
     // measured slopes against the same ground normal, so its result is the frame's.
     std::optional<perception::FrameResult> single_result;
     if (!is_dir && !gravity_world) {
-      single_result = perceiveSingle(std::nullopt);
+      single_result = perceiveFrame(pipeline, single, std::nullopt);
       gravity_world = single_result->ground_plane ? Eigen::Vector3d(-single_result->ground_plane->head<3>().cast<double>())
                                                   : Eigen::Vector3d(0, 1, 0);
       gravity_source = single_result->ground_plane ? "the frame's ground plane" : "the camera's +y axis (no ground plane)";
@@ -292,7 +286,7 @@ Command addBuildCommand(CLI::App& app) {
         s.result = std::move(*single_result);
       } else {
         g_cam = g_world.cast<float>();  // the camera frame is the world frame
-        s.result = perceiveSingle(g_cam);
+        s.result = perceiveFrame(pipeline, single, g_cam);
       }
       if (!is_dir && single.depth) s.depth = *single.depth;  // free space by projection, as for a sequence
       return s;

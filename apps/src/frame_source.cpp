@@ -138,6 +138,13 @@ LoadedFrame loadSingleFrame(const std::string& input, int frame, const std::stri
   throw IoError(input, "unknown input type (expected a .pcd, a 16-bit depth .png or a 7-Scenes directory)");
 }
 
+perception::FrameResult perceiveFrame(const perception::FramePipeline& pipeline, const LoadedFrame& f,
+                                      const std::optional<Eigen::Vector3f>& gravity_down_camera) {
+  if (f.depth) return pipeline.process(*f.depth, f.intrinsics, gravity_down_camera);
+  return f.height > 1 ? pipeline.processOrganized(f.points, f.width, f.height, gravity_down_camera)
+                      : pipeline.process(f.points, gravity_down_camera);
+}
+
 std::string groundMayBeAWallNote(const Eigen::Vector4f& ground_plane) {
   const double tilt =
       std::acos(std::clamp(static_cast<double>(-ground_plane(1) / ground_plane.head<3>().norm()), -1.0, 1.0)) * 180.0 / M_PI;

@@ -5,6 +5,7 @@
 #include "png_io.hpp"
 
 #include "mobmap/perception/camera.hpp"
+#include "mobmap/perception/pipeline.hpp"
 
 #include <Eigen/Core>
 
@@ -34,6 +35,11 @@ LoadedFrame loadPcd(const std::string& path);
 
 /// Parses "fx,fy,cx,cy" or reads a camera-intrinsics.txt file.
 perception::PinholeIntrinsics parseIntrinsics(const std::string& spec, int width, int height);
+
+/// Runs `pipeline` on a loaded frame: its depth image, else its cloud (organized when
+/// it has more than one row).
+perception::FrameResult perceiveFrame(const perception::FramePipeline& pipeline, const LoadedFrame& f,
+                                      const std::optional<Eigen::Vector3f>& gravity_down_camera);
 
 /// For a ground plane found without gravity (the largest plane, camera frame, normal
 /// towards the camera): a note for the user when it is more than 45 degrees from the

@@ -127,6 +127,10 @@ struct LocalPlane {
   Eigen::Vector3d normal;
   Eigen::Vector3d mean;
   float curvature = 1.f;
+  /// The point moved along the normal onto the plane through the neighbourhood mean.
+  [[nodiscard]] Eigen::Vector3f projection(const Eigen::Vector3f& point) const {
+    return (point.cast<double>() + normal * normal.dot(mean)).cast<float>();
+  }
 };
 
 LocalPlane fitLocalPlane(const std::vector<Eigen::Vector3f>& points, std::size_t i, const int* nb, int c,
@@ -176,8 +180,7 @@ void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph&
     curvature[i] = lp.curvature;
     if (normal.dot((viewpoint - points[i]).cast<double>()) < 0) normal = -normal;  // eq. 4
     normals[i] = normal.normalized().cast<float>();
-    // Move the point along the normal onto the plane through the neighbourhood mean.
-    if (projected) (*projected)[i] = (points[i].cast<double>() + normal * normal.dot(lp.mean)).cast<float>();
+    if (projected) (*projected)[i] = lp.projection(points[i]);
   }
 }
 
@@ -191,7 +194,7 @@ void projectOntoLocalPlanes(const std::vector<Eigen::Vector3f>& points, const Kn
     const int c = std::min(g.count[i], max_neighbours);
     if (c < 2) continue;
     const LocalPlane lp = fitLocalPlane(points, i, &g.indices[i * static_cast<std::size_t>(g.k)], c, nullptr);
-    projected[i] = (points[i].cast<double>() + lp.normal * lp.normal.dot(lp.mean)).cast<float>();
+    projected[i] = lp.projection(points[i]);
   }
 }
 
