@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <vector>
 #include <string>
@@ -155,6 +156,20 @@ TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   const Result info = run("info " + map);
   EXPECT_EQ(info.code, 0);
   EXPECT_NE(info.out.find("MobilityOcTree_v1, resolution 0.020 m"), std::string::npos) << info.out;
+  // How it was built, in a few lines: not the metadata file with its camera path.
+  EXPECT_NE(info.out.find("frames: 4 fused of 4 selected (frames 0..3)"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("from gravity-direction.txt"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("camera path: 4 positions"), std::string::npos) << info.out;
+  EXPECT_EQ(info.out.find("trajectory_map"), std::string::npos) << info.out;
+  const Result info_json = run("info " + map + " --json");
+  ASSERT_EQ(info_json.code, 0) << info_json.out;
+  const auto ij = nlohmann::json::parse(info_json.out);
+  std::size_t scored = 0;
+  for (const auto& n : ij["mobility_histogram"]) scored += n.get<std::size_t>();
+  EXPECT_EQ(scored + ij["surface_leaves_without_mobility"].get<std::size_t>(), ij["surface_leaves"].get<std::size_t>());
+  EXPECT_GT(ij["surface_leaves"].get<std::size_t>(), 100u);
+  EXPECT_EQ(ij["metadata"]["trajectory_map"].size(), 4u);
+  EXPECT_LT(ij["bounds_map"]["min"][2].get<double>(), ij["bounds_map"]["max"][2].get<double>());
   const Result ev = run("evaluate " + map + " --truth " + dir + "/seq/ground_truth.json --min-count 1 --json");
   ASSERT_EQ(ev.code, 0) << ev.out;
   EXPECT_GT(nlohmann::json::parse(ev.out)["surfaces"][0]["voxels"].get<int>(), 100);  // the floor
@@ -369,6 +384,59 @@ TEST(Cli, LoungeFloorIsWalkableWithGravityFoundFromTheFloor) {
   }
   ASSERT_GT(on_floor, 500);
   EXPECT_GT(walkable, 0.75 * on_floor) << walkable << " of " << on_floor;
+  fs::remove_all(dir);
+}
+
+// MAP.json is plain text beside the map and may be edited or damaged: the tools that
+// read it back name the file and the entry, instead of a JSON type error or a silent
+// non-rigid map frame.
+TEST(Cli, DamagedMapMetadataIsReportedByFileAndEntry) {
+  const std::string dir = tempDir("meta");
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 2 --noise none --quiet").code, 0);
+  ASSERT_EQ(run("build " + dir + "/seq --out " + dir + "/m.ot --quiet").code, 0);
+  std::ifstream in(dir + "/m.json");
+  const nlohmann::json good = nlohmann::json::parse(in);
+  const std::string ot = dir + "/m.ot", json = dir + "/m.json";
+  const auto damage = [&](const std::function<void(nlohmann::json&)>& edit) {
+    nlohmann::json m = good;
+    edit(m);
+    std::ofstream(json) << m.dump();
+  };
+  struct Case {
+    std::function<void(nlohmann::json&)> edit;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {[](nlohmann::json& m) { m["frames"] = "many"; }, "\"frames\" must be a non-negative whole number"},
+      {[](nlohmann::json& m) { m["frames"] = -3; }, "\"frames\" must be a non-negative whole number"},
+      {[](nlohmann::json& m) { m["R_map_world"][2][2] = 5.0; }, "\"R_map_world\" is not a rotation"},
+      {[](nlohmann::json& m) { m["R_map_world"][0] = {1, 0}; }, "\"R_map_world\" must be 3 rows of 3 finite numbers"},
+      {[](nlohmann::json& m) { m["R_map_world"] = {{-1, 0, 0}, {0, 1, 0}, {0, 0, 1}}; }, "reflection"},
+      {[](nlohmann::json& m) { m["trajectory_map"][1] = {0, 0, "a"}; }, "\"trajectory_map\" entry 1 must be [x, y, z]"},
+      {[](nlohmann::json& m) { m["trajectory_map"][0] = {1e300, 0, 0}; }, "\"trajectory_map\" entry 0"},
+      {[](nlohmann::json& m) { m["trajectory_map"] = 7; }, "\"trajectory_map\" must be a list"},
+      {[](nlohmann::json& m) { m = nlohmann::json::array({1, 2}); }, "expected a JSON object"},
+  };
+  for (const Case& c : cases) {
+    damage(c.edit);
+    for (const std::string& cmd : {"info " + ot, "query " + ot + " 0 0 0", "export " + ot + " --png " + dir + "/t.png"}) {
+      const Result r = run(cmd);
+      EXPECT_EQ(r.code, 1) << cmd << "\n" << r.out;
+      EXPECT_NE(r.out.find("m.json: "), std::string::npos) << cmd << "\n" << r.out;
+      EXPECT_NE(r.out.find(c.message), std::string::npos) << cmd << "\n" << r.out;
+    }
+  }
+  // Rounded to 4 digits by hand: still a rotation within the tolerance of pose files.
+  damage([](nlohmann::json& m) {
+    for (auto& row : m["R_map_world"]) {
+      for (auto& x : row) x = std::round(x.get<double>() * 1e4) / 1e4;
+    }
+  });
+  EXPECT_EQ(run("query " + ot + " 0 0 0 --input-frame world").code, 0);
+  fs::remove(json);  // no metadata: the map alone still answers
+  const Result bare = run("info " + ot);
+  EXPECT_EQ(bare.code, 0) << bare.out;
+  EXPECT_NE(bare.out.find("no metadata"), std::string::npos) << bare.out;
   fs::remove_all(dir);
 }
 

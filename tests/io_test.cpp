@@ -361,7 +361,7 @@ TEST(TopView, EveryColumnHasItsOwnCellWhereverTheCameraIs) {
   tree.prune();
   // Camera positions on a column edge (the origin: the case that drew empty lines),
   // inside a column, and far outside the surfaces.
-  for (const Eigen::Vector2d camera : {Eigen::Vector2d(0, 0), Eigen::Vector2d(0.013, 0.007), Eigen::Vector2d(-0.517, 1.309)}) {
+  for (const Eigen::Vector2d& camera : {Eigen::Vector2d(0, 0), Eigen::Vector2d(0.013, 0.007), Eigen::Vector2d(-0.517, 1.309)}) {
     SCOPED_TRACE(camera.transpose());
     const TopView v = computeTopView(tree, {camera});
     const auto cellOf = [&](double x, double y) {

@@ -467,6 +467,19 @@ TEST(MapParams, RejectsAbsurdValuesNamingTheField) {
   EXPECT_THROW(MobilityMap{p}, std::invalid_argument);
 }
 
+TEST(MobilityMap, MapFrameMustBeARotation) {
+  Eigen::Matrix3d r = Eigen::Matrix3d::Identity();
+  r(2, 2) = 2.0;  // a stretch
+  EXPECT_THROW((MobilityMap{MapParams{}, r}), std::invalid_argument);
+  r(2, 2) = -1.0;  // a reflection
+  EXPECT_THROW((MobilityMap{MapParams{}, r}), std::invalid_argument);
+  r(2, 2) = std::nan("");
+  EXPECT_THROW((MobilityMap{MapParams{}, r}), std::invalid_argument);
+  const Eigen::Matrix3d turn = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  const MobilityMap map(MapParams{}, turn);
+  EXPECT_TRUE(map.worldToMap(Eigen::Vector3d(1, 0, 0)).isApprox(turn.col(0)));
+}
+
 TEST(Gravity, AlignmentSendsGravityToMinusZAndIsIdentityForZUp) {
   const Eigen::Vector3d g(-0.0089, 0.9044, 0.4265);  // 7-Scenes redkitchen
   const Eigen::Matrix3d r = gravityAlignment(g);

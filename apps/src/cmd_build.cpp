@@ -352,7 +352,7 @@ Command addBuildCommand(CLI::App& app) {
     meta["tool"] = std::string("mobmap ") + MOBMAP_VERSION_STRING;
     meta["tree_type"] = mapping::MobilityOcTree::kTreeType;
     meta["input"] = live ? "OpenNI2 device " + (o->device.empty() ? std::string("(first attached)") : o->device)
-                         : fs::absolute(o->input, ec).string();
+                         : fs::absolute(o->input, ec).lexically_normal().string();
     meta["frames"] = used;
     meta["frames_selected"] = frames.size();
     if (is_dir && !dir->skipped().empty()) meta["skipped"] = dir->skipped();
@@ -380,7 +380,7 @@ Command addBuildCommand(CLI::App& app) {
                      {"table", config.table_path.empty() ? "paper" : config.table_path},
                      {"signal_std", config.model.signal_std}, {"length_scale", config.model.length_scale},
                      {"noise_std", config.model.noise_std}};
-    if (!o->config.empty()) meta["config"] = fs::absolute(o->config, ec).string();
+    if (!o->config.empty()) meta["config"] = fs::absolute(o->config, ec).lexically_normal().string();
     meta["trajectory_map"] = trajectory;
     writeTextFileAtomically(stem + ".json", meta.dump(1) + "\n");
 

@@ -4,11 +4,13 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <memory>
 #include <sstream>
+#include <vector>
 
 namespace mobmap::app {
 namespace {
@@ -120,18 +122,89 @@ Command addQueryCommand(CLI::App& app) {
   };
 }
 
+namespace {
+
+// The metadata in a few lines: what the map was built from and how. The whole file
+// (with the camera path, one position per frame) is `info --json` or STEM.json.
+void printMetadataSummary(const nlohmann::json& meta, const std::string& json_path) {
+  const auto text = [&](const char* key) { return meta.contains(key) && meta[key].is_string() ? meta[key].get<std::string>() : std::string(); };
+  const auto number = [&](const nlohmann::json& obj, const char* key) {
+    return obj.is_object() && obj.contains(key) && obj[key].is_number() ? obj[key].get<double>() : std::nan("");
+  };
+  std::printf("built by %s from %s\n", text("tool").empty() ? "an unknown tool" : text("tool").c_str(),
+              text("input").empty() ? "an unrecorded input" : text("input").c_str());
+  if (meta.contains("frames")) {
+    std::printf("frames: %d fused", meta["frames"].get<int>());
+    const double selected = number(meta, "frames_selected");
+    if (std::isfinite(selected)) std::printf(" of %.0f selected", selected);
+    const auto& nums = meta.contains("frame_numbers") ? meta["frame_numbers"] : nlohmann::json();
+    if (nums.is_array() && nums.size() == 2 && nums[0].is_number_integer() && nums[1].is_number_integer()) {
+      std::printf(" (frames %lld..%lld)", nums[0].get<long long>(), nums[1].get<long long>());
+    }
+    const double no_pose = number(meta, "frames_without_pose");
+    if (std::isfinite(no_pose)) std::printf(", %.0f skipped without a pose", no_pose);
+    if (meta.contains("interrupted") && meta["interrupted"].is_boolean() && meta["interrupted"].get<bool>()) {
+      std::printf(", INTERRUPTED (Ctrl-C): the map holds these frames only");
+    }
+    const double sec = number(meta, "seconds"), fps = number(meta, "frames_per_second");
+    if (std::isfinite(sec) && std::isfinite(fps)) std::printf(", %.1f s (%.1f frames/s)", sec, fps);
+    std::printf("\n");
+  }
+  if (!text("skipped").empty()) std::printf("skipped while reading: %s\n", text("skipped").c_str());
+  const auto& g = meta.contains("gravity_down_world") ? meta["gravity_down_world"] : nlohmann::json();
+  if (g.is_array() && g.size() == 3 && g[0].is_number() && g[1].is_number() && g[2].is_number()) {
+    std::printf("gravity (down, in the input's world frame): (%.3f, %.3f, %.3f)", g[0].get<double>(), g[1].get<double>(),
+                g[2].get<double>());
+    if (!text("gravity_source").empty()) std::printf(", from %s", text("gravity_source").c_str());
+    std::printf("\n");
+  }
+  const auto& per = meta.contains("perception") ? meta["perception"] : nlohmann::json();
+  const double voxel = number(per, "voxel_size_m"), range = number(per, "max_range_m");
+  if (std::isfinite(voxel) && std::isfinite(range)) {
+    std::printf("perception: %.0f mm voxels, range %.1f m", voxel * 1000, range);
+    const auto& model = meta.contains("model") ? meta["model"] : nlohmann::json();
+    if (model.is_object() && model.contains("kind") && model["kind"].is_string()) {
+      std::printf("; mobility model: %s", model["kind"].get<std::string>() == "gp" ? "Gaussian process" : "rule table");
+      if (model.contains("table") && model["table"].is_string()) {
+        const std::string table = model["table"].get<std::string>();
+        std::printf(" over %s", table == "paper" ? "the paper's table" : table.c_str());
+      }
+    }
+    std::printf("\n");
+  }
+  if (!text("config").empty()) std::printf("configuration: %s\n", text("config").c_str());
+  if (meta.contains("trajectory_map")) {
+    const auto& traj = meta["trajectory_map"];
+    double length = 0.0;
+    for (std::size_t i = 1; i < traj.size(); ++i) {
+      const Eigen::Vector3d a(traj[i - 1][0].get<double>(), traj[i - 1][1].get<double>(), traj[i - 1][2].get<double>());
+      const Eigen::Vector3d b(traj[i][0].get<double>(), traj[i][1].get<double>(), traj[i][2].get<double>());
+      length += (b - a).norm();
+    }
+    std::printf("camera path: %zu positions, %.2f m long\n", traj.size(), length);
+  }
+  std::printf("all metadata: %s (or info --json)\n", json_path.c_str());
+}
+
+}  // namespace
+
 Command addInfoCommand(CLI::App& app) {
-  auto* cmd = app.add_subcommand("info", "Describe a map: resolution, bounds, nodes, memory, mobility histogram, metadata");
-  auto map_path = std::make_shared<std::string>();
-  cmd->add_option("MAP", *map_path, "A .ot map")->required();
-  return [map_path]() {
-    const mapping::MobilityMap map = loadMap(*map_path);
+  auto* cmd = app.add_subcommand("info", "Describe a map: resolution, bounds, nodes, memory, mobility histogram, how it was built");
+  struct Options {
+    std::string map;
+    bool json = false;
+  };
+  auto o = std::make_shared<Options>();
+  cmd->add_option("MAP", o->map, "A .ot map")->required();
+  cmd->add_flag("--json", o->json, "One JSON object: the figures above and the whole metadata file (camera path included)");
+  return [o]() {
+    const mapping::MobilityMap map = loadMap(o->map);
     const auto& t = map.tree();
     double x0, y0, z0, x1, y1, z1;
     t.getMetricMin(x0, y0, z0);
     t.getMetricMax(x1, y1, z1);
     std::size_t surface = 0, free = 0, unknown_mob = 0;
-    int hist[10] = {0};
+    std::vector<std::size_t> hist(10, 0);
     for (auto it = t.begin_leafs(); it != t.end_leafs(); ++it) {
       if (!t.isNodeOccupied(*it)) {
         ++free;
@@ -142,20 +215,46 @@ Command addInfoCommand(CLI::App& app) {
         ++unknown_mob;
         continue;
       }
-      ++hist[std::min(9, static_cast<int>(it->mobility() * 10))];
+      ++hist[static_cast<std::size_t>(std::clamp(static_cast<int>(it->mobility() * 10), 0, 9))];
     }
-    std::printf("%s: %s, resolution %.3f m\n", map_path->c_str(), t.getTreeType().c_str(), t.getResolution());
-    std::printf("bounds (map frame, z up): x %.2f..%.2f  y %.2f..%.2f  z %.2f..%.2f m\n", x0, x1, y0, y1, z0, z1);
+    const auto meta = readMapMetadata(o->map);
+    if (o->json) {
+      nlohmann::json j{{"map", o->map},
+                       {"tree_type", t.getTreeType()},
+                       {"resolution_m", t.getResolution()},
+                       {"nodes", t.size()},
+                       {"leaves", t.getNumLeafNodes()},
+                       {"surface_leaves", surface},
+                       {"free_leaves", free},
+                       {"surface_leaves_without_mobility", unknown_mob},
+                       {"mobility_histogram", hist},
+                       {"memory_bytes", t.memoryUsage()}};
+      // An empty tree has no bounds (OctoMap reports its key range's limits).
+      if (surface + free > 0) j["bounds_map"] = {{"min", {x0, y0, z0}}, {"max", {x1, y1, z1}}};
+      j["metadata"] = meta.empty() ? nlohmann::json(nullptr) : meta;
+      std::printf("%s\n", j.dump().c_str());
+      return 0;
+    }
+    std::printf("%s: %s, resolution %.3f m\n", o->map.c_str(), t.getTreeType().c_str(), t.getResolution());
+    if (surface + free > 0) {
+      std::printf("bounds (map frame, z up): x %.2f..%.2f  y %.2f..%.2f  z %.2f..%.2f m\n", x0, x1, y0, y1, z0, z1);
+    } else {
+      std::printf("empty: no voxels\n");
+    }
     std::printf("nodes %zu, leaves %zu (surface %zu, free %zu), memory %.1f MB (%zu bytes per node)\n", t.size(),
                 t.getNumLeafNodes(), surface, free, t.memoryUsage() / 1e6, t.memoryUsageNode());
     std::printf("surface voxels without a mobility estimate: %zu\nmobility histogram of surface voxels:\n", unknown_mob);
     const std::size_t known = surface - unknown_mob;
-    for (int b = 0; b < 10; ++b) {
-      const int bar = known ? static_cast<int>(50.0 * hist[b] / known) : 0;
-      std::printf("  %.1f-%.1f %8d %s\n", b / 10.0, (b + 1) / 10.0, hist[b], std::string(static_cast<std::size_t>(bar), '#').c_str());
+    for (std::size_t b = 0; b < 10; ++b) {
+      const int bar = known ? static_cast<int>(50.0 * static_cast<double>(hist[b]) / static_cast<double>(known)) : 0;
+      std::printf("  %.1f-%.1f %8zu %s\n", static_cast<double>(b) / 10.0, static_cast<double>(b + 1) / 10.0, hist[b],
+                  std::string(static_cast<std::size_t>(bar), '#').c_str());
     }
-    const auto meta = readMapMetadata(*map_path);
-    if (!meta.empty()) std::printf("metadata (%s.json):\n%s\n", mapStem(*map_path).c_str(), meta.dump(1).c_str());
+    if (meta.empty()) {
+      std::printf("no metadata (%s.json is absent)\n", mapStem(o->map).c_str());
+    } else {
+      printMetadataSummary(meta, mapStem(o->map) + ".json");
+    }
     return 0;
   };
 }

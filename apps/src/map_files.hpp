@@ -12,10 +12,13 @@ namespace mobmap::app {
 /// "maps/x.ot" -> "maps/x" (the stem the other files share).
 std::string mapStem(const std::string& ot_path);
 
-/// Metadata written beside a map as STEM.json.
-nlohmann::json readMapMetadata(const std::string& ot_path);  ///< empty object if absent
+/// Metadata written beside a map as STEM.json: an empty object if there is none. IoError
+/// naming the file if it is not JSON or if an entry the tools read (frames,
+/// R_map_world, trajectory_map) has the wrong shape, is not finite, or R_map_world is not
+/// a rotation.
+nlohmann::json readMapMetadata(const std::string& ot_path);
 
-/// R_map_world recorded in the metadata (identity if absent).
+/// R_map_world recorded in metadata that readMapMetadata() checked (identity if absent).
 Eigen::Matrix3d rotationFromMetadata(const nlohmann::json& meta);
 
 /// Loads MAP.ot and its metadata into a MobilityMap.

@@ -1,5 +1,7 @@
 #include "mobmap/mapping/mobility_map.hpp"
 
+#include "mobmap/mapping/gravity.hpp"
+
 #include <mrpt/math/CMatrixFixed.h>
 #include <mrpt/poses/CPose3D.h>
 
@@ -61,6 +63,9 @@ MobilityMap::MobilityMap(MapParams params, const Eigen::Matrix3d& R_map_world)
 MobilityMap::MobilityMap(std::unique_ptr<MobilityOcTree> tree, MapParams params, const Eigen::Matrix3d& R_map_world)
     : params_(params), R_map_world_(R_map_world), tree_(std::move(tree)) {
   validate(params_);
+  Eigen::Matrix4d t = Eigen::Matrix4d::Identity();
+  t.topLeftCorner<3, 3>() = R_map_world;
+  if (auto problem = checkRigid(t)) throw std::invalid_argument("MobilityMap: R_map_world: " + *problem);
   if (!tree_) tree_ = std::make_unique<MobilityOcTree>(params_.resolution_m);
   params_.resolution_m = tree_->getResolution();
   tree_->setProbHit(params_.prob_hit);

@@ -92,6 +92,8 @@ struct Foot {
 /// integrate() or finalize() runs.
 class MobilityMap {
  public:
+  /// std::invalid_argument if a parameter is out of range or R_map_world is not a
+  /// rotation (checkRigid's tolerance).
   explicit MobilityMap(MapParams params = {}, const Eigen::Matrix3d& R_map_world = Eigen::Matrix3d::Identity());
   /// Wraps a loaded tree (params.resolution_m must match the tree's).
   MobilityMap(std::unique_ptr<MobilityOcTree> tree, MapParams params, const Eigen::Matrix3d& R_map_world);
