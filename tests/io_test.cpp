@@ -394,6 +394,44 @@ TEST(TopView, EveryColumnHasItsOwnCellWhereverTheCameraIs) {
   EXPECT_THROW(computeTopView(mapping::MobilityOcTree(res)), std::invalid_argument);
 }
 
+// A map with more columns than the picture may have: cells of k x k columns, each
+// showing the highest of its voxels, and a far camera path shrinks the map instead of
+// asking for a grid of millions of cells.
+TEST(TopView, LargeMapsGetCellsOfSeveralColumnsShowingTheHighest) {
+  const double res = 0.02;
+  mapping::MobilityOcTree tree(res);
+  for (int i = 0; i < 150; ++i) {
+    for (int j = 0; j < 50; ++j) tree.updateNode(octomap::point3d((i + 0.5) * res, (j + 0.5) * res, -0.01), true)->fuse(1.0, 0.01, 100.0);
+  }
+  tree.updateNode(octomap::point3d(77.5 * res, 23.5 * res, 0.29), true)->fuse(0.0, 0.01, 100.0);
+  const TopView v = computeTopView(tree, {}, 40);
+  EXPECT_EQ(v.columns_per_cell, 4);  // 150 columns in at most 40 cells
+  EXPECT_DOUBLE_EQ(v.resolution, 4 * res);
+  EXPECT_EQ(v.columns, 38);
+  EXPECT_EQ(v.rows, 13);
+  for (int cy = 0; cy < v.rows; ++cy) {
+    for (int cx = 0; cx < v.columns; ++cx) {
+      const bool box = cx == 77 / 4 && cy == 23 / 4;
+      EXPECT_NEAR(v.top[v.cell(cx, cy)], box ? 0.3 : 0.0, 1e-9) << cx << " " << cy;
+      EXPECT_EQ(v.colour[v.cell(cx, cy)], box ? mobilityColour(0.0) : mobilityColour(1.0)) << cx << " " << cy;
+    }
+  }
+  // Cell centres where the camera path is drawn: the box's cell holds the box's column.
+  EXPECT_LE(std::abs(v.x0 + 19 * v.resolution - 77.5 * res), v.resolution / 2);
+  EXPECT_LE(std::abs(v.y0 + 5 * v.resolution - 23.5 * res), v.resolution / 2);
+  // One column per cell when it fits.
+  const TopView fine = computeTopView(tree, {}, 150);
+  EXPECT_EQ(fine.columns_per_cell, 1);
+  EXPECT_EQ(fine.columns, 150);
+  // A camera 10 km away (500,001 columns from the first): 501 columns per cell, and the
+  // map is still drawn.
+  const TopView far = computeTopView(tree, {Eigen::Vector2d(1e4, 0.0)}, 1000);
+  EXPECT_EQ(far.columns_per_cell, 501);
+  EXPECT_LE(far.columns, 1000);
+  EXPECT_NEAR(far.top[far.cell(0, 0)], 0.3, 1e-9);  // the whole map in one cell: the box is its highest
+  EXPECT_THROW(computeTopView(tree, {Eigen::Vector2d(std::nan(""), 0.0)}, 1000), std::invalid_argument);
+}
+
 TEST(RealData, SevenScenesRedkitchenReadsWithGravityAndRigidPoses) {
   const std::string dir = std::string(MOBMAP_SHARED_DATA_DIR) + "/7scenes-redkitchen";
   if (!fs::exists(dir)) GTEST_SKIP() << "shared data not found at " << dir;

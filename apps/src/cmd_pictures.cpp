@@ -9,7 +9,9 @@
 #include "top_view.hpp"
 
 #include <cmath>
+#include <algorithm>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 #include <memory>
 
@@ -42,7 +44,11 @@ Command addExportCommand(CLI::App& app) {
   cmd->add_option("MAP", o->map, "A .ot map")->required();
   cmd->add_option("--png", o->png, "Top view of the highest surface per column, coloured by mobility, with the camera path");
   cmd->add_option("--pcd", o->pcd, "Surface voxel centres with mobility, variance and count");
-  cmd->add_option("--max-pixels", o->max_pixels, "Longest side of the picture's map area")->capture_default_str();
+  cmd->add_option("--max-pixels", o->max_pixels,
+                  "Longest side of the picture's map area; a map with more columns than this is drawn with one "
+                  "cell for k x k voxels (the highest)")
+      ->check(CLI::Range(64, 16384))
+      ->capture_default_str();
   return [o]() {
     if (o->png.empty() && o->pcd.empty()) throw UsageError("export needs --png OUT.png and/or --pcd OUT.pcd");
     const mapping::MobilityMap map = loadMap(o->map);
@@ -57,16 +63,22 @@ Command addExportCommand(CLI::App& app) {
     }
     TopView view;
     try {
-      view = computeTopView(t, path);
-    } catch (const std::invalid_argument&) {
-      throw IoError(o->map, "has no surface voxels to draw");
+      view = computeTopView(t, path, o->max_pixels);
+    } catch (const std::invalid_argument& e) {
+      throw IoError(o->map, std::string("cannot draw a top view: ") + e.what());
     }
     const double res = view.resolution, x0 = view.x0, y0 = view.y0;
     const double extent = std::max(view.columns, view.rows) * res;
-    const int ppv = std::max(1, static_cast<int>(o->max_pixels * res / extent));  // pixels per voxel
+    const int ppv = std::max(1, o->max_pixels / std::max(view.columns, view.rows));  // pixels per cell
     const int w = view.columns * ppv, h = view.rows * ppv;
     const int margin = 50, right = 110;
-    Canvas c(w + 2 * margin + right, h + 2 * margin + 20);
+    // The legend (colour bar, "unknown", "camera path") and the title need room even
+    // when the map is a thin strip (a corridor) or a small picture was asked for.
+    const int bar_h = std::clamp(h - 60, 100, 200);
+    const int legend_h = 20 + bar_h + 60;
+    const char* title = "TOP VIEW: HIGHEST SURFACE PER COLUMN (X RIGHT, Y UP, MAP FRAME)";
+    Canvas c(std::max(w + 2 * margin + right, margin + 6 * static_cast<int>(std::strlen(title)) + 10),
+             std::max(h, legend_h) + 2 * margin + 20);
     // Highest surface per column; x to the right, y up.
     for (int cy = 0; cy < view.rows; ++cy) {
       for (int cx = 0; cx < view.columns; ++cx) {
@@ -89,18 +101,31 @@ Command addExportCommand(CLI::App& app) {
       }
       const auto s = toPixel(path.front());
       c.fillRect(s.first - 3, s.second - 3, s.first + 3, s.second + 3, {20, 60, 230});
-      c.text(margin + w + 10, margin + h - 10, "CAMERA PATH", {20, 60, 230});
+      c.fillRect(margin + w + 30, margin + legend_h - 12, margin + w + 44, margin + legend_h - 11, {20, 60, 230});
+      c.text(margin + w + 50, margin + legend_h - 15, "CAMERA PATH", {20, 60, 230});
     }
-    // Scale bar: 1 m (or 0.5 m on small maps).
-    const double bar_m = extent > 2.0 ? 1.0 : 0.5;
-    const int bar_px = static_cast<int>(bar_m / res * ppv);
+    // Scale bar: the longest of 0.1, 0.2, 0.5, 1, 2, 5 ... m within a quarter of the map.
+    double bar_m = 0.1;
+    for (double decade = 0.1; decade <= extent / 4; decade *= 10) {
+      for (const double f : {1.0, 2.0, 5.0}) {
+        if (decade * f <= extent / 4) bar_m = decade * f;
+      }
+    }
+    const int bar_px = std::max(1, static_cast<int>(std::lround(bar_m / res * ppv)));
     const int by = margin + h + 18;
     c.fillRect(margin, by, margin + bar_px, by + 4, {0, 0, 0});
-    c.text(margin + bar_px + 8, by - 1, bar_m == 1.0 ? "1 M" : "0.5 M", {0, 0, 0});
-    c.text(margin, 14, "TOP VIEW: HIGHEST SURFACE PER COLUMN (X RIGHT, Y UP, MAP FRAME)", {0, 0, 0});
-    drawColourBar(c, margin + w + 30, margin + 20, std::min(200, h - 60 > 60 ? h - 60 : 60));
+    char bar_label[32];
+    std::snprintf(bar_label, sizeof(bar_label), "%g M", bar_m);
+    c.text(margin + bar_px + 8, by - 1, bar_label, {0, 0, 0});
+    c.text(margin, 14, title, {0, 0, 0});
+    drawColourBar(c, margin + w + 30, margin + 20, bar_h);
     c.save(o->png);
-    std::printf("wrote %s (%dx%d px, %d px per %.0f cm voxel)\n", o->png.c_str(), c.width(), c.height(), ppv, res * 100);
+    if (view.columns_per_cell == 1) {
+      std::printf("wrote %s (%dx%d px, %d px per %g cm voxel)\n", o->png.c_str(), c.width(), c.height(), ppv, res * 100);
+    } else {
+      std::printf("wrote %s (%dx%d px, %d px per %g cm cell: the highest of %dx%d voxels; --max-pixels for more)\n",
+                  o->png.c_str(), c.width(), c.height(), ppv, res * 100, view.columns_per_cell, view.columns_per_cell);
+    }
     return 0;
   };
 }

@@ -12,12 +12,14 @@
 
 namespace mobmap::app {
 
-/// One cell per map column (resolution x resolution, x right and y up in the map frame),
-/// covering every occupied voxel and every point of `also_cover` (the camera path).
+/// A grid over the map's columns (x right and y up in the map frame), covering every
+/// occupied voxel and every point of `also_cover` (the camera path). A cell is one map
+/// column, or k x k columns when the map would not fit in the asked size.
 struct TopView {
-  double x0 = 0.0, y0 = 0.0;  ///< centre of cell (0, 0): a column centre of the map
-  double resolution = 0.0;
-  int columns = 0, rows = 0;
+  double x0 = 0.0, y0 = 0.0;  ///< centre of cell (0, 0) (a column centre when columns_per_cell is 1)
+  double resolution = 0.0;    ///< cell side in metres: the map resolution times columns_per_cell
+  int columns_per_cell = 1;   ///< k: each cell is k x k map columns and shows the highest of them
+  int columns = 0, rows = 0;  ///< cells across (x) and up (y)
   std::vector<double> top;   ///< per cell, row-major from y0 up: the top face's height, -inf if empty
   std::vector<Rgb> colour;   ///< per cell: mobility colour of that voxel, grey if unknown, white if empty
   [[nodiscard]] std::size_t cell(int cx, int cy) const {
@@ -34,7 +36,10 @@ inline Rgb voxelColour(const mapping::MobilityOcTreeNode& n) {
   return n.hasMobility() ? mobilityColour(n.mobility()) : kUnknownGrey;
 }
 
-/// Throws std::invalid_argument if the tree has no occupied voxel.
-TopView computeTopView(const mapping::MobilityOcTree& tree, const std::vector<Eigen::Vector2d>& also_cover = {});
+/// `max_cells_per_side` > 0 picks the smallest k that keeps both sides within it (0: one
+/// column per cell). Throws std::invalid_argument if the tree has no occupied voxel, a
+/// point to cover is not finite, or the grid would exceed 2^20 cells per side.
+TopView computeTopView(const mapping::MobilityOcTree& tree, const std::vector<Eigen::Vector2d>& also_cover = {},
+                       int max_cells_per_side = 0);
 
 }  // namespace mobmap::app
