@@ -454,6 +454,17 @@ TEST(Cli, BadSequencesAndMapsGiveErrorsNamingTheFile) {
   const Result missing = run("build " + dir + "/seq --out " + dir + "/m.ot --quiet");
   EXPECT_EQ(missing.code, 1);
   EXPECT_NE(missing.out.find("frame-000001.pose.txt: missing"), std::string::npos) << missing.out;
+  // An output that cannot be written: said before any frame is read (the pose error
+  // above would otherwise come first), and nothing is left behind.
+  fs::create_directories(dir + "/taken.ot");
+  const Result into_dir = run("build " + dir + "/seq --out " + dir + "/taken.ot --force --quiet");
+  EXPECT_EQ(into_dir.code, 1);
+  EXPECT_NE(into_dir.out.find("taken.ot: is a directory"), std::string::npos) << into_dir.out;
+  std::ofstream(dir + "/plain") << "a file, not a directory";
+  const Result under_file = run("build " + dir + "/seq --out " + dir + "/plain/m.ot --quiet");
+  EXPECT_EQ(under_file.code, 1);
+  EXPECT_NE(under_file.out.find("plain/m.ot: cannot create directory"), std::string::npos) << under_file.out;
+  for (const auto& e : fs::directory_iterator(dir)) EXPECT_EQ(e.path().string().find(".probe."), std::string::npos);
   // Not a map.
   std::ofstream(dir + "/junk.ot") << "junk";
   const Result junk = run("info " + dir + "/junk.ot");

@@ -177,6 +177,7 @@ Command addBuildCommand(CLI::App& app) {
     std::error_code ec;
     if (fs::path(o->out).extension() != ".ot") throw UsageError("--out must end in .ot, got '" + o->out + "'");
     if (!o->force && fs::exists(o->out, ec)) throw UsageError(o->out + " exists; pass --force to overwrite it");
+    checkWritable(o->out);  // now, not after the whole run
     Config config = o->config.empty() ? Config{} : loadConfig(o->config);
     perception::PerceptionParams& pp = config.perception;
     mapping::MapParams& mp = config.mapping;

@@ -51,6 +51,22 @@ void writeAtomically(const std::string& path, const std::function<void(const std
   }
 }
 
+void checkWritable(const std::string& path) {
+  const std::filesystem::path target(path);
+  std::error_code ec;
+  if (target.has_parent_path()) {
+    std::filesystem::create_directories(target.parent_path(), ec);
+    if (ec) throw IoError(path, "cannot create directory " + target.parent_path().string() + ": " + ec.message());
+  }
+  if (std::filesystem::is_directory(target, ec)) throw IoError(path, "is a directory");
+  const std::string probe = path + ".probe." + std::to_string(::getpid());
+  {
+    std::ofstream out(probe, std::ios::binary);
+    if (!out) throw IoError(path, std::string("cannot write there: ") + std::strerror(errno));
+  }
+  std::filesystem::remove(probe, ec);
+}
+
 std::optional<double> parseFiniteNumber(const std::string& token) {
   std::size_t used = 0;
   double v = 0.0;

@@ -15,6 +15,10 @@ std::string readTextFile(const std::string& path, std::size_t max_bytes = 64u <<
 /// temporary file is removed if `write` throws. Creates missing parent directories.
 void writeAtomically(const std::string& path, const std::function<void(const std::string&)>& write);
 
+/// Checks before a long job that `path` could be written: creates its directory and a
+/// probe file beside it (removed again). IoError naming the path and the reason if not.
+void checkWritable(const std::string& path);
+
 /// writeAtomically() for text.
 void writeTextFileAtomically(const std::string& path, const std::string& text);
 
