@@ -383,7 +383,7 @@ Command addBuildCommand(CLI::App& app) {
                      {"noise_std", config.model.noise_std}};
     if (!o->config.empty()) meta["config"] = fs::absolute(o->config, ec).lexically_normal().string();
     meta["trajectory_map"] = trajectory;
-    writeTextFileAtomically(stem + ".json", meta.dump(1) + "\n");
+    writeTextFileAtomically(stem + ".json", formatMapMetadata(meta));
 
     std::printf("\n%d of %zu frames fused (%d without a ground plane)%s in %.1f s (%.1f frames/s), %zu points, %zu map nodes (%zu leaves)\n",
                 used, frames.size(), no_ground, g_interrupted.load() ? ", INTERRUPTED" : "", run_s, frames_per_s, points,

@@ -70,13 +70,32 @@ void checkMetadata(const nlohmann::json& meta, const std::string& path) {
 
 }  // namespace
 
+std::string formatMapMetadata(const nlohmann::json& meta) {
+  if (!meta.is_object() || !meta.contains("trajectory_map") || !meta["trajectory_map"].is_array()) {
+    return meta.dump(1) + "\n";
+  }
+  nlohmann::json rest = meta;
+  rest.erase("trajectory_map");
+  std::string text = rest.dump(1);  // "{\n \"a\": ...\n}"
+  text.pop_back();                  // the closing brace
+  std::string rows;
+  const auto& traj = meta["trajectory_map"];
+  for (std::size_t i = 0; i < traj.size(); ++i) {
+    rows += "  " + traj[i].dump() + (i + 1 < traj.size() ? ",\n" : "\n");
+  }
+  const std::string entry = " \"trajectory_map\": [" + (rows.empty() ? std::string("]") : "\n" + rows + " ]") + "\n}\n";
+  if (rest.empty()) return "{\n" + entry;
+  text.back() = ',';  // the newline after the last entry becomes its separator
+  return text + "\n" + entry;
+}
+
 nlohmann::json readMapMetadata(const std::string& ot_path) {
   const std::string path = mapStem(ot_path) + ".json";
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) return nlohmann::json::object();
   nlohmann::json meta;
   try {
-    meta = nlohmann::json::parse(readTextFile(path, 16 << 20));
+    meta = nlohmann::json::parse(readTextFile(path, 256u << 20));
   } catch (const nlohmann::json::exception& e) {
     throw IoError(path, std::string("not valid JSON: ") + e.what());
   }

@@ -18,6 +18,11 @@ std::string mapStem(const std::string& ot_path);
 /// a rotation.
 nlohmann::json readMapMetadata(const std::string& ot_path);
 
+/// MAP.json's text: indented like nlohmann's dump(1), except that each trajectory_map
+/// position takes one line ("[x,y,z]") instead of five (a run of 100,000 frames writes
+/// 5 MB rather than 15). Parses back to `meta`.
+std::string formatMapMetadata(const nlohmann::json& meta);
+
 /// R_map_world recorded in metadata that readMapMetadata() checked (identity if absent).
 Eigen::Matrix3d rotationFromMetadata(const nlohmann::json& meta);
 
