@@ -288,6 +288,7 @@ std::optional<PlaneFit> ransacPlane(const std::vector<Eigen::Vector3f>& points, 
     if (len < 1e-9f) continue;  // degenerate sample
     n /= len;
     if (o.required_normal && std::abs(n.dot(*o.required_normal)) < cos_tilt) continue;
+    if (o.required_normal && o.origin_on_normal_side && (n.dot(*o.required_normal) < 0 ? n.dot(a) : -n.dot(a)) <= 0) continue;
     const Eigen::Vector4f pl(n.x(), n.y(), n.z(), -n.dot(a));
     const std::size_t count = countInliers(pl, nullptr);
     if (sampled && count > 0) {

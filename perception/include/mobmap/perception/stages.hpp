@@ -74,6 +74,9 @@ struct RansacOptions {
   /// If set, only planes whose normal is within max_tilt_deg of this unit vector qualify.
   std::optional<Eigen::Vector3f> required_normal;
   double max_tilt_deg = 20.0;
+  /// With required_normal: the origin (the camera) must lie on the side the required
+  /// normal points to, so a floor below the camera qualifies and a ceiling above it not.
+  bool origin_on_normal_side = false;
   /// If normals are given, inliers must also have a normal within this angle of the plane's.
   const std::vector<Eigen::Vector3f>* point_normals = nullptr;
   double normal_tolerance_deg = 180.0;
