@@ -30,6 +30,7 @@ TEST(Config, ShippedDefaultYamlEqualsTheStructDefaults) {
   EXPECT_EQ(c.perception.ground_probability, p.ground_probability);
   EXPECT_EQ(c.perception.ground_max_iterations, p.ground_max_iterations);
   EXPECT_EQ(c.perception.ground_max_tilt_deg, p.ground_max_tilt_deg);
+  EXPECT_EQ(c.perception.ground_upright_prior_deg, p.ground_upright_prior_deg);
   EXPECT_EQ(c.perception.ground_normal_tolerance_deg, p.ground_normal_tolerance_deg);
   EXPECT_EQ(c.perception.ground_min_points, p.ground_min_points);
   EXPECT_EQ(c.perception.ground_reclaim_min_angle_deg, p.ground_reclaim_min_angle_deg);

@@ -1020,6 +1020,77 @@ TEST(FramePipeline, FloorIsChosenAsGroundEvenWhenAWallHasMorePoints) {
   EXPECT_EQ(with_gravity.reference, SlopeReference::kGravity);
 }
 
+// A camera 1.3 m above the floor (z = 0) of a room, looking along +y and pitched down
+// by `pitch_deg` (negative: up); its pose and the frame it sees.
+struct PitchedView {
+  Eigen::Matrix3d rot;
+  sim::RayCastResult rc;
+  int pixels(int label) const { return static_cast<int>(std::count(rc.labels.begin(), rc.labels.end(), label)); }
+};
+PitchedView pitchedView(const std::vector<sim::Triangle>& tris, double pitch_deg) {
+  PitchedView v;
+  const double pitch = pitch_deg * kDeg;
+  const Eigen::Vector3d fwd(0, std::cos(pitch), -std::sin(pitch)), right(1, 0, 0);
+  v.rot.col(0) = right;
+  v.rot.col(1) = fwd.cross(right);
+  v.rot.col(2) = fwd;
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = v.rot;
+  T.translation() = Eigen::Vector3d(0, 0, 1.3);
+  v.rc = sim::castRays(tris, PinholeIntrinsics{}, T);
+  return v;
+}
+
+// Without gravity the paper's largest plane is the wall here; the upright prior takes
+// the floor below the camera, and stays out of the way when the largest plane is a floor
+// seen steeply (beyond the prior's cone). With gravity, a larger ceiling is never the
+// ground: the ground is below the camera.
+TEST(FramePipeline, UprightPriorTakesTheFloorOverALargerWallAndGravityNeverTakesACeiling) {
+  const std::vector<sim::Triangle> room = {
+      {{-3, -1, 0}, {3, -1, 0}, {3, 2.2, 0}, 1}, {{-3, -1, 0}, {3, 2.2, 0}, {-3, 2.2, 0}, 1},        // floor z = 0
+      {{-3, 2.2, 0}, {3, 2.2, 0}, {3, 2.2, 3}, 2}, {{-3, 2.2, 0}, {3, 2.2, 3}, {-3, 2.2, 3}, 2},    // wall y = 2.2
+      {{-4, -1, 1.8}, {4, 6, 1.8}, {4, -1, 1.8}, 3}, {{-4, -1, 1.8}, {-4, 6, 1.8}, {4, 6, 1.8}, 3},   // ceiling z = 1.8
+      {{-4, -1, 0}, {4, -1, 0}, {4, 6, 0}, 1}, {{-4, -1, 0}, {4, 6, 0}, {-4, 6, 0}, 1}};             // a longer floor
+  const PinholeIntrinsics k;
+  const PitchedView level = pitchedView({room[0], room[1], room[2], room[3]}, 20.0);
+  ASSERT_GT(level.pixels(2), 2 * level.pixels(1));
+  const FramePipeline pipeline;
+  const FrameResult prior = pipeline.process(level.rc.depth, k);
+  ASSERT_TRUE(prior.ground_plane);
+  EXPECT_EQ(prior.ground_rule, GroundRule::kUprightPrior);
+  EXPECT_NEAR((*prior.ground_plane)(3), 1.3, 0.02);
+  EXPECT_EQ(prior.reference, SlopeReference::kGround);
+  EXPECT_LT(prior.segments.front().slope_deg, 0.5);
+  PerceptionParams paper;
+  paper.ground_upright_prior_deg = 0;
+  const FrameResult largest = FramePipeline(paper).process(level.rc.depth, k);
+  ASSERT_TRUE(largest.ground_plane);
+  EXPECT_EQ(largest.ground_rule, GroundRule::kLargestPlane);
+  // The wall: its normal is the camera's forward axis pitched up by 20 degrees.
+  EXPECT_NEAR(std::abs((*largest.ground_plane)(2)), std::cos(20 * kDeg), 0.01);
+  // Looking down at 55 degrees: the floor is the largest plane, outside the 45-degree
+  // cone; the prior's search finds nothing but an edge fit, and the floor stays.
+  const PitchedView steep = pitchedView({room[0], room[1]}, 55.0);
+  const FrameResult down = pipeline.process(steep.rc.depth, k);
+  ASSERT_TRUE(down.ground_plane);
+  EXPECT_EQ(down.ground_rule, GroundRule::kLargestPlane);
+  EXPECT_NEAR((*down.ground_plane)(3), 1.3, 0.02);
+  // Level, in a long room with a ceiling 0.5 m overhead that fills more of the view
+  // (the floor starts 3.1 m ahead, where the lowest rays meet it).
+  const PitchedView up = pitchedView({room[4], room[5], room[6], room[7]}, 0.0);
+  ASSERT_GT(up.pixels(3), 3 * up.pixels(1) / 2);
+  const Eigen::Vector3f g_cam = (up.rot.transpose() * Eigen::Vector3d(0, 0, -1)).cast<float>();
+  PerceptionParams loose;
+  loose.max_range_m = 4.0;  // ceiling from 1.2 m, floor from 3.1 m: the ceiling has more voxels
+  loose.ground_max_tilt_deg = 45;  // a ceiling passes the tilt test as well as the floor does
+  const FrameResult with_gravity = FramePipeline(loose).process(up.rc.depth, k, g_cam);
+  ASSERT_TRUE(with_gravity.ground_plane);
+  EXPECT_EQ(with_gravity.ground_rule, GroundRule::kGravity);
+
+  EXPECT_NEAR((*with_gravity.ground_plane)(3), 1.3, 0.02);
+  EXPECT_GT(with_gravity.ground_plane->head<3>().dot(-g_cam), 0.99f);
+}
+
 TEST(FramePipeline, EmptyAllInvalidAndNanFramesGiveNoSegmentsAndNoNan) {
   const FramePipeline pipeline;
   const PinholeIntrinsics k;

@@ -27,6 +27,7 @@ nlohmann::json frameResultJson(const perception::FrameResult& r) {
   j["stages"] = stages;
   j["total_ms"] = r.totalMilliseconds();
   j["slope_reference"] = perception::toString(r.reference);
+  j["ground_rule"] = perception::toString(r.ground_rule);
   if (r.ground_plane) {
     const auto& g = *r.ground_plane;
     j["ground_plane"] = {g(0), g(1), g(2), g(3)};
@@ -123,7 +124,7 @@ Command addAnalyzeCommand(CLI::App& app) {
   auto o = std::make_shared<Options>();
   cmd->add_option("INPUT", o->input, "A .pcd, a 16-bit depth .png (millimetres) or a 7-Scenes layout directory")->required();
   cmd->add_option("--frame", o->frame, "Frame number in a directory (default: the first)");
-  cmd->add_option("--gravity", o->gravity, "Gravity (down) in the camera frame, X,Y,Z (default: from the pose and gravity-direction.txt if present; without gravity the largest plane is the ground; 0,1,0 for a level camera)");
+  cmd->add_option("--gravity", o->gravity, "Gravity (down) in the camera frame, X,Y,Z (default: from the pose and gravity-direction.txt if present; without gravity the largest plane is the ground, or, if it leans more than ground_upright_prior_deg from the image's up axis, the largest floor within that cone; 0,1,0 for a level camera)");
   cmd->add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy or a camera-intrinsics.txt file (required for a PNG)");
   cmd->add_option("--max-range", o->max_range, "Maximum range in metres (default 3)");
   cmd->add_option("--config", o->config, "YAML file with any of the parameters of `mobmap config --print-default`");
@@ -148,9 +149,9 @@ Command addAnalyzeCommand(CLI::App& app) {
     const int width = f.depth ? f.depth->width : f.height > 1 ? f.width : 0;
     const int height = f.depth ? f.depth->height : f.height > 1 ? f.height : 0;
     // Without gravity the paper's rule takes the largest plane as the ground, which in
-    // a corridor seen end-on is the far wall. Say so when the plane faces the camera.
-    if (!f.gravity_camera && r.ground_plane) {
-      const std::string note = groundMayBeAWallNote(*r.ground_plane);
+    // a corridor seen end-on is the far wall: say how the ground was chosen.
+    if (!f.gravity_camera) {
+      const std::string note = groundChoiceNote(r, config.perception.ground_upright_prior_deg);
       if (!note.empty()) std::fprintf(stderr, "%s\n", note.c_str());
     }
     if (!o->segments.empty()) writeSegmentsPcd(o->segments, r);
@@ -168,8 +169,8 @@ Command addAnalyzeCommand(CLI::App& app) {
     for (const auto& s : r.stages) std::printf("%-20s %10.2f %10zu %10zu\n", s.name.c_str(), s.milliseconds, s.points_in, s.points_out);
     std::printf("%-20s %10.2f\n\n", "total", r.totalMilliseconds());
     if (r.ground_plane) {
-      std::printf("ground plane: normal (%.3f, %.3f, %.3f), %.3f m from the camera\n", (*r.ground_plane)(0),
-                  (*r.ground_plane)(1), (*r.ground_plane)(2), (*r.ground_plane)(3));
+      std::printf("ground plane: normal (%.3f, %.3f, %.3f), %.3f m from the camera (chosen as: %s)\n", (*r.ground_plane)(0),
+                  (*r.ground_plane)(1), (*r.ground_plane)(2), (*r.ground_plane)(3), perception::toString(r.ground_rule));
     } else {
       std::printf("no ground plane found (no floor in view?)\n");
     }

@@ -256,11 +256,12 @@ Command addBuildCommand(CLI::App& app) {
       single_result = perceiveFrame(pipeline, single, std::nullopt);
       gravity_world = single_result->ground_plane ? Eigen::Vector3d(-single_result->ground_plane->head<3>().cast<double>())
                                                   : Eigen::Vector3d(0, 1, 0);
-      gravity_source = single_result->ground_plane ? "the frame's ground plane" : "the camera's +y axis (no ground plane)";
-      if (single_result->ground_plane) {
-        const std::string note = groundMayBeAWallNote(*single_result->ground_plane);
-        if (!note.empty()) std::fprintf(stderr, "%s\n", note.c_str());
-      }
+      gravity_source = !single_result->ground_plane ? "the camera's +y axis (no ground plane)"
+                       : single_result->ground_rule == perception::GroundRule::kUprightPrior
+                           ? "the frame's ground plane (a floor within ground_upright_prior_deg of the image's up axis)"
+                           : "the frame's ground plane (its largest plane)";
+      const std::string note = groundChoiceNote(*single_result, pp.ground_upright_prior_deg);
+      if (!note.empty()) std::fprintf(stderr, "%s\n", note.c_str());
     }
     if (!gravity_world) gravity_source = "-z (default)";
     const Eigen::Vector3d g_world = gravity_world.value_or(Eigen::Vector3d(0, 0, -1));

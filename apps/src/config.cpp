@@ -60,6 +60,7 @@ static Config parseConfigUnchecked(const std::string& text, const std::string& o
          {"outlier_k", bind(p.outlier_k)}, {"outlier_alpha", bind(p.outlier_alpha)}, {"normal_k", bind(p.normal_k)},
          {"ground_distance_m", bind(p.ground_distance_m)}, {"ground_probability", bind(p.ground_probability)},
          {"ground_max_iterations", bind(p.ground_max_iterations)}, {"ground_max_tilt_deg", bind(p.ground_max_tilt_deg)},
+         {"ground_upright_prior_deg", bind(p.ground_upright_prior_deg)},
          {"ground_normal_tolerance_deg", bind(p.ground_normal_tolerance_deg)}, {"ground_min_points", bind(p.ground_min_points)},
          {"ground_reclaim_min_angle_deg", bind(p.ground_reclaim_min_angle_deg)},
          {"ground_reclaim_max_angle_deg", bind(p.ground_reclaim_max_angle_deg)},

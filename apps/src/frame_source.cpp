@@ -145,15 +145,33 @@ perception::FrameResult perceiveFrame(const perception::FramePipeline& pipeline,
                       : pipeline.process(f.points, gravity_down_camera);
 }
 
-std::string groundMayBeAWallNote(const Eigen::Vector4f& ground_plane) {
-  const double tilt =
-      std::acos(std::clamp(static_cast<double>(-ground_plane(1) / ground_plane.head<3>().norm()), -1.0, 1.0)) * 180.0 / M_PI;
-  if (!(tilt > 45.0)) return {};
-  char buf[320];
-  std::snprintf(buf, sizeof buf,
-                "note: no gravity given, so the ground is the largest plane; this one is %.0f degrees from the image's "
-                "up axis and may be a wall. If the camera was held level, pass --gravity 0,1,0.",
-                tilt);
+std::string groundChoiceNote(const perception::FrameResult& r, double upright_prior_deg) {
+  if (!r.ground_plane) return {};
+  const Eigen::Vector4f& g = *r.ground_plane;
+  const double tilt = std::acos(std::clamp(static_cast<double>(-g(1) / g.head<3>().norm()), -1.0, 1.0)) * 180.0 / M_PI;
+  char buf[400];
+  if (r.ground_rule == perception::GroundRule::kUprightPrior) {
+    std::snprintf(buf, sizeof buf,
+                  "note: no gravity given; the largest plane leans away from the image's up axis (a wall?), so the ground "
+                  "is the largest plane below the camera within %.0f degrees of that axis (%.0f degrees; the camera taken "
+                  "as held upright). --gravity X,Y,Z sets it.",
+                  upright_prior_deg, tilt);
+    return buf;
+  }
+  if (r.ground_rule != perception::GroundRule::kLargestPlane || !(tilt > 45.0)) return {};
+  if (upright_prior_deg > 0) {
+    std::snprintf(buf, sizeof buf,
+                  "note: no gravity given and no floor within %.0f degrees of the image's up axis, so the ground is the "
+                  "largest plane; this one is %.0f degrees from that axis and may be a wall. If the camera was held "
+                  "level, pass --gravity 0,1,0.",
+                  upright_prior_deg, tilt);
+  } else {
+    std::snprintf(buf, sizeof buf,
+                  "note: no gravity given, so the ground is the largest plane (ground_upright_prior_deg is 0); this one "
+                  "is %.0f degrees from the image's up axis and may be a wall. If the camera was held level, pass "
+                  "--gravity 0,1,0.",
+                  tilt);
+  }
   return buf;
 }
 

@@ -41,11 +41,12 @@ perception::PinholeIntrinsics parseIntrinsics(const std::string& spec, int width
 perception::FrameResult perceiveFrame(const perception::FramePipeline& pipeline, const LoadedFrame& f,
                                       const std::optional<Eigen::Vector3f>& gravity_down_camera);
 
-/// For a ground plane found without gravity (the largest plane, camera frame, normal
-/// towards the camera): a note for the user when it is more than 45 degrees from the
-/// image's up axis (-y), i.e. probably a wall; empty otherwise. `analyze` and `build`
-/// both take gravity as `--gravity`.
-std::string groundMayBeAWallNote(const Eigen::Vector4f& ground_plane);
+/// For a frame perceived without gravity, a note for the user on how its ground was
+/// chosen, or empty: when the largest plane leaned away from the image's up axis and a
+/// floor within `upright_prior_deg` of it was taken instead (the camera assumed
+/// upright), and when the ground is the largest plane and more than 45 degrees from
+/// that axis, i.e. probably a wall. `analyze` and `build` both take `--gravity`.
+std::string groundChoiceNote(const perception::FrameResult& r, double upright_prior_deg);
 
 /// Parses "X,Y,Z" (non-zero, finite), a direction: returned as a unit vector. Throws
 /// UsageError.

@@ -33,6 +33,9 @@ class StageClock {
 // ground). A straight boundary with the floor does not move: the floor points along
 // it have fewer than half their neighbours in the rough region.
 constexpr int kAbsorbPasses = 6;
+// A plane found within this many degrees of the upright prior's cone edge is taken for
+// a leaning surface fitted at the edge (see ground_upright_prior_deg), not a floor.
+constexpr double kUprightEdgeDeg = 5.0;
 
 // Grid cell for the kNN search: large enough that the k-th neighbour on a surface
 // sampled every voxel_m usually lies inside the guaranteed radius (sqrt(k / pi)
@@ -48,6 +51,16 @@ void fail(const char* field, double value, const char* rule) {
 }
 
 }  // namespace
+
+const char* toString(GroundRule r) {
+  switch (r) {
+    case GroundRule::kNone: return "none";
+    case GroundRule::kGravity: return "gravity";
+    case GroundRule::kLargestPlane: return "largest plane";
+    case GroundRule::kUprightPrior: return "upright prior";
+  }
+  return "unknown";
+}
 
 const char* toString(SlopeReference r) {
   switch (r) {
@@ -70,6 +83,9 @@ void validate(const PerceptionParams& p) {
   if (!(p.ground_probability > 0 && p.ground_probability < 1)) fail("ground_probability", p.ground_probability, "must be in (0, 1)");
   if (p.ground_max_iterations < 1) fail("ground_max_iterations", p.ground_max_iterations, "must be >= 1");
   if (!(p.ground_max_tilt_deg >= 0 && p.ground_max_tilt_deg <= 90)) fail("ground_max_tilt_deg", p.ground_max_tilt_deg, "must be in [0, 90]");
+  if (!(p.ground_upright_prior_deg >= 0 && p.ground_upright_prior_deg <= 90)) {
+    fail("ground_upright_prior_deg", p.ground_upright_prior_deg, "must be in [0, 90]");
+  }
   if (!(p.ground_normal_tolerance_deg > 0 && p.ground_normal_tolerance_deg <= 180)) fail("ground_normal_tolerance_deg", p.ground_normal_tolerance_deg, "must be in (0, 180]");
   if (!(p.ground_reclaim_min_angle_deg >= 0 && p.ground_reclaim_min_angle_deg <= 90)) fail("ground_reclaim_min_angle_deg", p.ground_reclaim_min_angle_deg, "must be in [0, 90]");
   if (!(p.ground_reclaim_max_angle_deg >= p.ground_reclaim_min_angle_deg && p.ground_reclaim_max_angle_deg <= 90)) fail("ground_reclaim_max_angle_deg", p.ground_reclaim_max_angle_deg, "must be in [ground_reclaim_min_angle_deg, 90]");
@@ -281,15 +297,55 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
     o.max_iterations = p.ground_max_iterations;
     o.required_normal = up;
     o.max_tilt_deg = p.ground_max_tilt_deg;
+    o.origin_on_normal_side = true;  // a floor below the camera, not a ceiling above it
     o.point_normals = &out.normals;
     o.normal_tolerance_deg = p.ground_normal_tolerance_deg;
-    auto fit = ransacPlane(out.points, all, o, rng);
-    if (fit && static_cast<int>(fit->inliers.size()) >= p.ground_min_points) {
+    // With a required direction, only points whose own normal is within the tilt plus
+    // the inlier normal tolerance of it can be inliers of a qualifying plane: sampling
+    // among them alone finds the same planes, where a floor that is a few percent of
+    // the view (walls and people fill the rest) would otherwise rarely be drawn.
+    const auto facing = [&](const Eigen::Vector3f& dir, double max_tilt_deg) {
+      const double reach = std::min(90.0, max_tilt_deg + p.ground_normal_tolerance_deg);
+      const float cos_reach = static_cast<float>(std::cos(reach / kRadToDeg));
+      std::vector<int> c;
+      for (std::size_t i = 0; i < n; ++i) {
+        if (std::abs(out.normals[i].dot(dir)) >= cos_reach - 1e-6f) c.push_back(static_cast<int>(i));
+      }
+      return c;
+    };
+    auto fit = ransacPlane(out.points, up ? facing(*up, p.ground_max_tilt_deg) : all, o, rng);
+    const auto large_enough = [&](const std::optional<PlaneFit>& f) {
+      return f && static_cast<int>(f->inliers.size()) >= p.ground_min_points;
+    };
+    // Angle between the image's up axis (-y) and a plane's normal turned towards the
+    // camera: near 0 for a floor below it, near 180 for a ceiling above it.
+    const auto tilt_from_image_up = [](const Eigen::Vector4f& plane) {
+      const float towards_camera = plane(3) < 0 ? -1.0f : 1.0f;
+      const float c = -towards_camera * plane(1) / std::max(plane.head<3>().norm(), 1e-12f);
+      return std::acos(std::clamp(c, -1.0f, 1.0f)) * kRadToDeg;
+    };
+    out.ground_rule = up ? GroundRule::kGravity : GroundRule::kLargestPlane;
+    if (!up && p.ground_upright_prior_deg > 0 && (!large_enough(fit) || tilt_from_image_up(fit->plane) > p.ground_upright_prior_deg)) {
+      // The largest plane leans away from the image's up axis (a wall, when the camera
+      // is held upright). Look for a floor within the prior's cone; one fitted at the
+      // cone's edge is the same leaning surface, not a floor.
+      RansacOptions upright = o;
+      upright.required_normal = Eigen::Vector3f(0, -1, 0);
+      upright.max_tilt_deg = p.ground_upright_prior_deg;
+      auto floor = ransacPlane(out.points, facing(*upright.required_normal, upright.max_tilt_deg), upright, rng);
+      if (large_enough(floor) && tilt_from_image_up(floor->plane) <= p.ground_upright_prior_deg - kUprightEdgeDeg) {
+        fit = std::move(floor);
+        out.ground_rule = GroundRule::kUprightPrior;
+      }
+    }
+    if (large_enough(fit)) {
       Eigen::Vector4f plane = fit->plane;
       if (plane(3) < 0) plane = -plane;  // normal towards the camera at the origin
       out.ground_plane = plane;
       ground_points = std::move(fit->inliers);
       for (int i : ground_points) eligible[static_cast<std::size_t>(i)] = false;
+    } else {
+      out.ground_rule = GroundRule::kNone;
     }
   }
   clock.stop("ground", n, n - ground_points.size());

@@ -35,6 +35,14 @@ struct PerceptionParams {
   double ground_probability = 0.99;       ///< p: chance of drawing one outlier-free sample
   int ground_max_iterations = 1000;
   double ground_max_tilt_deg = 20.0;      ///< with gravity: plane normal within this of "up"
+  /// Without gravity the paper takes the largest plane, which is a wall when a wall
+  /// fills more of the view than the floor. If the largest plane's normal leans more
+  /// than this from the image's up axis (-y in OpenCV camera axes: a camera held
+  /// roughly upright), the largest plane below the camera within this cone is the
+  /// ground instead, provided it has ground_min_points and is not within 5 degrees of
+  /// the cone's edge (that is the leaning surface fitted at the edge, not a floor).
+  /// 0 follows the paper.
+  double ground_upright_prior_deg = 45.0;
   double ground_normal_tolerance_deg = 25.0;  ///< inliers' own normals within this of the plane's
   int ground_min_points = 500;            ///< fewer inliers: "no floor in view"
   /// Ground inliers that continue a region tilted at least this much from the floor
@@ -98,6 +106,15 @@ void validate(const PerceptionParams& params);
 /// std::invalid_argument unless voxel_m is in [0.001, 1].
 [[nodiscard]] PerceptionParams scaledToVoxel(const PerceptionParams& params, double voxel_m);
 
+/// How the ground plane was chosen.
+enum class GroundRule {
+  kNone,          ///< no plane with ground_min_points inliers
+  kGravity,       ///< the largest plane within ground_max_tilt_deg of gravity's "up"
+  kLargestPlane,  ///< no gravity: the largest plane (the paper)
+  kUprightPrior,  ///< no gravity: the largest plane leaned away, a floor in the upright cone was found
+};
+const char* toString(GroundRule r);
+
 /// What the slope of a segment is measured against.
 enum class SlopeReference {
   kGravity,  ///< "up" from a known gravity direction
@@ -140,6 +157,7 @@ struct FrameResult {
   std::vector<int> segment_of_point;                  ///< index into segments, -1 = none
   std::vector<Segment> segments;
   std::optional<Eigen::Vector4f> ground_plane;  ///< n.x + d = 0, n towards the camera
+  GroundRule ground_rule = GroundRule::kNone;
   SlopeReference reference = SlopeReference::kCamera;
   /// For organized input: the index into `points` of each pixel's voxel, -1 if the
   /// pixel was invalid, cropped or removed as an outlier. Empty for unorganized input.
