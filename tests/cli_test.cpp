@@ -213,7 +213,7 @@ TEST(Cli, WithoutGravityTheFloorBeatsALargerWallUnlessThePriorIsOff) {
   ASSERT_EQ(plain.code, 0) << plain.out;
   EXPECT_NEAR(groundDistance(plain), 0.4, 0.02) << plain.out;  // the floor, 0.4 m below
   EXPECT_NE(plain.out.find("\"ground_rule\":\"upright prior\""), std::string::npos) << plain.out;
-  EXPECT_NE(plain.out.find("the largest plane leans away from the image's up axis"), std::string::npos) << plain.out;
+  EXPECT_NE(plain.out.find("the largest plane found leans away from the image's up axis"), std::string::npos) << plain.out;
   EXPECT_EQ(plain.out.find("may be a wall"), std::string::npos) << plain.out;
   std::ofstream(dir + "/paper.yaml") << "perception:\n  ground_upright_prior_deg: 0\n";
   const Result paper = run("analyze " + pcd + " --config " + dir + "/paper.yaml --json");
@@ -230,7 +230,7 @@ TEST(Cli, WithoutGravityTheFloorBeatsALargerWallUnlessThePriorIsOff) {
   // `build` takes "down" from the ground plane of a lone PCD: the floor's, with the note.
   const Result b = run("build " + pcd + " --out " + dir + "/m.ot --quiet");
   ASSERT_EQ(b.code, 0) << b.out;
-  EXPECT_NE(b.out.find("the largest plane leans away"), std::string::npos) << b.out;
+  EXPECT_NE(b.out.find("the largest plane found leans away"), std::string::npos) << b.out;
   const Result q = run("query " + dir + "/m.ot 0 0.3 1.0 --input-frame world --snap 1.0 --json");  // over the floor 1 m ahead (its rows are 2 cm apart there, 5 cm at 1.6 m)
   ASSERT_EQ(q.code, 0) << q.out;
   const auto qj = nlohmann::json::parse(q.out);

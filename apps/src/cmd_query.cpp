@@ -181,7 +181,7 @@ void printMetadataSummary(const nlohmann::json& meta, const std::string& json_pa
       const Eigen::Vector3d b(traj[i][0].get<double>(), traj[i][1].get<double>(), traj[i][2].get<double>());
       length += (b - a).norm();
     }
-    std::printf("camera path: %zu positions, %.2f m long\n", traj.size(), length);
+    std::printf("camera path: %zu position%s, %.2f m long\n", traj.size(), traj.size() == 1 ? "" : "s", length);
   }
   std::printf("all metadata: %s (or info --json)\n", json_path.c_str());
 }

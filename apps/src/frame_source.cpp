@@ -152,9 +152,9 @@ std::string groundChoiceNote(const perception::FrameResult& r, double upright_pr
   char buf[400];
   if (r.ground_rule == perception::GroundRule::kUprightPrior) {
     std::snprintf(buf, sizeof buf,
-                  "note: no gravity given; the largest plane leans away from the image's up axis (a wall?), so the ground "
-                  "is the largest plane below the camera within %.0f degrees of that axis (%.0f degrees; the camera taken "
-                  "as held upright). --gravity X,Y,Z sets it.",
+                  "note: no gravity given; the largest plane found leans away from the image's up axis (a wall?), so the "
+                  "ground is the largest plane below the camera within %.0f degrees of that axis (this one: %.0f degrees; "
+                  "the camera taken as held upright). --gravity X,Y,Z sets it.",
                   upright_prior_deg, tilt);
     return buf;
   }
