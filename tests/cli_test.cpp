@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <poll.h>
+#include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -15,6 +17,7 @@
 #include <functional>
 #include <map>
 #include <vector>
+#include <sstream>
 #include <string>
 
 namespace {
@@ -153,6 +156,73 @@ TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   const Result foot = run("query " + map + " --foot 2.0 0 0 0 0.25 0.12 --json");
   ASSERT_EQ(foot.code, 0) << foot.out;
   EXPECT_GT(nlohmann::json::parse(foot.out)["min_mobility"].get<double>(), 0.9);
+  // A planner's batch: soles on standard input, one answer line each, in order. A sole
+  // 25 cm above the floor finds it only when --snap reaches down that far.
+  std::ofstream(dir + "/feet.txt") << "2.0 0 0 0 0.25 0.12\n\n2.0 0 0.25 0.5 0.25 0.12\n";
+  const Result feet = run("query " + map + " --feet --json < " + dir + "/feet.txt");
+  ASSERT_EQ(feet.code, 0) << feet.out;
+  std::istringstream lines(feet.out);
+  std::string first, second;
+  ASSERT_TRUE(std::getline(lines, first) && std::getline(lines, second)) << feet.out;
+  EXPECT_GT(nlohmann::json::parse(first)["min_mobility"].get<double>(), 0.9);
+  EXPECT_EQ(nlohmann::json::parse(second)["foot"][2].get<double>(), 0.25);
+  EXPECT_EQ(nlohmann::json::parse(second)["known_fraction"].get<double>(), 0.0);
+  const Result reach = run("query " + map + " --feet --snap 0.3 --json < " + dir + "/feet.txt");
+  ASSERT_EQ(reach.code, 0) << reach.out;
+  EXPECT_GT(nlohmann::json::parse(reach.out.substr(reach.out.find('\n') + 1))["known_fraction"].get<double>(), 0.9);
+  // A planner keeps one process open and asks one sole at a time: every answer must
+  // arrive before the next question is written (not held in a pipe buffer).
+  {
+    int to_child[2], from_child[2];
+    ASSERT_EQ(::pipe(to_child), 0);
+    ASSERT_EQ(::pipe(from_child), 0);
+    const pid_t pid = ::fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+      ::dup2(to_child[0], 0);
+      ::dup2(from_child[1], 1);
+      ::close(to_child[1]);
+      ::close(from_child[0]);
+      ::execl(MOBMAP_EXE, MOBMAP_EXE, "query", map.c_str(), "--feet", "--json", static_cast<char*>(nullptr));
+      ::_exit(127);
+    }
+    ::close(to_child[0]);
+    ::close(from_child[1]);
+    struct Reap {  // a child left waiting (a failed assertion) is killed, not left behind
+      pid_t pid;
+      bool done = false;
+      ~Reap() {
+        if (!done) {
+          ::kill(pid, SIGKILL);
+          ::waitpid(pid, nullptr, 0);
+        }
+      }
+    } reap{pid};
+    for (int ask = 0; ask < 3; ++ask) {
+      const std::string question = "2.0 0 0 " + std::to_string(ask) + " 0.25 0.12\n";
+      ASSERT_EQ(::write(to_child[1], question.data(), question.size()), static_cast<ssize_t>(question.size()));
+      std::string answer;
+      while (answer.find('\n') == std::string::npos) {
+        pollfd pfd{from_child[0], POLLIN, 0};
+        ASSERT_EQ(::poll(&pfd, 1, 10000), 1) << "no answer to sole " << ask << " within 10 s";
+        char buf[512];
+        const ssize_t n = ::read(from_child[0], buf, sizeof buf);
+        ASSERT_GT(n, 0);
+        answer.append(buf, static_cast<std::size_t>(n));
+      }
+      EXPECT_EQ(nlohmann::json::parse(answer)["foot"][3].get<double>(), ask);
+    }
+    ::close(to_child[1]);
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    reap.done = true;
+    ::close(from_child[0]);
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  }
+  std::ofstream(dir + "/bad_feet.txt") << "2.0 0 0 0 0.25\n";
+  const Result bad_feet = run("query " + map + " --feet < " + dir + "/bad_feet.txt");
+  EXPECT_EQ(bad_feet.code, 2);
+  EXPECT_NE(bad_feet.out.find("standard input line 1: expected 'x y z yaw length width'"), std::string::npos) << bad_feet.out;
   const Result info = run("info " + map);
   EXPECT_EQ(info.code, 0);
   EXPECT_NE(info.out.find("MobilityOcTree_v1, resolution 0.020 m"), std::string::npos) << info.out;

@@ -15,6 +15,13 @@
 namespace mobmap::app {
 namespace {
 
+// Each answer to a line of standard input leaves at once, so a planner can keep one
+// process open and ask a question at a time (a pipe would otherwise hold it).
+void flushAnswer() {
+  std::cout.flush();
+  std::fflush(stdout);
+}
+
 nlohmann::json pointJson(const mapping::PointQuery& q) {
   nlohmann::json j{{"state", mapping::toString(q.state)},
                    {"voxel_centre", {q.centre.x(), q.centre.y(), q.centre.z()}},
@@ -44,6 +51,7 @@ Command addQueryCommand(CLI::App& app) {
     std::string map;
     std::vector<double> xyz;
     std::vector<double> foot;
+    bool feet = false;
     double snap = -1;
     std::string frame = "map";
     bool json = false;
@@ -51,32 +59,65 @@ Command addQueryCommand(CLI::App& app) {
   auto o = std::make_shared<Options>();
   cmd->add_option("MAP", o->map, "A .ot map written by `mobmap build`")->required();
   cmd->add_option("XYZ", o->xyz, "A point X Y Z (metres); without it, points are read as 'x y z' lines from standard input")->expected(3);
-  cmd->add_option("--foot", o->foot, "X Y Z YAW LENGTH WIDTH: a rectangular sole (yaw in radians about +z)")->expected(6);
-  cmd->add_option("--snap", o->snap, "Search down along gravity up to this many metres for the supporting surface");
+  auto* foot = cmd->add_option("--foot", o->foot, "X Y Z YAW LENGTH WIDTH: a rectangular sole (yaw in radians about +z)")->expected(6);
+  cmd->add_flag("--feet", o->feet, "Soles as 'x y z yaw length width' lines from standard input, one answer line each")
+      ->excludes(foot);
+  cmd->add_option("--snap", o->snap,
+                  "Search down along gravity up to this many metres for the supporting surface (points; for soles, "
+                  "below Z, default 0.1, and 0.1 above it)");
   cmd->add_option("--input-frame", o->frame, "Frame of the given coordinates: map (gravity aligned) or world (the data's own)")
       ->check(CLI::IsMember({"map", "world"}))->capture_default_str();
   cmd->add_flag("--json", o->json, "One JSON object per answer");
   return [o]() {
     const mapping::MobilityMap map = loadMap(o->map);
     auto toMap = [&](Eigen::Vector3d p) { return o->frame == "world" ? map.worldToMap(p) : p; };
-    if (!o->foot.empty()) {
-      const Eigen::Vector3d c = toMap({o->foot[0], o->foot[1], o->foot[2]});
-      double yaw = o->foot[3];
+    // A sole: X Y Z YAW LENGTH WIDTH. `where` names its source in errors.
+    auto answerFoot = [&](const std::vector<double>& s, const std::string& where) {
+      if (!(s[4] > 0 && s[5] > 0 && s[4] <= 10 && s[5] <= 10)) throw UsageError(where + ": LENGTH and WIDTH must be in (0, 10] m");
+      const Eigen::Vector3d c = toMap({s[0], s[1], s[2]});
+      double yaw = s[3];
       if (o->frame == "world") {  // rotate the heading with the frame
         const Eigen::Vector3d h = map.rotationMapWorld() * Eigen::Vector3d(std::cos(yaw), std::sin(yaw), 0);
         yaw = std::atan2(h.y(), h.x());
       }
-      if (!(o->foot[4] > 0 && o->foot[5] > 0)) throw UsageError("--foot LENGTH and WIDTH must be > 0");
-      const auto f = map.footprint({c.x(), c.y(), c.z(), yaw, o->foot[4], o->foot[5]});
+      const auto f = map.footprint({c.x(), c.y(), c.z(), yaw, s[4], s[5]}, 0.1, o->snap >= 0 ? o->snap : 0.1);
       if (o->json) {
-        std::cout << nlohmann::json{{"min_mobility", f.min_mobility}, {"mean_mobility", f.mean_mobility},
+        std::cout << nlohmann::json{{"foot", s},
+                                    {"min_mobility", f.min_mobility},
+                                    {"mean_mobility", f.mean_mobility},
                                     {"known_fraction", f.known_fraction},
-                                    {"max_height_difference_m", f.max_height_difference_m}, {"samples", f.samples}}
+                                    {"max_height_difference_m", f.max_height_difference_m},
+                                    {"samples", f.samples}}
                          .dump()
                   << "\n";
       } else {
         std::printf("sole: min mobility %.3f, mean %.3f, known %.0f %% of %d samples, height difference %.3f m\n",
                     f.min_mobility, f.mean_mobility, 100 * f.known_fraction, f.samples, f.max_height_difference_m);
+      }
+    };
+    if (!o->foot.empty()) {
+      if (!Eigen::Map<const Eigen::VectorXd>(o->foot.data(), 6).allFinite()) throw UsageError("--foot: values must be finite");
+      answerFoot(o->foot, "--foot");
+      return 0;
+    }
+    if (o->feet) {
+      if (!o->xyz.empty()) throw UsageError("--feet reads soles from standard input; give no point");
+      std::string line;
+      int line_no = 0;
+      while (std::getline(std::cin, line)) {
+        ++line_no;
+        if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+        std::istringstream in(line);
+        std::vector<double> s(6);
+        std::string extra;
+        bool ok = true;
+        for (double& v : s) ok = ok && static_cast<bool>(in >> v) && std::isfinite(v);
+        if (!ok || (in >> extra)) {
+          throw UsageError("standard input line " + std::to_string(line_no) + ": expected 'x y z yaw length width', got '" +
+                           line + "'");
+        }
+        answerFoot(s, "standard input line " + std::to_string(line_no));
+        flushAnswer();
       }
       return 0;
     }
@@ -117,6 +158,7 @@ Command addQueryCommand(CLI::App& app) {
         throw UsageError("standard input line " + std::to_string(line_no) + ": expected 'x y z', got '" + line + "'");
       }
       answer(p);
+      flushAnswer();
     }
     return 0;
   };
