@@ -12,8 +12,10 @@
 #include <cmath>
 #include <condition_variable>
 #include <filesystem>
+#include <memory>
 #include <mutex>
 #include <sstream>
+#include <vector>
 
 #include <unistd.h>
 
@@ -60,9 +62,39 @@ void openDevice(openni::Device& device, const std::string& uri, bool is_file, co
   if (!device.hasSensor(openni::SENSOR_DEPTH)) throw IoError(name, "has no depth sensor");
 }
 
+// The device and depth stream of a sequence. OpenNI2's file player (libOniFile) has a
+// playback thread that walks the device's stream list without a lock
+// (PlayerDevice::MainLoop) while destroying a stream deletes it from that list, and
+// closing the device deletes its streams before it stops the thread: `build` on an
+// .oni crashed in that thread about once in 30 runs on a busy machine. So a recording's
+// stream is stopped but neither destroyed nor closed; it is parked until the process
+// exits (a process opens one recording; OpenNI2 is never shut down either, see
+// initialiseOpenNi). Live devices are closed as usual.
+struct OpenNiHandles {
+  explicit OpenNiHandles(bool playback) : is_file(playback) {}
+  OpenNiHandles(const OpenNiHandles&) = delete;
+  OpenNiHandles& operator=(const OpenNiHandles&) = delete;
+  ~OpenNiHandles() {
+    depth->stop();
+    if (!is_file) {
+      depth->destroy();
+      device->close();
+      return;
+    }
+    static std::mutex m;
+    // Reachable until exit and never freed (so not a leak to LeakSanitizer).
+    static auto* parked = new std::vector<std::pair<openni::Device*, openni::VideoStream*>>();
+    std::lock_guard<std::mutex> lock(m);
+    parked->emplace_back(device.release(), depth.release());
+  }
+  bool is_file;
+  std::unique_ptr<openni::Device> device = std::make_unique<openni::Device>();
+  std::unique_ptr<openni::VideoStream> depth = std::make_unique<openni::VideoStream>();
+};
+
 class OpenNiSequence : public Sequence {
  public:
-  explicit OpenNiSequence(const OpenNiOptions& o) : o_(o) {
+  explicit OpenNiSequence(const OpenNiOptions& o) : o_(o), handles_(o.is_file) {
     name_ = o.is_file ? o.uri : (o.uri.empty() ? std::string("the first OpenNI2 device") : o.uri);
     openDevice(device_, o.uri, o.is_file, name_);
     if (!o.is_file && device_.hasSensor(openni::SENSOR_COLOR) &&
@@ -107,11 +139,7 @@ class OpenNiSequence : public Sequence {
     }
     if (depth_.start() != openni::STATUS_OK) throw IoError(name_, "cannot start its depth stream: " + extendedError());
   }
-  ~OpenNiSequence() override {
-    depth_.stop();
-    depth_.destroy();
-    device_.close();
-  }
+  ~OpenNiSequence() override = default;  // handles_ stops the stream (and closes a live device)
 
   std::string describe() const override {
     std::ostringstream s;
@@ -222,8 +250,9 @@ class OpenNiSequence : public Sequence {
 
   OpenNiOptions o_;
   std::string name_;
-  mutable openni::Device device_;
-  mutable openni::VideoStream depth_;
+  OpenNiHandles handles_;
+  openni::Device& device_ = *handles_.device;
+  openni::VideoStream& depth_ = *handles_.depth;
   bool registered_ = false;
   float scale_ = 0.001f;
   int recorded_ = 0;
