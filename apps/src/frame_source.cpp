@@ -147,8 +147,7 @@ perception::FrameResult perceiveFrame(const perception::FramePipeline& pipeline,
 
 std::string groundChoiceNote(const perception::FrameResult& r, double upright_prior_deg) {
   if (!r.ground_plane) return {};
-  const Eigen::Vector4f& g = *r.ground_plane;
-  const double tilt = std::acos(std::clamp(static_cast<double>(-g(1) / g.head<3>().norm()), -1.0, 1.0)) * 180.0 / M_PI;
+  const double tilt = perception::imageUpTiltDeg(*r.ground_plane);
   char buf[400];
   if (r.ground_rule == perception::GroundRule::kUprightPrior) {
     std::snprintf(buf, sizeof buf,

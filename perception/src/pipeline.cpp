@@ -52,6 +52,12 @@ void fail(const char* field, double value, const char* rule) {
 
 }  // namespace
 
+double imageUpTiltDeg(const Eigen::Vector4f& plane) {
+  const double towards_camera = plane(3) < 0 ? -1.0 : 1.0;
+  const double c = -towards_camera * plane(1) / std::max(static_cast<double>(plane.head<3>().norm()), 1e-12);
+  return std::acos(std::clamp(c, -1.0, 1.0)) * kRadToDeg;
+}
+
 const char* toString(GroundRule r) {
   switch (r) {
     case GroundRule::kNone: return "none";
@@ -317,15 +323,8 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
     const auto large_enough = [&](const std::optional<PlaneFit>& f) {
       return f && static_cast<int>(f->inliers.size()) >= p.ground_min_points;
     };
-    // Angle between the image's up axis (-y) and a plane's normal turned towards the
-    // camera: near 0 for a floor below it, near 180 for a ceiling above it.
-    const auto tilt_from_image_up = [](const Eigen::Vector4f& plane) {
-      const float towards_camera = plane(3) < 0 ? -1.0f : 1.0f;
-      const float c = -towards_camera * plane(1) / std::max(plane.head<3>().norm(), 1e-12f);
-      return std::acos(std::clamp(c, -1.0f, 1.0f)) * kRadToDeg;
-    };
     out.ground_rule = up ? GroundRule::kGravity : GroundRule::kLargestPlane;
-    if (!up && p.ground_upright_prior_deg > 0 && (!large_enough(fit) || tilt_from_image_up(fit->plane) > p.ground_upright_prior_deg)) {
+    if (!up && p.ground_upright_prior_deg > 0 && (!large_enough(fit) || imageUpTiltDeg(fit->plane) > p.ground_upright_prior_deg)) {
       // The largest plane leans away from the image's up axis (a wall, when the camera
       // is held upright). Look for a floor within the prior's cone; one fitted at the
       // cone's edge is the same leaning surface, not a floor.
@@ -333,7 +332,7 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
       upright.required_normal = Eigen::Vector3f(0, -1, 0);
       upright.max_tilt_deg = p.ground_upright_prior_deg;
       auto floor = ransacPlane(out.points, facing(*upright.required_normal, upright.max_tilt_deg), upright, rng);
-      if (large_enough(floor) && tilt_from_image_up(floor->plane) <= p.ground_upright_prior_deg - kUprightEdgeDeg) {
+      if (large_enough(floor) && imageUpTiltDeg(floor->plane) <= p.ground_upright_prior_deg - kUprightEdgeDeg) {
         fit = std::move(floor);
         out.ground_rule = GroundRule::kUprightPrior;
       }

@@ -115,6 +115,11 @@ enum class GroundRule {
 };
 const char* toString(GroundRule r);
 
+/// Angle in degrees between the image's up axis (-y, OpenCV camera axes) and a camera-
+/// frame plane's normal turned towards the camera (the origin): near 0 for a floor below
+/// the camera, near 90 for a wall, near 180 for a ceiling above it.
+[[nodiscard]] double imageUpTiltDeg(const Eigen::Vector4f& plane);
+
 /// What the slope of a segment is measured against.
 enum class SlopeReference {
   kGravity,  ///< "up" from a known gravity direction
