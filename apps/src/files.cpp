@@ -30,13 +30,22 @@ std::string readTextFile(const std::string& path, std::size_t max_bytes) {
   return s.str();
 }
 
-void writeAtomically(const std::string& path, const std::function<void(const std::string&)>& write) {
+namespace {
+
+// Creates the directory a file will go in; IoError naming the file if it cannot.
+void createParentDirectory(const std::string& path) {
   const std::filesystem::path target(path);
+  if (!target.has_parent_path()) return;
   std::error_code ec;
-  if (target.has_parent_path()) {
-    std::filesystem::create_directories(target.parent_path(), ec);
-    if (ec) throw IoError(path, "cannot create directory " + target.parent_path().string() + ": " + ec.message());
-  }
+  std::filesystem::create_directories(target.parent_path(), ec);
+  if (ec) throw IoError(path, "cannot create directory " + target.parent_path().string() + ": " + ec.message());
+}
+
+}  // namespace
+
+void writeAtomically(const std::string& path, const std::function<void(const std::string&)>& write) {
+  std::error_code ec;
+  createParentDirectory(path);
   const std::string tmp = path + ".tmp." + std::to_string(::getpid());
   try {
     write(tmp);
@@ -54,10 +63,7 @@ void writeAtomically(const std::string& path, const std::function<void(const std
 void checkWritable(const std::string& path) {
   const std::filesystem::path target(path);
   std::error_code ec;
-  if (target.has_parent_path()) {
-    std::filesystem::create_directories(target.parent_path(), ec);
-    if (ec) throw IoError(path, "cannot create directory " + target.parent_path().string() + ": " + ec.message());
-  }
+  createParentDirectory(path);
   if (std::filesystem::is_directory(target, ec)) throw IoError(path, "is a directory");
   const std::string probe = path + ".probe." + std::to_string(::getpid());
   {
