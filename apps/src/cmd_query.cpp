@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <sstream>
@@ -20,6 +21,30 @@ namespace {
 void flushAnswer() {
   std::cout.flush();
   std::fflush(stdout);
+}
+
+// Reads standard input a line at a time: blank lines are skipped, every other line must
+// hold exactly `fields.size()` finite numbers (named in `fields`, e.g. "x y z"), which go
+// to `answer` with the line's name for errors; each answer is flushed before the next
+// line is read.
+void answerEachInputLine(const std::string& fields,
+                         const std::function<void(const std::vector<double>&, const std::string&)>& answer) {
+  const auto n = static_cast<std::size_t>(std::count(fields.begin(), fields.end(), ' ') + 1);
+  std::string line;
+  int line_no = 0;
+  while (std::getline(std::cin, line)) {
+    ++line_no;
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    std::istringstream in(line);
+    std::vector<double> values(n);
+    std::string extra;
+    bool ok = true;
+    for (double& v : values) ok = ok && static_cast<bool>(in >> v) && std::isfinite(v);
+    const std::string where = "standard input line " + std::to_string(line_no);
+    if (!ok || (in >> extra)) throw UsageError(where + ": expected '" + fields + "', got '" + line + "'");
+    answer(values, where);
+    flushAnswer();
+  }
 }
 
 nlohmann::json pointJson(const mapping::PointQuery& q) {
@@ -102,23 +127,7 @@ Command addQueryCommand(CLI::App& app) {
     }
     if (o->feet) {
       if (!o->xyz.empty()) throw UsageError("--feet reads soles from standard input; give no point");
-      std::string line;
-      int line_no = 0;
-      while (std::getline(std::cin, line)) {
-        ++line_no;
-        if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-        std::istringstream in(line);
-        std::vector<double> s(6);
-        std::string extra;
-        bool ok = true;
-        for (double& v : s) ok = ok && static_cast<bool>(in >> v) && std::isfinite(v);
-        if (!ok || (in >> extra)) {
-          throw UsageError("standard input line " + std::to_string(line_no) + ": expected 'x y z yaw length width', got '" +
-                           line + "'");
-        }
-        answerFoot(s, "standard input line " + std::to_string(line_no));
-        flushAnswer();
-      }
+      answerEachInputLine("x y z yaw length width", answerFoot);
       return 0;
     }
     auto answer = [&](const Eigen::Vector3d& p_in) {
@@ -146,20 +155,7 @@ Command addQueryCommand(CLI::App& app) {
       answer({o->xyz[0], o->xyz[1], o->xyz[2]});
       return 0;
     }
-    std::string line;
-    int line_no = 0;
-    while (std::getline(std::cin, line)) {
-      ++line_no;
-      if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-      std::istringstream in(line);
-      Eigen::Vector3d p;
-      std::string extra;
-      if (!(in >> p.x() >> p.y() >> p.z()) || (in >> extra) || !p.allFinite()) {
-        throw UsageError("standard input line " + std::to_string(line_no) + ": expected 'x y z', got '" + line + "'");
-      }
-      answer(p);
-      flushAnswer();
-    }
+    answerEachInputLine("x y z", [&](const std::vector<double>& v, const std::string&) { answer({v[0], v[1], v[2]}); });
     return 0;
   };
 }
