@@ -197,6 +197,55 @@ TEST(MobilityMap, MrptPoseGivesTheSameMapAsEigen) {
   EXPECT_EQ(q.state, VoxelState::kSurface);
 }
 
+// After finalize() (or in a loaded map) equal voxels are pruned into one node. OctoMap's
+// updateNode() returns such a node itself, without descending, when the hit cannot raise
+// its clamped occupancy; fusing the new mobility into it would overwrite the whole block.
+TEST(MobilityMap, FusingIntoAPrunedBlockChangesOnlyTheVoxelHit) {
+  MapParams p;
+  p.range_variance_per_m2 = 0.0;  // equal weights, so the cube's voxels are equal and prune
+  MobilityMap map(p);
+  perception::FrameResult cube;
+  perception::Segment walkable;
+  walkable.mobility = 1.0;
+  walkable.variance = 0.002;
+  // 4 x 4 x 4 voxels of 2 cm, aligned to a node of the level above two (keys multiple of 4).
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < 4; ++j) {
+      for (int l = 0; l < 4; ++l) {
+        cube.points.emplace_back(0.01f + 0.02f * i, 0.01f + 0.02f * j, 0.97f + 0.02f * l);
+        cube.segment_of_point.push_back(0);
+        walkable.points.push_back(static_cast<int>(cube.points.size() - 1));
+      }
+    }
+  }
+  cube.segments = {walkable};
+  for (int n = 0; n < 4; ++n) map.integrate(cube, Eigen::Isometry3d::Identity());  // clamped after 3
+  map.finalize();
+  ASSERT_EQ(map.tree().getNumLeafNodes(), 1u) << "the cube should have pruned into one node";
+
+  perception::FrameResult one;
+  perception::Segment obstacle;
+  obstacle.mobility = 0.0;
+  obstacle.variance = 0.002;
+  obstacle.points = {0};
+  one.points = {Eigen::Vector3f(0.01f, 0.01f, 0.97f)};
+  one.segment_of_point = {0};
+  one.segments = {obstacle};
+  map.integrate(one, Eigen::Isometry3d::Identity());
+  const PointQuery hit = map.query({0.01, 0.01, 0.97});
+  EXPECT_NEAR(hit.size_m, 0.02, 1e-9);
+  EXPECT_LT(hit.mobility, 0.9);
+  EXPECT_EQ(hit.count, 5);
+  for (const Eigen::Vector3d& q : {Eigen::Vector3d(0.03, 0.01, 0.97), Eigen::Vector3d(0.07, 0.07, 1.03)}) {
+    const PointQuery other = map.query(q);
+    EXPECT_NEAR(other.mobility, 1.0, 1e-3) << q.transpose();
+    EXPECT_EQ(other.count, 4) << q.transpose();
+  }
+  map.finalize();
+  EXPECT_EQ(map.query({0.07, 0.07, 1.03}).count, 4);
+  EXPECT_LT(map.query({0.01, 0.01, 0.97}).mobility, 0.9);
+}
+
 TEST(MobilityMap, SnapAndFootprintQueries) {
   const MobilityMap map = builtMap();
   const auto snapped = map.snapDown({1.3, 0.0, 0.3}, 0.5);

@@ -73,6 +73,7 @@ MobilityMap::MobilityMap(std::unique_ptr<MobilityOcTree> tree, MapParams params,
   tree_->setClampingThresMin(params_.clamp_min);
   tree_->setClampingThresMax(params_.clamp_max);
   // A loaded tree: index its occupied voxels (a pruned leaf stands for all its voxels).
+  may_be_pruned_ = tree_->size() > 0;
   const unsigned int depth = tree_->getTreeDepth();
   for (auto it = tree_->begin_leafs(), end = tree_->end_leafs(); it != end; ++it) {
     if (!tree_->isNodeOccupied(*it)) continue;
@@ -132,6 +133,7 @@ void MobilityMap::integrate(const perception::FrameResult& frame, const Eigen::I
     h.range = std::min(h.range, range);
   }
   for (const auto& [key, h] : hits) {
+    if (may_be_pruned_) expandPrunedAncestors(key);
     MobilityOcTreeNode* node = tree_->updateNode(key, true, true);
     if (!node) continue;
     if (tree_->isNodeOccupied(node)) addOccupied(key);
@@ -144,6 +146,23 @@ void MobilityMap::integrate(const perception::FrameResult& frame, const Eigen::I
     if (params_.free_space_ray_stride_px > 0) castFreeRays(T_map_camera, *depth, *k);
   }
   ++frames_;
+}
+
+// OctoMap's updateNode() stops at the first node on the key's path that has no children
+// when the update cannot change its (clamped) occupancy, and returns it: after pruning
+// that may be a node standing for a whole block of equal voxels, and the mobility fused
+// into it next would overwrite the block. Expanding pruned nodes on the path first
+// makes it return the voxel itself. (Leaves above the finest level only come from
+// pruning: every update here is at the finest level.)
+void MobilityMap::expandPrunedAncestors(const octomap::OcTreeKey& key) {
+  MobilityOcTreeNode* node = tree_->getRoot();
+  const unsigned int depth = tree_->getTreeDepth();
+  for (unsigned int d = 0; node && d < depth; ++d) {
+    if (!tree_->nodeHasChildren(node)) tree_->expandNode(node);
+    const unsigned int child = octomap::computeChildIdx(key, static_cast<int>(depth - 1 - d));
+    if (!tree_->nodeChildExists(node, child)) return;  // nothing stored here yet: updateNode creates the path
+    node = tree_->getNodeChild(node, child);
+  }
 }
 
 void MobilityMap::addOccupied(const octomap::OcTreeKey& key) {
@@ -247,6 +266,7 @@ void MobilityMap::castFreeRays(const Eigen::Isometry3d& T_map_camera, const perc
 void MobilityMap::finalize() {
   tree_->updateInnerOccupancy();
   tree_->prune();
+  may_be_pruned_ = true;
 }
 
 PointQuery MobilityMap::describe(const octomap::OcTreeKey& key, const MobilityOcTreeNode* node, unsigned int depth) const {

@@ -110,6 +110,8 @@ class MobilityMap {
                  const perception::DepthImage* depth = nullptr, const perception::PinholeIntrinsics* intrinsics = nullptr);
 
   /// Recomputes inner nodes (occupancy max, mobility min) and prunes equal children.
+  /// Frames may be integrated afterwards (and into a loaded map): pruned blocks are
+  /// expanded where new data lands, so the result equals fusing without the pruning.
   void finalize();
 
   /// State of the voxel holding `p_map` (map frame).
@@ -138,6 +140,7 @@ class MobilityMap {
                     const perception::PinholeIntrinsics& k);
   PointQuery describe(const octomap::OcTreeKey& key, const MobilityOcTreeNode* node, unsigned int depth) const;
   void addOccupied(const octomap::OcTreeKey& key);
+  void expandPrunedAncestors(const octomap::OcTreeKey& key);
   void removeOccupied(const octomap::OcTreeKey& key);
 
   MapParams params_;
@@ -149,6 +152,8 @@ class MobilityMap {
   std::unordered_set<octomap::OcTreeKey, octomap::OcTreeKey::KeyHash> occupied_;
   std::unordered_map<std::uint64_t, std::vector<octomap::OcTreeKey>> occupied_blocks_;
   int frames_ = 0;
+  /// finalize() has run or the tree was loaded: some voxels may sit in pruned nodes.
+  bool may_be_pruned_ = false;
 };
 
 /// Map file errors: the message starts with the path.
