@@ -197,6 +197,80 @@ TEST(MobilityMap, MrptPoseGivesTheSameMapAsEigen) {
   EXPECT_EQ(q.state, VoxelState::kSurface);
 }
 
+// n x n x n voxels of 2 cm from the voxel whose centre is `first`, in one segment.
+perception::FrameResult cubeFrame(const Eigen::Vector3f& first, int n, double mobility) {
+  perception::FrameResult r;
+  perception::Segment s;
+  s.mobility = mobility;
+  s.variance = 0.002;
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      for (int l = 0; l < n; ++l) {
+        r.points.push_back(first + 0.02f * Eigen::Vector3f(static_cast<float>(i), static_cast<float>(j), static_cast<float>(l)));
+        r.segment_of_point.push_back(0);
+        s.points.push_back(static_cast<int>(r.points.size() - 1));
+      }
+    }
+  }
+  r.segments = {s};
+  return r;
+}
+
+// Every node (leaves and inner aggregates, in tree order) equal in depth, occupancy and payload.
+void expectSameTree(const MobilityOcTree& a, const MobilityOcTree& b) {
+  ASSERT_EQ(a.size(), b.size());
+  auto ib = b.begin_tree();
+  int differing = 0;
+  for (auto ia = a.begin_tree(); ia != a.end_tree(); ++ia, ++ib) {
+    const bool same = ia.getDepth() == ib.getDepth() && ia.getKey() == ib.getKey() && ia->getValue() == ib->getValue() &&
+                      ia->payload() == ib->payload();
+    if (!same && ++differing <= 3) {
+      ADD_FAILURE() << "node at depth " << ia.getDepth() << " (" << ia.getX() << ", " << ia.getY() << ", " << ia.getZ()
+                    << "): count " << ia->count() << " vs " << ib->count();
+    }
+  }
+  EXPECT_EQ(differing, 0);
+}
+
+// A map finalized, saved and loaded between frames, then fused further, equals the map
+// fused in one go (what `mobmap build --extend` relies on): pruned blocks that new data
+// lands in are expanded, and inner nodes count a pruned node's observations once per
+// voxel it stands for, as they did before it was pruned.
+TEST(MobilityMap, FinalizingSavingAndLoadingMidwayGivesTheSameMapAsOneRun) {
+  MapParams p;
+  p.range_variance_per_m2 = 0.0;  // equal weights: the cubes' voxels are equal and prune
+  const auto two_cubes = [] {
+    perception::FrameResult r = cubeFrame({0.01f, 0.01f, 0.97f}, 2, 1.0);
+    const perception::FrameResult other = cubeFrame({0.41f, 0.01f, 0.97f}, 2, 1.0);
+    for (std::size_t i = 0; i < other.points.size(); ++i) {
+      r.points.push_back(other.points[i]);
+      r.segment_of_point.push_back(0);
+      r.segments[0].points.push_back(static_cast<int>(r.points.size() - 1));
+    }
+    return r;
+  }();
+  const perception::FrameResult one_voxel = cubeFrame({0.43f, 0.03f, 0.99f}, 1, 0.0);
+  const Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+
+  MobilityMap whole(p);
+  for (int n = 0; n < 3; ++n) whole.integrate(two_cubes, T);
+  whole.integrate(one_voxel, T);
+  whole.finalize();
+
+  MobilityMap first(p);
+  for (int n = 0; n < 3; ++n) first.integrate(two_cubes, T);
+  first.finalize();
+  ASSERT_EQ(first.tree().getNumLeafNodes(), 2u) << "each cube should have pruned into one node";
+  const std::string path = tempPath("midway.ot");
+  saveMobilityMap(first.tree(), path);
+  MobilityMap resumed(loadMobilityMap(path), p, Eigen::Matrix3d::Identity());
+  resumed.integrate(one_voxel, T);
+  resumed.finalize();
+  expectSameTree(whole.tree(), resumed.tree());
+  EXPECT_EQ(resumed.query({0.03, 0.03, 0.99}).count, 3);  // a voxel of the cube left pruned
+  EXPECT_LT(resumed.query({0.43, 0.03, 0.99}).mobility, 0.9);
+}
+
 // After finalize() (or in a loaded map) equal voxels are pruned into one node. OctoMap's
 // updateNode() returns such a node itself, without descending, when the hit cannot raise
 // its clamped occupancy; fusing the new mobility into it would overwrite the whole block.

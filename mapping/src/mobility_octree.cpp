@@ -68,7 +68,7 @@ void MobilityOcTreeNode::fuse(double m, double variance, double max_weight) {
                   static_cast<std::uint32_t>(std::min(count() + 1, 255)));
 }
 
-void MobilityOcTreeNode::updateMobilityChildren() {
+void MobilityOcTreeNode::updateMobilityChildren(int leaf_child_voxels) {
   if (!children) return;
   std::uint32_t best = 0;  // payload of the child with the lowest known mobility
   int count = 0;
@@ -77,7 +77,8 @@ void MobilityOcTreeNode::updateMobilityChildren() {
     if (!children[i]) continue;
     const auto* child = static_cast<const MobilityOcTreeNode*>(children[i]);
     if (!child->hasMobility()) continue;
-    count += child->count();
+    count += child->count() * (child->children ? 1 : leaf_child_voxels);
+    count = std::min(count, 255);
     if (!any || mobilityCode(child->payload_) < mobilityCode(best)) best = child->payload_;
     any = true;
   }
@@ -104,7 +105,7 @@ MobilityOcTree::StaticMemberInitializer::StaticMemberInitializer() {
   octomap::AbstractOcTree::registerTreeType(tree);
 }
 
-MobilityOcTree::MobilityOcTree(double resolution) : OccupancyOcTreeBase<MobilityOcTreeNode>(resolution) {
+MobilityOcTree::MobilityOcTree(double resolution_m) : OccupancyOcTreeBase<MobilityOcTreeNode>(resolution_m) {
   mobility_octree_member_init_.ensureLinking();
 }
 
@@ -132,7 +133,10 @@ void MobilityOcTree::updateInnerOccupancyRecurs(MobilityOcTreeNode* node, unsign
     }
   }
   node->updateOccupancyChildren();
-  node->updateMobilityChildren();
+  // Voxels of the finest level under one child: 8^(levels below the child), capped where
+  // any count saturates the 8-bit sum anyway.
+  const unsigned int levels_below_child = tree_depth - depth - 1;
+  node->updateMobilityChildren(levels_below_child >= 3 ? 256 : 1 << (3 * levels_below_child));
 }
 
 std::string MobilityOcTree::readDataChecked(std::istream& s, std::size_t max_nodes) {

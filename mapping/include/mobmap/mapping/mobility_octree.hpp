@@ -60,8 +60,11 @@ class MobilityOcTreeNode : public octomap::OcTreeNode {
   /// to follow change (see docs/MAPPING.md).
   void fuse(double mobility, double variance, double max_weight);
 
-  /// Inner-node aggregate from the children (see the class comment).
-  void updateMobilityChildren();
+  /// Inner-node aggregate from the children (see the class comment). A child without
+  /// children stands for `leaf_child_voxels` voxels of the finest level (more than one
+  /// when it is a pruned node, whose count is that of each voxel it replaced), so the
+  /// summed count is the same whether or not the tree was pruned before.
+  void updateMobilityChildren(int leaf_child_voxels = 1);
 
   std::istream& readData(std::istream& s);
   std::ostream& writeData(std::ostream& s) const;
