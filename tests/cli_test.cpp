@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <map>
 #include <vector>
 #include <sstream>
@@ -544,6 +545,9 @@ TEST(Cli, DamagedMapMetadataIsReportedByFileAndEntry) {
       {[](nlohmann::json& m) { m["trajectory_map"][0] = {1e300, 0, 0}; }, "\"trajectory_map\" entry 0"},
       {[](nlohmann::json& m) { m["trajectory_map"] = 7; }, "\"trajectory_map\" must be a list"},
       {[](nlohmann::json& m) { m = nlohmann::json::array({1, 2}); }, "expected a JSON object"},
+      {[](nlohmann::json& m) { m["earlier_runs"] = 5; }, "\"earlier_runs\" must be a list"},
+      {[](nlohmann::json& m) { m["earlier_runs"] = {{{"frames_in_run", -1}}}; },
+       "\"earlier_runs\" entry 0: \"frames_in_run\" must be a non-negative whole number"},
   };
   for (const Case& c : cases) {
     damage(c.edit);
@@ -565,6 +569,72 @@ TEST(Cli, DamagedMapMetadataIsReportedByFileAndEntry) {
   const Result bare = run("info " + ot);
   EXPECT_EQ(bare.code, 0) << bare.out;
   EXPECT_NE(bare.out.find("no metadata"), std::string::npos) << bare.out;
+  fs::remove_all(dir);
+}
+
+std::string fileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// `build --extend`: a map built in two runs is the map of one run over the same frames,
+// byte for byte, and MAP.json keeps both runs. Failed extensions leave the map as it was.
+TEST(Cli, ExtendingAMapGivesTheMapOfOneRunByteForByte) {
+  const std::string dir = tempDir("extend");
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 6 --quiet").code, 0);
+  const Result whole = run("build " + dir + "/seq --out " + dir + "/one.ot --quiet");
+  ASSERT_EQ(whole.code, 0) << whole.out;
+  const std::string two = dir + "/two.ot";
+  ASSERT_EQ(run("build " + dir + "/seq --out " + two + " --frames 0:2 --quiet").code, 0);
+  const Result more = run("build " + dir + "/seq --out " + two + " --frames 3:5 --extend --quiet");
+  ASSERT_EQ(more.code, 0) << more.out;
+  EXPECT_NE(more.out.find("the map now holds 6 frames from 2 runs"), std::string::npos) << more.out;
+  for (const char* suffix : {".ot", ".bt", ".octovis.ot"}) {
+    const std::string a = fileBytes(dir + "/one" + suffix), b = fileBytes(dir + "/two" + suffix);
+    EXPECT_FALSE(a.empty()) << suffix;
+    EXPECT_TRUE(a == b) << suffix << " differs between one run and two";
+  }
+  const auto one_meta = nlohmann::json::parse(fileBytes(dir + "/one.json"));
+  const auto meta = nlohmann::json::parse(fileBytes(dir + "/two.json"));
+  EXPECT_EQ(meta["frames"], 6);
+  EXPECT_EQ(meta["frames_in_run"], 3);
+  EXPECT_EQ(meta["frame_numbers"], nlohmann::json({3, 5}));
+  ASSERT_EQ(meta["earlier_runs"].size(), 1u);
+  EXPECT_EQ(meta["earlier_runs"][0]["frames_in_run"], 3);
+  EXPECT_EQ(meta["earlier_runs"][0]["frame_numbers"], nlohmann::json({0, 2}));
+  EXPECT_FALSE(meta["earlier_runs"][0].contains("trajectory_map"));
+  EXPECT_EQ(meta["trajectory_map"], one_meta["trajectory_map"]);
+  EXPECT_EQ(meta["R_map_world"], one_meta["R_map_world"]);
+  const Result info = run("info " + two);
+  ASSERT_EQ(info.code, 0) << info.out;
+  EXPECT_NE(info.out.find("built in 2 runs, 6 frames in the map"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("run 1: "), std::string::npos) << info.out;
+
+  const std::string before = fileBytes(two), before_json = fileBytes(dir + "/two.json");
+  const Result missing = run("build " + dir + "/seq --out " + dir + "/none.ot --extend --quiet");
+  EXPECT_EQ(missing.code, 2);
+  EXPECT_NE(missing.out.find("none.ot does not exist"), std::string::npos) << missing.out;
+  const Result both = run("build " + dir + "/seq --out " + two + " --extend --force --quiet");
+  EXPECT_EQ(both.code, 2) << both.out;
+  const Result res = run("build " + dir + "/seq --out " + two + " --extend --resolution 0.05 --quiet");
+  EXPECT_EQ(res.code, 2);
+  EXPECT_NE(res.out.find("keeps its own"), std::string::npos) << res.out;
+  const Result tilted = run("build " + dir + "/seq --out " + two + " --extend --gravity 0,1,0 --quiet");
+  EXPECT_EQ(tilted.code, 2);
+  EXPECT_NE(tilted.out.find("world frame of that map"), std::string::npos) << tilted.out;
+  // A frame that cannot be read stops the run before anything is written.
+  fs::copy(dir + "/seq", dir + "/broken", fs::copy_options::recursive);
+  std::ofstream(dir + "/broken/frame-000004.depth.png") << "not a png";
+  const Result broken = run("build " + dir + "/broken --out " + two + " --extend --quiet");
+  EXPECT_EQ(broken.code, 1);
+  EXPECT_NE(broken.out.find("frame-000004.depth.png"), std::string::npos) << broken.out;
+  EXPECT_TRUE(fileBytes(two) == before);
+  EXPECT_TRUE(fileBytes(dir + "/two.json") == before_json);
+  // Without its metadata the map frame is unknown: refused, naming the file.
+  fs::remove(dir + "/one.json");
+  const Result bare = run("build " + dir + "/seq --out " + dir + "/one.ot --extend --quiet");
+  EXPECT_EQ(bare.code, 1);
+  EXPECT_NE(bare.out.find("one.json: missing"), std::string::npos) << bare.out;
   fs::remove_all(dir);
 }
 

@@ -13,8 +13,10 @@
 #include "mobmap/mapping/mobility_map.hpp"
 #include "mobmap/perception/pipeline.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <deque>
@@ -24,6 +26,7 @@
 #include <sstream>
 #include <map>
 #include <memory>
+#include <optional>
 
 namespace mobmap::app {
 namespace {
@@ -122,6 +125,77 @@ GravityGuess estimateGravity(const Sequence& dir, const std::vector<int>& frames
   return {Eigen::Vector3d(0, 0, -1), "-z (no posed frame sampled)"};
 }
 
+// The map that --extend adds frames to: its tree, its metadata, and the frame it was
+// built in (gravity in the input's world frame and the rotation to the map frame).
+struct ExistingMap {
+  std::unique_ptr<mapping::MobilityOcTree> tree;
+  nlohmann::json meta;
+  Eigen::Vector3d down_world;
+  Eigen::Matrix3d R_map_world;
+};
+
+ExistingMap openForExtension(const std::string& ot_path) {
+  ExistingMap m;
+  m.tree = mapping::loadMobilityMap(ot_path);
+  m.meta = readMapMetadata(ot_path);
+  const std::string json_path = mapStem(ot_path) + ".json";
+  if (!m.meta.contains("R_map_world")) {
+    throw IoError(json_path, "missing, or without \"R_map_world\": --extend needs the metadata written beside the map "
+                             "(the rotation from the input's world frame to the map frame)");
+  }
+  m.R_map_world = rotationFromMetadata(m.meta);
+  m.down_world = m.R_map_world.transpose() * Eigen::Vector3d(0, 0, -1);
+  // The recorded gravity gives the first run's rotation bit for bit (the matrix printed
+  // in MAP.json goes through nearestRotation when read): then both are taken from it.
+  const auto& g = m.meta.contains("gravity_down_world") ? m.meta["gravity_down_world"] : nlohmann::json();
+  if (g.is_array() && g.size() == 3 && g[0].is_number() && g[1].is_number() && g[2].is_number()) {
+    const Eigen::Vector3d down(g[0].get<double>(), g[1].get<double>(), g[2].get<double>());
+    if (down.allFinite() && down.norm() > 1e-9) {
+      const Eigen::Matrix3d r = mapping::gravityAlignment(down);
+      if ((r - m.R_map_world).cwiseAbs().maxCoeff() < 1e-9) {
+        m.R_map_world = r;
+        m.down_world = down;
+      }
+    }
+  }
+  return m;
+}
+
+double angleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+}
+
+std::string formatVector(const Eigen::Vector3d& v) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "(%.3f, %.3f, %.3f)", v.x(), v.y(), v.z());
+  return buf;
+}
+
+// MAP.json of an extended map: this run's record at the top level as for a new map,
+// except that `frames` counts every frame in the map and the camera path continues the
+// earlier one; the earlier runs' records (without their camera paths) go to
+// `earlier_runs`, oldest first, each with its own `frames_in_run`.
+void mergeEarlierRuns(nlohmann::json& meta, const nlohmann::json& earlier) {
+  nlohmann::json runs = earlier.contains("earlier_runs") && earlier["earlier_runs"].is_array() ? earlier["earlier_runs"]
+                                                                                               : nlohmann::json::array();
+  nlohmann::json previous = earlier;
+  const int earlier_frames = earlier.contains("frames") ? earlier["frames"].get<int>() : 0;
+  if (!previous.contains("frames_in_run")) {  // a map from before frames_in_run was recorded: one run
+    int in_runs = 0;
+    for (const auto& r : runs) in_runs += r.contains("frames_in_run") && r["frames_in_run"].is_number_integer() ? r["frames_in_run"].get<int>() : 0;
+    previous["frames_in_run"] = earlier_frames - in_runs;
+  }
+  previous.erase("frames");
+  previous.erase("earlier_runs");
+  previous.erase("trajectory_map");
+  runs.push_back(previous);
+  meta["earlier_runs"] = runs;
+  meta["frames"] = earlier_frames + meta["frames_in_run"].get<int>();
+  nlohmann::json path = earlier.contains("trajectory_map") ? earlier["trajectory_map"] : nlohmann::json::array();
+  for (const auto& p : meta["trajectory_map"]) path.push_back(p);
+  meta["trajectory_map"] = path;
+}
+
 }  // namespace
 
 Command addBuildCommand(CLI::App& app) {
@@ -135,6 +209,7 @@ Command addBuildCommand(CLI::App& app) {
     double voxel = 0;
     std::string gravity;
     bool force = false;
+    bool extend = false;
     bool quiet = false;
     bool no_free_space = false;
     std::string config;
@@ -169,14 +244,21 @@ Command addBuildCommand(CLI::App& app) {
   cmd->add_option("--gravity", o->gravity, "Gravity (down) in the data's world frame X,Y,Z (default: gravity-direction.txt, else the floor's "
                   "normal in up to 8 frames spread over the run, else the cameras' mean +y axis; a single .pcd or .png "
                   "frame: its ground plane's normal; OpenNI2: the camera's +y without --poses, -z with them)");
-  cmd->add_flag("--force", o->force, "Overwrite an existing map");
+  auto* force = cmd->add_flag("--force", o->force, "Overwrite an existing map");
+  cmd->add_flag("--extend", o->extend,
+                "Add the frames to the existing map at --out instead of starting a new one: its resolution and map "
+                "frame are kept, INPUT's poses must be in the same world frame, MAP.json records each run")
+      ->excludes(force);
   cmd->add_flag("--no-free-space", o->no_free_space, "Skip free-space updates (faster; moved obstacles stay)");
   cmd->add_flag("--quiet,-q", o->quiet, "No progress output");
   return [o, max_range, resolution, device, voxel]() {
     namespace fs = std::filesystem;
     std::error_code ec;
     if (fs::path(o->out).extension() != ".ot") throw UsageError("--out must end in .ot, got '" + o->out + "'");
-    if (!o->force && fs::exists(o->out, ec)) throw UsageError(o->out + " exists; pass --force to overwrite it");
+    if (o->extend && !fs::exists(o->out, ec)) throw UsageError("--extend: " + o->out + " does not exist (build it without --extend first)");
+    if (!o->force && !o->extend && fs::exists(o->out, ec)) {
+      throw UsageError(o->out + " exists; pass --force to overwrite it or --extend to add frames to it");
+    }
     checkWritable(o->out);  // now, not after the whole run
     Config config = o->config.empty() ? Config{} : loadConfig(o->config);
     perception::PerceptionParams& pp = config.perception;
@@ -191,6 +273,18 @@ Command addBuildCommand(CLI::App& app) {
       mapping::validate(mp);
     } catch (const std::invalid_argument& e) {
       throw UsageError(e.what());
+    }
+    std::optional<ExistingMap> existing;
+    if (o->extend) {
+      existing = openForExtension(o->out);
+      const double res = existing->tree->getResolution();
+      if (resolution->count() > 0 && std::abs(o->resolution - res) > 1e-9) {
+        std::ostringstream msg;
+        msg << "--resolution " << o->resolution << " differs from the resolution of " << o->out << " (" << res
+            << "); an extended map keeps its own";
+        throw UsageError(msg.str());
+      }
+      mp.resolution_m = res;
     }
     const gp::MobilityModel model = makeModel(config);
     const perception::FramePipeline pipeline(pp, model);
@@ -239,6 +333,26 @@ Command addBuildCommand(CLI::App& app) {
       gravity_world = parseVector3(o->gravity, "--gravity").cast<double>();
       gravity_source = "--gravity";
     }
+    if (existing) {
+      // The map's frame is kept; a gravity the input states must agree with it.
+      if (gravity_world && angleDeg(*gravity_world, existing->down_world) > 1.0) {
+        throw UsageError("gravity (down) from " + gravity_source + " is " + formatVector(*gravity_world) + " but " +
+                         o->out + " was built with " + formatVector(existing->down_world) +
+                         " in the same world frame: are the poses in the world frame of that map?");
+      }
+      gravity_world = existing->down_world;
+      // Where the first run took it from (a map extended before records that first).
+      const auto& earlier = existing->meta;
+      const auto& first_run = earlier.contains("earlier_runs") && earlier["earlier_runs"].is_array() &&
+                                      !earlier["earlier_runs"].empty()
+                                  ? earlier["earlier_runs"][0]
+                                  : earlier;
+      gravity_source = "the map's first run (" +
+                       (first_run.contains("gravity_source") && first_run["gravity_source"].is_string()
+                            ? first_run["gravity_source"].get<std::string>()
+                            : std::string("its R_map_world")) +
+                       ")";
+    }
     if (is_dir && !gravity_world && !live && !oni) {
       const GravityGuess guess = estimateGravity(*dir, frames, pp, model);
       gravity_world = guess.down;
@@ -265,8 +379,9 @@ Command addBuildCommand(CLI::App& app) {
     }
     if (!gravity_world) gravity_source = "-z (default)";
     const Eigen::Vector3d g_world = gravity_world.value_or(Eigen::Vector3d(0, 0, -1));
-    const Eigen::Matrix3d R_map_world = mapping::gravityAlignment(g_world);
-    mapping::MobilityMap map(mp, R_map_world);
+    const Eigen::Matrix3d R_map_world = existing ? existing->R_map_world : mapping::gravityAlignment(g_world);
+    mapping::MobilityMap map = existing ? mapping::MobilityMap(std::move(existing->tree), mp, R_map_world)
+                                        : mapping::MobilityMap(mp, R_map_world);
 
     auto process = [&](int number) {
       Scored s;
@@ -356,6 +471,7 @@ Command addBuildCommand(CLI::App& app) {
     meta["input"] = live ? "OpenNI2 device " + (o->device.empty() ? std::string("(first attached)") : o->device)
                          : fs::absolute(o->input, ec).lexically_normal().string();
     meta["frames"] = used;
+    meta["frames_in_run"] = used;
     meta["frames_selected"] = frames.size();
     if (is_dir && !dir->skipped().empty()) meta["skipped"] = dir->skipped();
     if (no_pose > 0) meta["frames_without_pose"] = no_pose;
@@ -384,11 +500,15 @@ Command addBuildCommand(CLI::App& app) {
                      {"noise_std", config.model.noise_std}};
     if (!o->config.empty()) meta["config"] = fs::absolute(o->config, ec).lexically_normal().string();
     meta["trajectory_map"] = trajectory;
+    if (existing) mergeEarlierRuns(meta, existing->meta);
     writeTextFileAtomically(stem + ".json", formatMapMetadata(meta));
 
     std::printf("\n%d of %zu frames fused (%d without a ground plane)%s in %.1f s (%.1f frames/s), %zu points, %zu map nodes (%zu leaves)\n",
                 used, frames.size(), no_ground, g_interrupted.load() ? ", INTERRUPTED" : "", run_s, frames_per_s, points,
                 map.tree().size(), map.tree().getNumLeafNodes());
+    if (existing) {
+      std::printf("the map now holds %d frames from %zu runs\n", meta["frames"].get<int>(), meta["earlier_runs"].size() + 1);
+    }
     if (no_pose > 0) {
       std::printf("%d frames skipped: no pose within %g s of their time stamp in %s\n", no_pose, o->max_pose_gap,
                   o->poses.c_str());
@@ -399,7 +519,11 @@ Command addBuildCommand(CLI::App& app) {
     std::printf("wrote %s, %s.bt, %s.octovis.ot (view: octovis %s.octovis.ot), %s.json\n", o->out.c_str(), stem.c_str(),
                 stem.c_str(), stem.c_str(), stem.c_str());
     if (g_interrupted.load()) {
-      std::fprintf(stderr, "interrupted: saved the map of the first %d frames\n", used);
+      if (existing) {
+        std::fprintf(stderr, "interrupted: saved the map with the first %d frames of this run added\n", used);
+      } else {
+        std::fprintf(stderr, "interrupted: saved the map of the first %d frames\n", used);
+      }
       return 130;
     }
     return 0;

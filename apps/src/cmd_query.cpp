@@ -169,16 +169,36 @@ void printMetadataSummary(const nlohmann::json& meta, const std::string& json_pa
   const auto number = [&](const nlohmann::json& obj, const char* key) {
     return obj.is_object() && obj.contains(key) && obj[key].is_number() ? obj[key].get<double>() : std::nan("");
   };
+  const auto frameRange = [](const nlohmann::json& run) {
+    const auto& nums = run.contains("frame_numbers") ? run["frame_numbers"] : nlohmann::json();
+    if (!(nums.is_array() && nums.size() == 2 && nums[0].is_number_integer() && nums[1].is_number_integer())) return std::string();
+    return " (frames " + std::to_string(nums[0].get<long long>()) + ".." + std::to_string(nums[1].get<long long>()) + ")";
+  };
+  // A map extended with `build --extend`: the earlier runs first, one line each.
+  const auto& runs = meta.contains("earlier_runs") ? meta["earlier_runs"] : nlohmann::json::array();
+  if (!runs.empty()) {
+    std::printf("built in %zu runs", runs.size() + 1);
+    if (meta.contains("frames")) std::printf(", %d frames in the map", meta["frames"].get<int>());
+    std::printf(":\n");
+    for (std::size_t i = 0; i < runs.size(); ++i) {
+      const auto& r = runs[i];
+      const std::string input = r.contains("input") && r["input"].is_string() ? r["input"].get<std::string>() : "an unrecorded input";
+      std::printf("  run %zu: %s", i + 1, input.c_str());
+      if (r.contains("frames_in_run")) std::printf(", %d frames fused", r["frames_in_run"].get<int>());
+      std::printf("%s", frameRange(r).c_str());
+      if (r.contains("interrupted") && r["interrupted"].is_boolean() && r["interrupted"].get<bool>()) std::printf(", INTERRUPTED");
+      std::printf("\n");
+    }
+    std::printf("  run %zu (latest): ", runs.size() + 1);
+  }
   std::printf("built by %s from %s\n", text("tool").empty() ? "an unknown tool" : text("tool").c_str(),
               text("input").empty() ? "an unrecorded input" : text("input").c_str());
   if (meta.contains("frames")) {
-    std::printf("frames: %d fused", meta["frames"].get<int>());
+    // This run's frames (all of the map's unless it was extended).
+    std::printf("frames: %d fused", (meta.contains("frames_in_run") ? meta["frames_in_run"] : meta["frames"]).get<int>());
     const double selected = number(meta, "frames_selected");
     if (std::isfinite(selected)) std::printf(" of %.0f selected", selected);
-    const auto& nums = meta.contains("frame_numbers") ? meta["frame_numbers"] : nlohmann::json();
-    if (nums.is_array() && nums.size() == 2 && nums[0].is_number_integer() && nums[1].is_number_integer()) {
-      std::printf(" (frames %lld..%lld)", nums[0].get<long long>(), nums[1].get<long long>());
-    }
+    std::printf("%s", frameRange(meta).c_str());
     const double no_pose = number(meta, "frames_without_pose");
     if (std::isfinite(no_pose)) std::printf(", %.0f skipped without a pose", no_pose);
     if (meta.contains("interrupted") && meta["interrupted"].is_boolean() && meta["interrupted"].get<bool>()) {

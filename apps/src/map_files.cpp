@@ -53,6 +53,24 @@ void checkMetadata(const nlohmann::json& meta, const std::string& path) {
     if (!ok) throw IoError(path, "\"R_map_world\" must be 3 rows of 3 finite numbers");
     if (auto problem = mapping::checkRigid(t)) throw IoError(path, "\"R_map_world\" is not a rotation: " + *problem);
   }
+  // Runs before the latest of a map extended with `build --extend` (printed by `info`).
+  const auto count = [&](const nlohmann::json& obj, const char* key, const std::string& where) {
+    if (!obj.contains(key)) return;
+    const auto& f = obj[key];
+    if (!f.is_number_integer() || f.get<long long>() < 0 || f.get<long long>() > std::numeric_limits<int>::max()) {
+      throw IoError(path, where + "\"" + key + "\" must be a non-negative whole number, got " + f.dump());
+    }
+  };
+  count(meta, "frames_in_run", "");
+  if (meta.contains("earlier_runs")) {
+    const auto& runs = meta["earlier_runs"];
+    if (!runs.is_array()) throw IoError(path, "\"earlier_runs\" must be a list of run records");
+    for (std::size_t i = 0; i < runs.size(); ++i) {
+      const std::string where = "\"earlier_runs\" entry " + std::to_string(i) + ": ";
+      if (!runs[i].is_object()) throw IoError(path, where + "must be a run record (a JSON object)");
+      count(runs[i], "frames_in_run", where);
+    }
+  }
   if (meta.contains("trajectory_map")) {
     const auto& traj = meta["trajectory_map"];
     if (!traj.is_array()) throw IoError(path, "\"trajectory_map\" must be a list of [x, y, z] positions");
