@@ -545,6 +545,7 @@ TEST(Cli, DamagedMapMetadataIsReportedByFileAndEntry) {
       {[](nlohmann::json& m) { m["trajectory_map"][0] = {1e300, 0, 0}; }, "\"trajectory_map\" entry 0"},
       {[](nlohmann::json& m) { m["trajectory_map"] = 7; }, "\"trajectory_map\" must be a list"},
       {[](nlohmann::json& m) { m = nlohmann::json::array({1, 2}); }, "expected a JSON object"},
+      {[](nlohmann::json& m) { m["gravity_down_world"] = {0, 0, 0}; }, "\"gravity_down_world\" must be [x, y, z]"},
       {[](nlohmann::json& m) { m["earlier_runs"] = 5; }, "\"earlier_runs\" must be a list"},
       {[](nlohmann::json& m) { m["earlier_runs"] = {{{"frames_in_run", -1}}}; },
        "\"earlier_runs\" entry 0: \"frames_in_run\" must be a non-negative whole number"},

@@ -69,7 +69,7 @@ class OpenNi : public ::testing::Test {
   }
   // The floor ahead of the walker's first position is found at z = 0 and traversable.
   static void expectFloorAhead(const std::string& map_path, const sim::CorridorScene& scene) {
-    const auto map = app::loadMap(map_path);
+    const auto map = mapping::openMap(map_path);
     const Eigen::Vector3d cam = scene.cameraPose(0).translation();
     const auto floor = map.snapDown(Eigen::Vector3d(cam.x() + 1.5, cam.y(), 0.1), 0.3);
     ASSERT_TRUE(floor);

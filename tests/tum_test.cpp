@@ -250,7 +250,7 @@ TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
   const std::string cmd = std::string(MOBMAP_EXE) + " build " + (dir / "frames").string() + " --poses " +
                           (dir / "in_order.txt").string() + " --out " + out + " --quiet > " + (dir / "log").string() + " 2>&1";
   ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
-  const auto map = app::loadMap(out);
+  const auto map = mapping::openMap(out);
   const Eigen::Vector3d cam = scene.cameraPose(10).translation();
   const auto floor = map.snapDown(Eigen::Vector3d(cam.x() + 1.5, cam.y(), 0.1), 0.3);
   ASSERT_TRUE(floor);

@@ -137,25 +137,21 @@ struct ExistingMap {
 ExistingMap openForExtension(const std::string& ot_path) {
   ExistingMap m;
   m.tree = mapping::loadMobilityMap(ot_path);
-  m.meta = readMapMetadata(ot_path);
-  const std::string json_path = mapStem(ot_path) + ".json";
-  if (!m.meta.contains("R_map_world")) {
-    throw IoError(json_path, "missing, or without \"R_map_world\": --extend needs the metadata written beside the map "
-                             "(the rotation from the input's world frame to the map frame)");
+  m.meta = readMapMetadataJson(ot_path);  // the earlier runs' records, for the new MAP.json
+  const mapping::MapMetadata frame = mapping::readMapMetadata(ot_path);
+  if (!frame.has_frame) {
+    throw IoError(frame.path, "missing, or without \"R_map_world\": --extend needs the metadata written beside the map "
+                              "(the rotation from the input's world frame to the map frame)");
   }
-  m.R_map_world = rotationFromMetadata(m.meta);
+  m.R_map_world = frame.R_map_world;
   m.down_world = m.R_map_world.transpose() * Eigen::Vector3d(0, 0, -1);
   // The recorded gravity gives the first run's rotation bit for bit (the matrix printed
   // in MAP.json goes through nearestRotation when read): then both are taken from it.
-  const auto& g = m.meta.contains("gravity_down_world") ? m.meta["gravity_down_world"] : nlohmann::json();
-  if (g.is_array() && g.size() == 3 && g[0].is_number() && g[1].is_number() && g[2].is_number()) {
-    const Eigen::Vector3d down(g[0].get<double>(), g[1].get<double>(), g[2].get<double>());
-    if (down.allFinite() && down.norm() > 1e-9) {
-      const Eigen::Matrix3d r = mapping::gravityAlignment(down);
-      if ((r - m.R_map_world).cwiseAbs().maxCoeff() < 1e-9) {
-        m.R_map_world = r;
-        m.down_world = down;
-      }
+  if (frame.gravity_down_world) {
+    const Eigen::Matrix3d r = mapping::gravityAlignment(*frame.gravity_down_world);
+    if ((r - m.R_map_world).cwiseAbs().maxCoeff() < 1e-9) {
+      m.R_map_world = r;
+      m.down_world = *frame.gravity_down_world;
     }
   }
   return m;
@@ -460,7 +456,7 @@ Command addBuildCommand(CLI::App& app) {
       throw IoError(o->poses, msg.str());
     }
     map.finalize();
-    const std::string stem = mapStem(o->out);
+    const std::string stem = mapping::mapFileStem(o->out);
     mapping::saveMobilityMap(map.tree(), o->out);
     mapping::saveOccupancyBt(map.tree(), stem + ".bt");
     mapping::saveOctovisColorTree(map.tree(), stem + ".octovis.ot");

@@ -55,7 +55,7 @@ Command addDemoCommand(CLI::App& app) {
     const int rc = runSubcommand(app, args);
     if (rc != 0) return rc;
 
-    const mapping::MobilityMap map = loadMap(map_path);
+    const mapping::MobilityMap map = mapping::openMap(map_path);
     const GroundTruth truth = loadGroundTruth((fs::path(seq) / "ground_truth.json").string());
     const Evaluation ev = evaluateMap(map, truth, 3, 0.04);
     std::printf("\nMap vs ground truth (voxels seen >= 3 times):\n%-24s %8s %7s %10s\n", "surface", "expected", "voxels", "mean |err|");
@@ -71,7 +71,7 @@ Command addDemoCommand(CLI::App& app) {
     if (total) {
       std::printf("right side of 0.5: %.1f %% of %d voxels\n", 100.0 * (ev.true_traversable + ev.true_untraversable) / total, total);
     }
-    const std::string stem = mapStem(map_path);
+    const std::string stem = mapping::mapFileStem(map_path);
     // The executable as the user can type it (build/apps/mobmap before `cmake --install`).
     std::error_code ec;
     std::string exe = fs::read_symlink("/proc/self/exe", ec).string();

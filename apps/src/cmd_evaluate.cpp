@@ -25,7 +25,7 @@ Command addEvaluateCommand(CLI::App& app) {
   cmd->add_option("--tolerance", o->tolerance, "Max distance (m) from a voxel centre to its ground-truth surface")->capture_default_str();
   cmd->add_flag("--json", o->json, "One JSON object");
   return [o]() {
-    const mapping::MobilityMap map = loadMap(o->map);
+    const mapping::MobilityMap map = mapping::openMap(o->map);
     const GroundTruth truth = loadGroundTruth(o->truth);
     const Evaluation ev = evaluateMap(map, truth, o->min_count, o->tolerance);
     const int total = ev.true_traversable + ev.false_traversable + ev.true_untraversable + ev.false_untraversable;

@@ -51,12 +51,12 @@ Command addExportCommand(CLI::App& app) {
       ->capture_default_str();
   return [o]() {
     if (o->png.empty() && o->pcd.empty()) throw UsageError("export needs --png OUT.png and/or --pcd OUT.pcd");
-    const mapping::MobilityMap map = loadMap(o->map);
+    const mapping::MobilityMap map = mapping::openMap(o->map);
     const auto& t = map.tree();
     if (!o->pcd.empty()) mapping::saveSurfacePcd(t, o->pcd);
     if (o->png.empty()) return 0;
     // The camera path may run outside the mapped surfaces: draw all of it.
-    const auto meta = readMapMetadata(o->map);
+    const auto meta = readMapMetadataJson(o->map);
     std::vector<Eigen::Vector2d> path;
     if (meta.contains("trajectory_map")) {
       for (const auto& p : meta["trajectory_map"]) path.emplace_back(p[0].get<double>(), p[1].get<double>());
@@ -150,7 +150,7 @@ Command addOverlayCommand(CLI::App& app) {
     }
     const LoadedFrame f = loadSingleFrame(o->frame.substr(0, colon), n, "");
     if (!f.depth || !f.T_world_camera) throw UsageError("--frame needs a directory frame with a pose");
-    const mapping::MobilityMap map = loadMap(o->map);
+    const mapping::MobilityMap map = mapping::openMap(o->map);
     const auto& k = f.intrinsics;
     // Base image: the colour frame if it is a PNG of the same size, else shaded depth.
     Canvas c(k.width, k.height, {0, 0, 0});

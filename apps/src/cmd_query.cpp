@@ -94,7 +94,7 @@ Command addQueryCommand(CLI::App& app) {
       ->check(CLI::IsMember({"map", "world"}))->capture_default_str();
   cmd->add_flag("--json", o->json, "One JSON object per answer");
   return [o]() {
-    const mapping::MobilityMap map = loadMap(o->map);
+    const mapping::MobilityMap map = mapping::openMap(o->map);
     auto toMap = [&](Eigen::Vector3d p) { return o->frame == "world" ? map.worldToMap(p) : p; };
     // A sole: X Y Z YAW LENGTH WIDTH. `where` names its source in errors.
     auto answerFoot = [&](const std::vector<double>& s, const std::string& where) {
@@ -256,7 +256,7 @@ Command addInfoCommand(CLI::App& app) {
   cmd->add_option("MAP", o->map, "A .ot map")->required();
   cmd->add_flag("--json", o->json, "One JSON object: the figures above and the whole metadata file (camera path included)");
   return [o]() {
-    const mapping::MobilityMap map = loadMap(o->map);
+    const mapping::MobilityMap map = mapping::openMap(o->map);
     const auto& t = map.tree();
     double x0, y0, z0, x1, y1, z1;
     t.getMetricMin(x0, y0, z0);
@@ -275,7 +275,7 @@ Command addInfoCommand(CLI::App& app) {
       }
       ++hist[static_cast<std::size_t>(std::clamp(static_cast<int>(it->mobility() * 10), 0, 9))];
     }
-    const auto meta = readMapMetadata(o->map);
+    const auto meta = readMapMetadataJson(o->map);
     if (o->json) {
       nlohmann::json j{{"map", o->map},
                        {"tree_type", t.getTreeType()},
@@ -309,9 +309,9 @@ Command addInfoCommand(CLI::App& app) {
                   std::string(static_cast<std::size_t>(bar), '#').c_str());
     }
     if (meta.empty()) {
-      std::printf("no metadata (%s.json is absent)\n", mapStem(o->map).c_str());
+      std::printf("no metadata (%s.json is absent)\n", mapping::mapFileStem(o->map).c_str());
     } else {
-      printMetadataSummary(meta, mapStem(o->map) + ".json");
+      printMetadataSummary(meta, mapping::mapFileStem(o->map) + ".json");
     }
     return 0;
   };

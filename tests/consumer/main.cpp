@@ -1,16 +1,34 @@
-// A downstream project: links mobmap::mapping (and through it gp and perception).
+// A downstream project, as a footstep planner would use mobmap: links mobmap::mapping
+// (and through it gp and perception), opens a map `mobmap build` wrote and asks it
+// about a foot placement.
 #include <mobmap/gp/mobility_model.hpp>
 #include <mobmap/mapping/gravity.hpp>
+#include <mobmap/mapping/mobility_map.hpp>
 
 #include <cmath>
 #include <cstdio>
+#include <exception>
 
-int main() {
+int main(int argc, char** argv) {
   // 7-Scenes redkitchen gravity: the map's z axis must come out pointing up.
   const Eigen::Vector3d g(-0.0089, 0.9044, 0.4265);
   const Eigen::Matrix3d r = mobmap::mapping::gravityAlignment(g);
   const Eigen::Vector3d down = r * g.normalized();
   const double score = mobmap::gp::MobilityModel().predict(5.0, 1.1).mobility;
   std::printf("down in map frame: %.6f %.6f %.6f, flat-ground score %.3f\n", down.x(), down.y(), down.z(), score);
-  return (std::abs(down.z() + 1.0) < 1e-9 && score > 0.9) ? 0 : 1;
+  if (!(std::abs(down.z() + 1.0) < 1e-9 && score > 0.9)) return 1;
+  if (argc < 2) return 0;
+  // A map of the simulated corridor (2 frames): a 25 x 12 cm sole on the floor 2 m ahead
+  // of the first camera, given in the world frame of the poses.
+  try {
+    const mobmap::mapping::MobilityMap map = mobmap::mapping::openMap(argv[1]);
+    const Eigen::Vector3d at = map.worldToMap({2.0, 0.0, 0.0});
+    const auto foot = map.footprint({at.x(), at.y(), at.z(), 0.0, 0.25, 0.12});
+    std::printf("%d frames; sole at 2 m: min mobility %.3f over %.0f %% known\n", map.framesIntegrated(),
+                foot.min_mobility, 100 * foot.known_fraction);
+    return map.framesIntegrated() == 2 && foot.known_fraction > 0.9 && foot.min_mobility > 0.9 ? 0 : 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s\n", e.what());
+    return 1;
+  }
 }

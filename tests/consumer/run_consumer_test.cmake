@@ -17,7 +17,17 @@ execute_process(COMMAND ${CMAKE_COMMAND} --build ${WORK_DIR}/build RESULT_VARIAB
 if(NOT rc EQUAL 0)
   message(FATAL_ERROR "building the consumer failed (${rc})")
 endif()
-execute_process(COMMAND ${WORK_DIR}/build/consumer RESULT_VARIABLE rc)
+# A small map from the installed tool for the consumer to open.
+execute_process(COMMAND ${WORK_DIR}/prefix/bin/mobmap simulate --out ${WORK_DIR}/seq --frames 2 --noise none --quiet
+  RESULT_VARIABLE rc OUTPUT_QUIET)
+if(rc EQUAL 0)
+  execute_process(COMMAND ${WORK_DIR}/prefix/bin/mobmap build ${WORK_DIR}/seq --out ${WORK_DIR}/map.ot --quiet
+    RESULT_VARIABLE rc OUTPUT_QUIET)
+endif()
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "the installed mobmap could not simulate and build a map (${rc})")
+endif()
+execute_process(COMMAND ${WORK_DIR}/build/consumer ${WORK_DIR}/map.ot RESULT_VARIABLE rc)
 if(NOT rc EQUAL 0)
   message(FATAL_ERROR "the consumer ran but gave a wrong answer (${rc})")
 endif()
