@@ -610,6 +610,9 @@ TEST(Cli, ExtendingAMapGivesTheMapOfOneRunByteForByte) {
   ASSERT_EQ(info.code, 0) << info.out;
   EXPECT_NE(info.out.find("built in 2 runs, 6 frames in the map"), std::string::npos) << info.out;
   EXPECT_NE(info.out.find("run 1: "), std::string::npos) << info.out;
+  const Result top = run("export " + two + " --png " + dir + "/top.png");  // one path piece per run
+  EXPECT_EQ(top.code, 0) << top.out;
+  EXPECT_TRUE(fs::exists(dir + "/top.png"));
 
   const std::string before = fileBytes(two), before_json = fileBytes(dir + "/two.json");
   const Result missing = run("build " + dir + "/seq --out " + dir + "/none.ot --extend --quiet");

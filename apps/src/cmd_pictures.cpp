@@ -61,6 +61,14 @@ Command addExportCommand(CLI::App& app) {
     if (meta.contains("trajectory_map")) {
       for (const auto& p : meta["trajectory_map"]) path.emplace_back(p[0].get<double>(), p[1].get<double>());
     }
+    // A map extended by later runs: each run's path starts afresh (no line from where
+    // one run ended to where the next began), marked by a square like the first.
+    std::vector<std::size_t> run_starts = {0};
+    if (meta.contains("earlier_runs")) {
+      for (const auto& run : meta["earlier_runs"]) {
+        if (run.contains("frames_in_run")) run_starts.push_back(run_starts.back() + run["frames_in_run"].get<std::size_t>());
+      }
+    }
     TopView view;
     try {
       view = computeTopView(t, path, o->max_pixels);
@@ -94,13 +102,17 @@ Command addExportCommand(CLI::App& app) {
     };
     if (path.size() > 1) {
       for (std::size_t i = 1; i < path.size(); ++i) {
+        if (std::find(run_starts.begin(), run_starts.end(), i) != run_starts.end()) continue;
         const auto a = toPixel(path[i - 1]);
         const auto b = toPixel(path[i]);
         c.line(a.first, a.second, b.first, b.second, {20, 60, 230});
         c.line(a.first, a.second + 1, b.first, b.second + 1, {20, 60, 230});
       }
-      const auto s = toPixel(path.front());
-      c.fillRect(s.first - 3, s.second - 3, s.first + 3, s.second + 3, {20, 60, 230});
+      for (const std::size_t start : run_starts) {
+        if (start >= path.size()) continue;
+        const auto s = toPixel(path[start]);
+        c.fillRect(s.first - 3, s.second - 3, s.first + 3, s.second + 3, {20, 60, 230});
+      }
       c.fillRect(margin + w + 30, margin + legend_h - 12, margin + w + 44, margin + legend_h - 11, {20, 60, 230});
       c.text(margin + w + 50, margin + legend_h - 15, "CAMERA PATH", {20, 60, 230});
     }
