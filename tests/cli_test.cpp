@@ -614,6 +614,16 @@ TEST(Cli, ExtendingAMapGivesTheMapOfOneRunByteForByte) {
   EXPECT_EQ(top.code, 0) << top.out;
   EXPECT_TRUE(fs::exists(dir + "/top.png"));
 
+  // The same frames again: said, since each would then count twice.
+  for (const char* suffix : {".ot", ".json"}) fs::copy_file(dir + "/two" + suffix, dir + "/again" + suffix);
+  const Result again = run("build " + dir + "/seq --out " + dir + "/again.ot --frames 2:3 --extend --quiet");
+  ASSERT_EQ(again.code, 0) << again.out;
+  EXPECT_NE(again.out.find("note: run 1 of " + dir + "/again.ot already fused frames 0..2 of this input, which overlap the "
+                           "frames selected now (2..3)"),
+            std::string::npos) << again.out;
+  EXPECT_NE(again.out.find("note: run 2 of " + dir + "/again.ot already fused frames 3..5"), std::string::npos) << again.out;
+  EXPECT_EQ(more.out.find("note: run"), std::string::npos) << more.out;  // 3:5 after 0:2: no overlap
+
   const std::string before = fileBytes(two), before_json = fileBytes(dir + "/two.json");
   const Result missing = run("build " + dir + "/seq --out " + dir + "/none.ot --extend --quiet");
   EXPECT_EQ(missing.code, 2);

@@ -192,6 +192,31 @@ void mergeEarlierRuns(nlohmann::json& meta, const nlohmann::json& earlier) {
   meta["trajectory_map"] = path;
 }
 
+// The runs of an extended map that fused frames from the same input in the range
+// selected now: (run number from 1, first and last frame it fused). Fusing a frame
+// again counts it twice.
+struct RunRange {
+  std::size_t run = 0;
+  long long first = 0, last = 0;
+};
+std::vector<RunRange> overlappingRuns(const nlohmann::json& earlier, const std::string& input, int first, int last) {
+  std::vector<const nlohmann::json*> runs;
+  if (earlier.contains("earlier_runs") && earlier["earlier_runs"].is_array()) {
+    for (const auto& r : earlier["earlier_runs"]) runs.push_back(&r);
+  }
+  runs.push_back(&earlier);
+  std::vector<RunRange> out;
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    const auto& r = *runs[i];
+    if (!r.contains("input") || r["input"] != input) continue;
+    const auto& n = r.contains("frame_numbers") ? r["frame_numbers"] : nlohmann::json();
+    if (!(n.is_array() && n.size() == 2 && n[0].is_number_integer() && n[1].is_number_integer())) continue;
+    const RunRange range{i + 1, n[0].get<long long>(), n[1].get<long long>()};
+    if (range.first <= last && first <= range.last) out.push_back(range);
+  }
+  return out;
+}
+
 }  // namespace
 
 Command addBuildCommand(CLI::App& app) {
@@ -328,6 +353,16 @@ Command addBuildCommand(CLI::App& app) {
     if (!o->gravity.empty()) {
       gravity_world = parseVector3(o->gravity, "--gravity").cast<double>();
       gravity_source = "--gravity";
+    }
+    if (existing && !live) {
+      const auto overlaps = overlappingRuns(existing->meta, fs::absolute(o->input, ec).lexically_normal().string(),
+                                            frames.front(), frames.back());
+      for (const auto& r : overlaps) {
+        std::fprintf(stderr,
+                     "note: run %zu of %s already fused frames %lld..%lld of this input, which overlap the frames "
+                     "selected now (%d..%d): a frame fused again counts twice\n",
+                     r.run, o->out.c_str(), r.first, r.last, frames.front(), frames.back());
+      }
     }
     if (existing) {
       // The map's frame is kept; a gravity the input states must agree with it.
