@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -14,6 +15,8 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
+#include <iterator>
 #include <random>
 #include <sstream>
 #include <thread>
@@ -100,6 +103,65 @@ TEST(NothingLost, CtrlCDuringBuildSavesTheFramesFusedSoFar) {
   EXPECT_TRUE(meta["interrupted"].get<bool>());
   EXPECT_GT(meta["frames"].get<int>(), 0);
   EXPECT_LT(meta["frames"].get<int>(), 60);
+  fs::remove_all(dir);
+}
+
+std::string fileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// `build --checkpoint N` saves the map every N frames. Killed (-9) after a checkpoint,
+// the run leaves a complete map of its first frames, and `--extend` with the rest
+// finishes it: the same files as one uninterrupted run, byte for byte.
+TEST(NothingLost, AKilledBuildResumesFromItsCheckpointToTheMapOfOneRun) {
+  const std::string dir = tempDir("checkpoint");
+  const std::string exe = MOBMAP_EXE;
+  ASSERT_EQ(std::system((exe + " simulate --out " + dir + "/seq --frames 24 --noise none --quiet").c_str()), 0);
+  ASSERT_EQ(std::system((exe + " build " + dir + "/seq --out " + dir + "/whole.ot --quiet > /dev/null").c_str()), 0);
+  // Checkpoints along the way leave the final map as it would have been without.
+  ASSERT_EQ(std::system((exe + " build " + dir + "/seq --out " + dir + "/steps.ot --checkpoint 5 --quiet > /dev/null").c_str()), 0);
+  EXPECT_TRUE(fileBytes(dir + "/steps.ot") == fileBytes(dir + "/whole.ot"));
+
+  const std::string map = dir + "/m.ot", json = dir + "/m.json";
+  // Checkpoints 6 frames (about a second) apart, so the kill lands well before the next.
+  std::vector<std::string> args = {exe, "build", dir + "/seq", "--out", map, "--checkpoint", "6", "--quiet"};
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t quiet;
+  ::posix_spawn_file_actions_init(&quiet);
+  ::posix_spawn_file_actions_addopen(&quiet, 1, "/dev/null", O_WRONLY, 0);
+  pid_t pid = 0;
+  ASSERT_EQ(::posix_spawn(&pid, exe.c_str(), &quiet, nullptr, argv.data(), environ), 0);
+  ::posix_spawn_file_actions_destroy(&quiet);
+  // MAP.json is written last: once it exists, a whole checkpoint is on disk.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (!fs::exists(json) && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  ::kill(pid, SIGKILL);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFSIGNALED(status)) << "the run ended before it could be killed";
+  const auto meta = nlohmann::json::parse(fileBytes(json));
+  ASSERT_TRUE(meta.value("checkpoint", false)) << meta.dump();
+  const int fused = meta["frames"].get<int>();
+  std::cout << "[ info ] killed after the checkpoint of " << fused << " frames\n";
+  EXPECT_EQ(fused % 6, 0);
+  ASSERT_GT(fused, 0);
+  ASSERT_LT(fused, 24);
+  EXPECT_EQ(meta["frame_numbers"], nlohmann::json({0, fused - 1}));
+  EXPECT_GT(mapping::loadMobilityMap(map)->size(), 100u);  // complete and loadable
+
+  const std::string rest = std::to_string(fused) + ":23";
+  ASSERT_EQ(std::system((exe + " build " + dir + "/seq --out " + map + " --extend --frames " + rest + " --quiet > /dev/null").c_str()), 0);
+  EXPECT_TRUE(fileBytes(map) == fileBytes(dir + "/whole.ot"));
+  EXPECT_TRUE(fileBytes(dir + "/m.octovis.ot") == fileBytes(dir + "/whole.octovis.ot"));
+  const auto done = nlohmann::json::parse(fileBytes(json));
+  EXPECT_EQ(done["frames"], 24);
+  EXPECT_FALSE(done.contains("checkpoint"));
+  EXPECT_TRUE(done["earlier_runs"][0].value("checkpoint", false));
   fs::remove_all(dir);
 }
 

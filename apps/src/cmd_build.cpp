@@ -231,6 +231,7 @@ Command addBuildCommand(CLI::App& app) {
     std::string gravity;
     bool force = false;
     bool extend = false;
+    int checkpoint = 0;
     bool quiet = false;
     bool no_free_space = false;
     std::string config;
@@ -270,6 +271,10 @@ Command addBuildCommand(CLI::App& app) {
                 "Add the frames to the existing map at --out instead of starting a new one: its resolution and map "
                 "frame are kept, INPUT's poses must be in the same world frame, MAP.json records each run")
       ->excludes(force);
+  cmd->add_option("--checkpoint", o->checkpoint,
+                  "Also save the map every N fused frames while the run goes on (MAP.json says \"checkpoint\"); after a "
+                  "crash, --extend with the remaining --frames finishes it")
+      ->check(CLI::Range(1, 1000000));
   cmd->add_flag("--no-free-space", o->no_free_space, "Skip free-space updates (faster; moved obstacles stay)");
   cmd->add_flag("--quiet,-q", o->quiet, "No progress output");
   return [o, max_range, resolution, device, voxel]() {
@@ -445,8 +450,59 @@ Command addBuildCommand(CLI::App& app) {
     std::map<std::string, double> stage_ms;
     std::size_t points = 0;
     int used = 0, no_ground = 0, no_pose = 0;
+    int last_fused = frames.front();  // frame number of the last frame fused
     nlohmann::json trajectory = nlohmann::json::array();  // camera positions, map frame
     double read_ms = 0, fuse_ms = 0;
+    // The map files: MAP.ot first, MAP.json last, each replaced atomically. A checkpoint
+    // (--checkpoint) writes the same files in the middle of the run; fusion then goes on
+    // in the finalized (pruned) tree, which gives the same map as without (docs/MAPPING.md).
+    const std::string stem = mapping::mapFileStem(o->out);
+    auto writeMap = [&](bool checkpoint, double run_s) {
+      map.finalize();
+      mapping::saveMobilityMap(map.tree(), o->out);
+      mapping::saveOccupancyBt(map.tree(), stem + ".bt");
+      mapping::saveOctovisColorTree(map.tree(), stem + ".octovis.ot");
+      nlohmann::json meta;
+      meta["format"] = "mobmap-map-metadata";
+      meta["tool"] = std::string("mobmap ") + MOBMAP_VERSION_STRING;
+      meta["tree_type"] = mapping::MobilityOcTree::kTreeType;
+      meta["input"] = live ? "OpenNI2 device " + (o->device.empty() ? std::string("(first attached)") : o->device)
+                           : fs::absolute(o->input, ec).lexically_normal().string();
+      meta["frames"] = used;
+      meta["frames_in_run"] = used;
+      meta["frames_selected"] = frames.size();
+      if (is_dir && !dir->skipped().empty()) meta["skipped"] = dir->skipped();
+      if (no_pose > 0) meta["frames_without_pose"] = no_pose;
+      meta["frame_numbers"] = {frames.front(), last_fused};
+      meta["interrupted"] = g_interrupted.load();
+      meta["resolution_m"] = map.tree().getResolution();
+      meta["gravity_down_world"] = {g_world.x(), g_world.y(), g_world.z()};
+      meta["gravity_source"] = gravity_source;
+      meta["R_map_world"] = {{R_map_world(0, 0), R_map_world(0, 1), R_map_world(0, 2)},
+                             {R_map_world(1, 0), R_map_world(1, 1), R_map_world(1, 2)},
+                             {R_map_world(2, 0), R_map_world(2, 1), R_map_world(2, 2)}};
+      meta["seconds"] = run_s;
+      meta["frames_per_second"] = run_s > 0 ? (used + no_pose) / run_s : 0.0;
+      if (checkpoint) meta["checkpoint"] = true;
+      // The configuration's values that --voxel rescales are recorded with the rest.
+      meta["perception"] = {{"max_range_m", pp.max_range_m}, {"voxel_size_m", pp.voxel_size_m},
+                            {"normal_k", pp.normal_k}, {"outlier_k", pp.outlier_k}, {"colour_threshold", pp.colour_threshold},
+                            {"min_segment_points", pp.min_segment_points}, {"ground_min_points", pp.ground_min_points},
+                            {"neighbour_distance_m", pp.neighbour_distance_m}, {"max_triangle_edge_m", pp.max_triangle_edge_m},
+                            {"rough_fragment_max_points", pp.rough_fragment_max_points}, {"rough_min_points", pp.rough_min_points},
+                            {"rough_smoothing_k", pp.rough_smoothing_k}};
+      meta["mapping"] = {{"resolution_m", mp.resolution_m}, {"max_range_m", mp.max_range_m},
+                         {"free_space_ray_stride_px", mp.free_space_ray_stride_px}, {"max_weight", mp.max_weight}};
+      meta["model"] = {{"kind", config.model.model == gp::ModelKind::kGaussianProcess ? "gp" : "rule"},
+                       {"table", config.table_path.empty() ? "paper" : config.table_path},
+                       {"signal_std", config.model.signal_std}, {"length_scale", config.model.length_scale},
+                       {"noise_std", config.model.noise_std}};
+      if (!o->config.empty()) meta["config"] = fs::absolute(o->config, ec).lexically_normal().string();
+      meta["trajectory_map"] = trajectory;
+      if (existing) mergeEarlierRuns(meta, existing->meta);
+      writeTextFileAtomically(stem + ".json", formatMapMetadata(meta));
+      return meta;
+    };
     // Two frames in perception at once (both cores), fused strictly in order.
     std::deque<std::future<Scored>> in_flight;
     std::size_t next = 0;
@@ -476,7 +532,11 @@ Command addBuildCommand(CLI::App& app) {
       points += s.result.points.size();
       no_ground += !s.result.ground_plane;
       ++used;
+      last_fused = s.number;
       progress.update(used + no_pose, "map " + std::to_string(map.tree().size()) + " nodes");
+      if (o->checkpoint > 0 && used % o->checkpoint == 0 && used + no_pose < static_cast<int>(frames.size())) {
+        writeMap(true, std::chrono::duration<double>(std::chrono::steady_clock::now() - run_start).count());
+      }
     }
     for (auto& f : in_flight) f.wait();  // let started frames finish before saving
     std::signal(SIGINT, SIG_DFL);
@@ -490,49 +550,7 @@ Command addBuildCommand(CLI::App& app) {
           << " s of its time stamp (are the poses on the sensor's clock, in seconds?); no map written";
       throw IoError(o->poses, msg.str());
     }
-    map.finalize();
-    const std::string stem = mapping::mapFileStem(o->out);
-    mapping::saveMobilityMap(map.tree(), o->out);
-    mapping::saveOccupancyBt(map.tree(), stem + ".bt");
-    mapping::saveOctovisColorTree(map.tree(), stem + ".octovis.ot");
-    nlohmann::json meta;
-    meta["format"] = "mobmap-map-metadata";
-    meta["tool"] = std::string("mobmap ") + MOBMAP_VERSION_STRING;
-    meta["tree_type"] = mapping::MobilityOcTree::kTreeType;
-    meta["input"] = live ? "OpenNI2 device " + (o->device.empty() ? std::string("(first attached)") : o->device)
-                         : fs::absolute(o->input, ec).lexically_normal().string();
-    meta["frames"] = used;
-    meta["frames_in_run"] = used;
-    meta["frames_selected"] = frames.size();
-    if (is_dir && !dir->skipped().empty()) meta["skipped"] = dir->skipped();
-    if (no_pose > 0) meta["frames_without_pose"] = no_pose;
-    meta["frame_numbers"] = {frames.front(), frames[static_cast<std::size_t>(std::max(0, used - 1))]};
-    meta["interrupted"] = g_interrupted.load();
-    meta["resolution_m"] = map.tree().getResolution();
-    meta["gravity_down_world"] = {g_world.x(), g_world.y(), g_world.z()};
-    meta["gravity_source"] = gravity_source;
-    meta["R_map_world"] = {{R_map_world(0, 0), R_map_world(0, 1), R_map_world(0, 2)},
-                           {R_map_world(1, 0), R_map_world(1, 1), R_map_world(1, 2)},
-                           {R_map_world(2, 0), R_map_world(2, 1), R_map_world(2, 2)}};
-    meta["seconds"] = run_s;
-    meta["frames_per_second"] = frames_per_s;
-    // The configuration's values that --voxel rescales are recorded with the rest.
-    meta["perception"] = {{"max_range_m", pp.max_range_m}, {"voxel_size_m", pp.voxel_size_m},
-                          {"normal_k", pp.normal_k}, {"outlier_k", pp.outlier_k}, {"colour_threshold", pp.colour_threshold},
-                          {"min_segment_points", pp.min_segment_points}, {"ground_min_points", pp.ground_min_points},
-                          {"neighbour_distance_m", pp.neighbour_distance_m}, {"max_triangle_edge_m", pp.max_triangle_edge_m},
-                          {"rough_fragment_max_points", pp.rough_fragment_max_points}, {"rough_min_points", pp.rough_min_points},
-                          {"rough_smoothing_k", pp.rough_smoothing_k}};
-    meta["mapping"] = {{"resolution_m", mp.resolution_m}, {"max_range_m", mp.max_range_m},
-                       {"free_space_ray_stride_px", mp.free_space_ray_stride_px}, {"max_weight", mp.max_weight}};
-    meta["model"] = {{"kind", config.model.model == gp::ModelKind::kGaussianProcess ? "gp" : "rule"},
-                     {"table", config.table_path.empty() ? "paper" : config.table_path},
-                     {"signal_std", config.model.signal_std}, {"length_scale", config.model.length_scale},
-                     {"noise_std", config.model.noise_std}};
-    if (!o->config.empty()) meta["config"] = fs::absolute(o->config, ec).lexically_normal().string();
-    meta["trajectory_map"] = trajectory;
-    if (existing) mergeEarlierRuns(meta, existing->meta);
-    writeTextFileAtomically(stem + ".json", formatMapMetadata(meta));
+    const nlohmann::json meta = writeMap(false, run_s);
 
     std::printf("\n%d of %zu frames fused (%d without a ground plane)%s in %.1f s (%.1f frames/s), %zu points, %zu map nodes (%zu leaves)\n",
                 used, frames.size(), no_ground, g_interrupted.load() ? ", INTERRUPTED" : "", run_s, frames_per_s, points,

@@ -187,6 +187,7 @@ void printMetadataSummary(const nlohmann::json& meta, const std::string& json_pa
       if (r.contains("frames_in_run")) std::printf(", %d frames fused", r["frames_in_run"].get<int>());
       std::printf("%s", frameRange(r).c_str());
       if (r.contains("interrupted") && r["interrupted"].is_boolean() && r["interrupted"].get<bool>()) std::printf(", INTERRUPTED");
+      if (r.contains("checkpoint") && r["checkpoint"] == true) std::printf(", ended at a checkpoint (the run did not finish)");
       std::printf("\n");
     }
     std::printf("  run %zu (latest): ", runs.size() + 1);
@@ -203,6 +204,9 @@ void printMetadataSummary(const nlohmann::json& meta, const std::string& json_pa
     if (std::isfinite(no_pose)) std::printf(", %.0f skipped without a pose", no_pose);
     if (meta.contains("interrupted") && meta["interrupted"].is_boolean() && meta["interrupted"].get<bool>()) {
       std::printf(", INTERRUPTED (Ctrl-C): the map holds these frames only");
+    }
+    if (meta.contains("checkpoint") && meta["checkpoint"] == true) {
+      std::printf(", CHECKPOINT: saved while the run went on, which did not finish or is still going");
     }
     const double sec = number(meta, "seconds"), fps = number(meta, "frames_per_second");
     if (std::isfinite(sec) && std::isfinite(fps)) std::printf(", %.1f s (%.1f frames/s)", sec, fps);
