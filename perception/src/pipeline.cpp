@@ -390,7 +390,7 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
   if (out.ground_plane && !planes.empty() && p.ground_reclaim_min_angle_deg > 0) {
     moved += reclaimGroundPoints(out.points, graph, p.neighbour_distance_m, *out.ground_plane, planes,
                                  p.ground_reclaim_min_angle_deg, p.ground_reclaim_max_angle_deg, p.ground_distance_m,
-                                 labels, is_ground, &out.normals);
+                                 labels, is_ground, &out.normals, &region_rough);
   }
   // Points that colour growing left out next to a region whose plane they lie on
   // join it (not rough regions: their plane is only a mean).

@@ -639,10 +639,14 @@ std::size_t reclaimGroundPoints(const std::vector<Eigen::Vector3f>& points, cons
                                 double max_neighbour_distance_m, const Eigen::Vector4f& ground_plane,
                                 const std::vector<Eigen::Vector4f>& region_planes, double min_angle_deg,
                                 double max_angle_deg, double max_plane_distance_m, std::vector<int>& labels,
-                                std::vector<bool>& ground, const std::vector<Eigen::Vector3f>* normals) {
+                                std::vector<bool>& ground, const std::vector<Eigen::Vector3f>* normals,
+                                const std::vector<bool>* no_footprint) {
   const std::size_t n = points.size();
   if (labels.size() != n || ground.size() != n || g.count.size() != n) {
     throw std::invalid_argument("reclaimGroundPoints: points, graph, labels and ground mask sizes differ");
+  }
+  if (no_footprint && no_footprint->size() != region_planes.size()) {
+    throw std::invalid_argument("reclaimGroundPoints: no_footprint and region_planes sizes differ");
   }
   const Eigen::Vector3f gn = ground_plane.head<3>().normalized();
   const float gd = ground_plane(3) / ground_plane.head<3>().norm();
@@ -666,6 +670,55 @@ std::size_t reclaimGroundPoints(const std::vector<Eigen::Vector3f>& points, cons
       queue.push_back(static_cast<int>(i));
     }
   }
+  // Each tilted region's footprint on the ground: the side of the line where its plane
+  // meets the ground plane on which the region rises, and its extent along that line.
+  // Near the line the two planes are closer than the noise, so distances and normals
+  // cannot tell the ramp's foot from the floor; the footprint can (the floor cannot lie
+  // under the ramp), and it measures positions along the ground, which noise barely moves.
+  struct Footprint {
+    Eigen::Vector3f along = Eigen::Vector3f::Zero();  // direction of the line
+    float rise_sign = 0.f;                             // sign of the region plane's value on the ramp side (0: unknown)
+    float lo = std::numeric_limits<float>::max(), hi = std::numeric_limits<float>::lowest();
+  };
+  // Where the region's plane is this far above the ground plane: its fitted plane is off
+  // by a few millimetres at its foot (a tilt error over half a metre of ramp), and
+  // nearer the line that error alone would put floor points under the region.
+  constexpr float kFootprintClearance = 0.007f;
+  std::vector<Footprint> foot(region_planes.size());
+  std::vector<double> height_sum(region_planes.size(), 0.0);  // region points' signed distance to the ground plane
+  for (int idx : queue) {
+    const auto i = static_cast<std::size_t>(idx);
+    const auto r = static_cast<std::size_t>(labels[i]);
+    Footprint& f = foot[r];
+    if (f.along.isZero()) f.along = gn.cross(unit[r].head<3>()).normalized();
+    const float a = f.along.dot(points[i]);
+    f.lo = std::min(f.lo, a);
+    f.hi = std::max(f.hi, a);
+    height_sum[r] += gn.dot(points[i]) + gd;
+  }
+  for (std::size_t r = 0; r < region_planes.size(); ++r) {
+    // A point p of the region at signed height h over the ground plane has its foot
+    // p - h gn on the ground, where the region's plane has the value -h (nr . gn): the
+    // sign of that value marks the side the region stands over (either orientation of
+    // either plane).
+    const double side = -height_sum[r] * static_cast<double>(unit[r].head<3>().dot(gn));
+    const bool planar = !(no_footprint && (*no_footprint)[r]);
+    foot[r].rise_sign = !planar ? 0.f : side > 0 ? 1.f : side < 0 ? -1.f : 0.f;
+  }
+  // +1: under the region (beyond the line by the clearance, between its sides); -1: in
+  // front of the line by the clearance (the region's plane lies below the floor there);
+  // 0: near the line or beside the region, where the distances and normals decide.
+  const auto footprintSide = [&](std::size_t r, const Eigen::Vector3f& q) {
+    const Footprint& f = foot[r];
+    if (f.rise_sign == 0.f) return 0;
+    const Eigen::Vector3f on_ground = q - (gn.dot(q) + gd) * gn;
+    const float rise = f.rise_sign * (unit[r].head<3>().dot(on_ground) + unit[r](3));
+    if (rise < -kFootprintClearance) return -1;
+    // Half a centimetre of slack: the line's direction comes from the fitted plane, and a
+    // tenth of a degree off it moves a corner of the ramp by about a millimetre.
+    const float a = f.along.dot(q);
+    return rise > kFootprintClearance && a >= f.lo - 0.005f && a <= f.hi + 0.005f ? 1 : 0;
+  };
   std::size_t moved = 0;
   for (std::size_t head = 0; head < queue.size(); ++head) {
     const auto i = static_cast<std::size_t>(queue[head]);
@@ -676,10 +729,15 @@ std::size_t reclaimGroundPoints(const std::vector<Eigen::Vector3f>& points, cons
       const Eigen::Vector3f& q = points[nb];
       const float to_region = std::abs(pl.head<3>().dot(q) + pl(3));
       const float to_ground = std::abs(gn.dot(q) + gd);
-      if (to_region >= to_ground || to_region > max_plane) return;
-      if (normals && !(*normals)[nb].isZero() &&
-          std::abs((*normals)[nb].dot(pl.head<3>())) <= std::abs((*normals)[nb].dot(gn))) {
-        return;  // its normal says floor
+      if (to_region > max_plane) return;
+      const int side = footprintSide(r, q);
+      if (side < 0) return;
+      if (side == 0) {
+        if (to_region >= to_ground) return;
+        if (normals && !(*normals)[nb].isZero() &&
+            std::abs((*normals)[nb].dot(pl.head<3>())) <= std::abs((*normals)[nb].dot(gn))) {
+          return;  // its normal says floor
+        }
       }
       ground[nb] = false;
       labels[nb] = static_cast<int>(r);

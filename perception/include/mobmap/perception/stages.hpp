@@ -189,14 +189,23 @@ std::size_t adoptUnsegmentedPoints(const std::vector<Eigen::Vector3f>& points,
 /// is closer to the region's plane normal than to the ground's (along the line where a
 /// ramp's plane meets the floor, extended past the ramp's sides, noisy floor points are
 /// as close to one plane as to the other, and without this test the walk spreads
-/// along that line). Updates `labels` (region per point, -1 none) and `ground`
-/// (ground mask); returns how many points moved.
+/// along that line). Those two tests are skipped, and the point taken, when its foot
+/// on the ground plane lies under the region: on the side of the line where the two
+/// planes meet that the region stands over, with the region's plane more than 7 mm
+/// above the ground plane there, and within the region's extent along the line (near
+/// the line noise makes both tests a coin toss); a point whose foot has the region's
+/// plane more than 7 mm below the ground plane (in front of a ramp) stays ground. Not
+/// for regions with `(*no_footprint)[r]` (rough ones: their plane is only a mean, and
+/// a level rough patch's can lean a few degrees and stand over floor it does not cover).
+/// Updates `labels` (region per point, -1 none) and `ground` (ground mask); returns how
+/// many points moved.
 std::size_t reclaimGroundPoints(const std::vector<Eigen::Vector3f>& points, const KnnGraph& graph,
                                 double max_neighbour_distance_m, const Eigen::Vector4f& ground_plane,
                                 const std::vector<Eigen::Vector4f>& region_planes, double min_angle_deg,
                                 double max_angle_deg, double max_plane_distance_m, std::vector<int>& labels,
                                 std::vector<bool>& ground,
-                                const std::vector<Eigen::Vector3f>* normals = nullptr);
+                                const std::vector<Eigen::Vector3f>* normals = nullptr,
+                                const std::vector<bool>* no_footprint = nullptr);
 
 
 /// Roughness r = A / A' (paper eqs. 8-10) of a segment: CGAL 2D Delaunay triangulation
