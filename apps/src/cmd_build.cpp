@@ -137,8 +137,8 @@ struct ExistingMap {
 ExistingMap openForExtension(const std::string& ot_path) {
   ExistingMap m;
   m.tree = mapping::loadMobilityMap(ot_path);
-  m.meta = readMapMetadataJson(ot_path);  // the earlier runs' records, for the new MAP.json
   const mapping::MapMetadata frame = mapping::readMapMetadata(ot_path);
+  m.meta = metadataJson(frame);  // the earlier runs' records, for the new MAP.json
   if (!frame.has_frame) {
     throw IoError(frame.path, "missing, or without \"R_map_world\": --extend needs the metadata written beside the map "
                               "(the rotation from the input's world frame to the map frame)");
@@ -176,11 +176,8 @@ void mergeEarlierRuns(nlohmann::json& meta, const nlohmann::json& earlier) {
                                                                                                : nlohmann::json::array();
   nlohmann::json previous = earlier;
   const int earlier_frames = earlier.contains("frames") ? earlier["frames"].get<int>() : 0;
-  if (!previous.contains("frames_in_run")) {  // a map from before frames_in_run was recorded: one run
-    int in_runs = 0;
-    for (const auto& r : runs) in_runs += r.contains("frames_in_run") && r["frames_in_run"].is_number_integer() ? r["frames_in_run"].get<int>() : 0;
-    previous["frames_in_run"] = earlier_frames - in_runs;
-  }
+  // A map from before frames_in_run was recorded has no earlier runs: its frames are its one run's.
+  if (!previous.contains("frames_in_run")) previous["frames_in_run"] = earlier_frames;
   previous.erase("frames");
   previous.erase("earlier_runs");
   previous.erase("trajectory_map");

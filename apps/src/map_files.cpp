@@ -23,9 +23,12 @@ std::string formatMapMetadata(const nlohmann::json& meta) {
   return text + "\n" + entry;
 }
 
+nlohmann::json metadataJson(const mapping::MapMetadata& meta) {
+  return meta.found ? nlohmann::json::parse(meta.text) : nlohmann::json::object();
+}
+
 nlohmann::json readMapMetadataJson(const std::string& ot_path) {
-  const std::string text = mapping::readMapMetadataText(ot_path);  // checked
-  return text.empty() ? nlohmann::json::object() : nlohmann::json::parse(text);
+  return metadataJson(mapping::readMapMetadata(ot_path));  // checked
 }
 
 }  // namespace mobmap::app

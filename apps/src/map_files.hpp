@@ -12,6 +12,8 @@ namespace mobmap::app {
 /// Metadata written beside a map as STEM.json, checked as mapping::readMapMetadata()
 /// does (MapIoError naming the file): an empty object if there is none.
 nlohmann::json readMapMetadataJson(const std::string& ot_path);
+/// The same from metadata already read.
+nlohmann::json metadataJson(const mapping::MapMetadata& meta);
 
 /// MAP.json's text: indented like nlohmann's dump(1), except that each trajectory_map
 /// position takes one line ("[x,y,z]") instead of five (a run of 100,000 frames writes

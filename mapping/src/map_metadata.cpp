@@ -94,50 +94,32 @@ std::string mapFileStem(const std::string& ot_path) {
   return p.extension() == ".ot" ? (p.parent_path() / p.stem()).string() : ot_path;
 }
 
-namespace {
-
-// MAP.json parsed and checked, with its text; nullopt if there is none.
-std::optional<nlohmann::json> readChecked(const std::string& ot_path, std::string* text_out) {
-  const std::string path = mapFileStem(ot_path) + ".json";
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) return std::nullopt;
-  if (std::filesystem::is_directory(path, ec)) fail(path, "is a directory, expected a file");
-  // A camera path of a million frames takes ~50 MB.
-  constexpr std::uintmax_t kMaxBytes = 256u << 20;
-  const auto size = std::filesystem::file_size(path, ec);
-  if (!ec && size > kMaxBytes) fail(path, "file is " + std::to_string(size) + " bytes, more than the 256 MB expected");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) fail(path, std::string("cannot open: ") + std::strerror(errno));
-  std::ostringstream s;
-  s << in.rdbuf();
-  nlohmann::json meta;
-  try {
-    meta = nlohmann::json::parse(s.str());
-  } catch (const nlohmann::json::exception& e) {
-    fail(path, std::string("not valid JSON: ") + e.what());
-  }
-  check(meta, path);
-  if (text_out) *text_out = s.str();
-  return meta;
-}
-
-}  // namespace
-
-std::string readMapMetadataText(const std::string& ot_path) {
-  std::string text;
-  readChecked(ot_path, &text);
-  return text;
-}
-
 MapMetadata readMapMetadata(const std::string& ot_path) {
   MapMetadata m;
   m.path = mapFileStem(ot_path) + ".json";
-  const auto meta = readChecked(ot_path, nullptr);
-  if (!meta) return m;
+  std::error_code ec;
+  if (!std::filesystem::exists(m.path, ec)) return m;
+  if (std::filesystem::is_directory(m.path, ec)) fail(m.path, "is a directory, expected a file");
+  // A camera path of a million frames takes ~50 MB.
+  constexpr std::uintmax_t kMaxBytes = 256u << 20;
+  const auto size = std::filesystem::file_size(m.path, ec);
+  if (!ec && size > kMaxBytes) fail(m.path, "file is " + std::to_string(size) + " bytes, more than the 256 MB expected");
+  std::ifstream in(m.path, std::ios::binary);
+  if (!in) fail(m.path, std::string("cannot open: ") + std::strerror(errno));
+  std::ostringstream s;
+  s << in.rdbuf();
+  m.text = s.str();
+  nlohmann::json meta;
+  try {
+    meta = nlohmann::json::parse(m.text);
+  } catch (const nlohmann::json::exception& e) {
+    fail(m.path, std::string("not valid JSON: ") + e.what());
+  }
+  check(meta, m.path);
   m.found = true;
-  if (meta->contains("frames")) m.frames = (*meta)["frames"].get<int>();
-  if (meta->contains("R_map_world")) {
-    const auto& rows = (*meta)["R_map_world"];
+  if (meta.contains("frames")) m.frames = meta["frames"].get<int>();
+  if (meta.contains("R_map_world")) {
+    const auto& rows = meta["R_map_world"];
     Eigen::Matrix3d r;
     for (int i = 0; i < 3; ++i) {
       for (int j = 0; j < 3; ++j) r(i, j) = rows[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)].get<double>();
@@ -146,8 +128,8 @@ MapMetadata readMapMetadata(const std::string& ot_path) {
     // Printed to 17 digits, but a hand-edited file may round: keep it a rotation.
     m.R_map_world = nearestRotation(r);
   }
-  if (meta->contains("gravity_down_world")) {
-    const auto& g = (*meta)["gravity_down_world"];
+  if (meta.contains("gravity_down_world")) {
+    const auto& g = meta["gravity_down_world"];
     m.gravity_down_world = Eigen::Vector3d(g[0].get<double>(), g[1].get<double>(), g[2].get<double>());
   }
   return m;

@@ -188,6 +188,7 @@ struct MapMetadata {
   Eigen::Matrix3d R_map_world = Eigen::Matrix3d::Identity();
   std::optional<Eigen::Vector3d> gravity_down_world;  ///< in the world frame, as recorded
   int frames = 0;         ///< frames fused into the map
+  std::string text;       ///< the whole file, as read and checked (empty if not found)
 };
 
 /// Reads MAP.json beside `ot_path` (nothing found is not an error) and checks every entry
@@ -195,8 +196,6 @@ struct MapMetadata {
 /// frames, R_map_world (must be a rotation), gravity_down_world, trajectory_map or
 /// earlier_runs is malformed.
 MapMetadata readMapMetadata(const std::string& ot_path);
-/// The same file's text, checked as above; empty if there is no MAP.json.
-std::string readMapMetadataText(const std::string& ot_path);
 
 /// A map as `mobmap build` left it: MAP.ot with the frame recorded in MAP.json, so
 /// worldToMap() takes points in the world frame of the poses it was built from. Errors
