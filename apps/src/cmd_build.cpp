@@ -444,7 +444,7 @@ Command addBuildCommand(CLI::App& app) {
 
     std::signal(SIGINT, onSigint);
     Progress progress("build", static_cast<int>(frames.size()), o->quiet);
-    std::map<std::string, double> stage_ms;
+    std::vector<std::pair<std::string, double>> stage_ms;  // in pipeline order
     std::size_t points = 0;
     int used = 0, no_ground = 0, no_pose = 0;
     int last_fused = frames.front();  // frame number of the last frame fused
@@ -522,7 +522,11 @@ Command addBuildCommand(CLI::App& app) {
           is_dir ? (dir->hasDepth() ? &dir->intrinsics() : nullptr) : (single.depth ? &single.intrinsics : nullptr);
       map.integrate(s.result, s.T_world_camera, intrinsics ? &s.depth : nullptr, intrinsics);
       fuse_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-      for (const auto& st : s.result.stages) stage_ms[st.name] += st.milliseconds;
+      for (const auto& st : s.result.stages) {
+        auto it = std::find_if(stage_ms.begin(), stage_ms.end(), [&](const auto& e) { return e.first == st.name; });
+        if (it == stage_ms.end()) it = stage_ms.insert(stage_ms.end(), {st.name, 0.0});
+        it->second += st.milliseconds;
+      }
       const Eigen::Vector3d c = R_map_world * s.T_world_camera.translation();
       trajectory.push_back({c.x(), c.y(), c.z()});
       read_ms += s.read_ms;
