@@ -8,6 +8,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -649,6 +650,77 @@ TEST(Cli, ExtendingAMapGivesTheMapOfOneRunByteForByte) {
   const Result bare = run("build " + dir + "/seq --out " + dir + "/one.ot --extend --quiet");
   EXPECT_EQ(bare.code, 1);
   EXPECT_NE(bare.out.find("one.json: missing"), std::string::npos) << bare.out;
+  fs::remove_all(dir);
+}
+
+// `build --keyframes M,DEG` fuses the frames whose camera moved >= M or turned >= DEG
+// since the last frame fused: checked against the rule applied to the pose files.
+TEST(Cli, KeyframesAreTheFramesThatMovedOrTurnedEnoughSinceTheLastOneFused) {
+  const std::string dir = tempDir("keyframes");
+  const int n = 12;
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames " + std::to_string(n) + " --quiet").code, 0);
+  // The corridor walk moves ~2.6 cm and turns 0.2-0.5 degrees per frame.
+  const double min_m = 0.07, min_deg = 0.9;
+  using Pose = std::array<std::array<double, 4>, 3>;
+  std::vector<Pose> poses;
+  for (int f = 0; f < n; ++f) {
+    char name[64];
+    std::snprintf(name, sizeof name, "/seq/frame-%06d.pose.txt", f);
+    std::ifstream in(dir + name);
+    Pose p{};
+    for (auto& row : p) for (double& v : row) in >> v;
+    ASSERT_TRUE(in) << name;
+    poses.push_back(p);
+  }
+  std::vector<int> expected{0};
+  for (int f = 1; f < n; ++f) {
+    const Pose& a = poses[static_cast<std::size_t>(expected.back())];
+    const Pose& b = poses[static_cast<std::size_t>(f)];
+    double d2 = 0, trace = 0;
+    for (int i = 0; i < 3; ++i) {
+      d2 += (a[i][3] - b[i][3]) * (a[i][3] - b[i][3]);
+      for (int k = 0; k < 3; ++k) trace += a[k][i] * b[k][i];  // trace(A^T B)
+    }
+    const double deg = std::acos(std::clamp((trace - 1) / 2, -1.0, 1.0)) * 180 / M_PI;
+    if (std::sqrt(d2) >= min_m || deg >= min_deg) expected.push_back(f);
+  }
+  ASSERT_GT(expected.size(), 2u);
+  ASSERT_LT(expected.size(), static_cast<std::size_t>(n) - 3);
+
+  const Result built = run("build " + dir + "/seq --out " + dir + "/kf.ot --keyframes 0.07,0.9");
+  ASSERT_EQ(built.code, 0) << built.out;
+  const std::string said = "keyframes: " + std::to_string(expected.size()) + " of the " + std::to_string(n) + " selected frames";
+  EXPECT_NE(built.out.find(said), std::string::npos) << built.out;
+  const auto meta = nlohmann::json::parse(fileBytes(dir + "/kf.json"));
+  EXPECT_EQ(meta["frames"], expected.size());
+  EXPECT_EQ(meta["frame_numbers"], nlohmann::json({expected.front(), expected.back()}));
+  EXPECT_EQ(meta["keyframes"]["frames_considered"], n);
+  // The camera path holds the fused frames' positions (map frame = R_map_world * world).
+  const auto& R = meta["R_map_world"];
+  const auto& path = meta["trajectory_map"];
+  ASSERT_EQ(path.size(), expected.size());
+  for (std::size_t k = 0; k < expected.size(); ++k) {
+    const Pose& p = poses[static_cast<std::size_t>(expected[k])];
+    for (int i = 0; i < 3; ++i) {
+      double v = 0;
+      for (int j = 0; j < 3; ++j) v += R[i][j].get<double>() * p[j][3];
+      EXPECT_NEAR(path[k][i].get<double>(), v, 1e-9) << "keyframe " << k;
+    }
+  }
+  const Result info = run("info " + dir + "/kf.ot");
+  EXPECT_NE(info.out.find("(keyframes of " + std::to_string(n) + ": camera moved >= 0.07 m or turned >= 0.9 degrees)"),
+            std::string::npos) << info.out;
+
+  const Result none = run("build " + dir + "/seq --out " + dir + "/none.ot --keyframes 0,0");
+  EXPECT_EQ(none.code, 2);
+  EXPECT_NE(none.out.find("--keyframes: at least one of"), std::string::npos) << none.out;
+  const Result one = run("build " + dir + "/seq --out " + dir + "/none.ot --keyframes 0.05");
+  EXPECT_EQ(one.code, 2) << one.out;
+  const Result lone = run("build " + dir + "/seq/frame-000000.depth.png --intrinsics 585,585,320,240 --out " + dir +
+                          "/none.ot --keyframes 0.05,5");
+  EXPECT_EQ(lone.code, 2);
+  EXPECT_NE(lone.out.find("--keyframes needs a sequence"), std::string::npos) << lone.out;
+  EXPECT_FALSE(fs::exists(dir + "/none.ot"));
   fs::remove_all(dir);
 }
 

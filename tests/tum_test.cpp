@@ -76,6 +76,51 @@ TEST(Trajectory, InterpolatesLinearlyAndSlerpsAndRefusesGaps) {
   EXPECT_THROW(tr.insert(std::nan(""), a), std::invalid_argument);
 }
 
+TEST(Keyframes, FollowTheLastKeyframeNotTheLastFrame) {
+  // A camera that stands still for 5 poses, then moves 1 cm per pose along x, then turns
+  // 1 degree per pose about a tilted axis on the spot.
+  std::vector<Eigen::Isometry3d> path;
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  for (int i = 0; i < 5; ++i) path.push_back(T);
+  for (int i = 0; i < 20; ++i) {
+    T.translation().x() += 0.01;
+    path.push_back(T);
+  }
+  const Eigen::Vector3d axis = Eigen::Vector3d(0.3, -1, 0.2).normalized();
+  for (int i = 0; i < 20; ++i) {
+    T.linear() = T.linear() * Eigen::AngleAxisd(M_PI / 180, axis).toRotationMatrix();
+    path.push_back(T);
+  }
+  // Brute force: walk the path with the rule written out.
+  const auto reference = [&](double min_m, double min_deg) {
+    std::vector<std::size_t> keep{0};
+    for (std::size_t i = 1; i < path.size(); ++i) {
+      const Eigen::Isometry3d& k = path[keep.back()];
+      const double d = (path[i].translation() - k.translation()).norm();
+      const Eigen::Quaterniond q(k.linear().transpose() * path[i].linear());
+      const double deg = 2 * std::atan2(q.vec().norm(), std::abs(q.w())) * 180 / M_PI;
+      if ((min_m > 0 && d >= min_m - 1e-9) || (min_deg > 0 && deg >= min_deg - 1e-9)) keep.push_back(i);
+    }
+    return keep;
+  };
+  // 4.5 cm: every 5th pose of the walk (a drift of 1 cm per pose is not a keyframe
+  // each time: distance counts from the last keyframe); the turn alone never qualifies.
+  const auto walk = mapping::selectKeyframes(path, 0.045, 0);
+  EXPECT_EQ(walk, (std::vector<std::size_t>{0, 9, 14, 19, 24}));
+  EXPECT_EQ(walk, reference(0.045, 0));
+  // 2.5 degrees: every 3rd pose of the turn.
+  const auto turn = mapping::selectKeyframes(path, 0, 2.5);
+  EXPECT_EQ(turn, (std::vector<std::size_t>{0, 27, 30, 33, 36, 39, 42}));
+  EXPECT_EQ(turn, reference(0, 2.5));
+  // Either limit.
+  EXPECT_EQ(mapping::selectKeyframes(path, 0.045, 2.5), (std::vector<std::size_t>{0, 9, 14, 19, 24, 27, 30, 33, 36, 39, 42}));
+  EXPECT_TRUE(mapping::selectKeyframes({}, 0.1, 5).empty());
+  EXPECT_THROW((void)mapping::selectKeyframes(path, 0, 0), std::invalid_argument);
+  EXPECT_THROW((void)mapping::selectKeyframes(path, -0.1, 5), std::invalid_argument);
+  EXPECT_THROW((void)mapping::selectKeyframes(path, 0.1, std::nan("")), std::invalid_argument);
+}
+
 TEST(TumSequence, AssociatesDepthWithInterpolatedPosesAndSkipsFramesInAGap) {
   sim::CorridorParams p;
   p.frames = 10;
@@ -88,6 +133,8 @@ TEST(TumSequence, AssociatesDepthWithInterpolatedPosesAndSkipsFramesInAGap) {
   EXPECT_NE(seq->skipped().find("1 of 10 depth frames"), std::string::npos) << seq->skipped();
   for (int n : seq->frames()) {
     const auto f = seq->load(n);
+    ASSERT_TRUE(seq->pose(n));  // known before the run (build --keyframes), the same as load()'s
+    EXPECT_EQ(seq->pose(n)->matrix(), f.T_world_camera.matrix());
     const int frame = n < 5 ? n : n + 1;  // sequence indices skip the gap frame
     const Eigen::Isometry3d truth = scene.cameraPose(frame);
     // Linear + slerp over 10 ms of a smooth walk: sub-millimetre.
@@ -197,6 +244,8 @@ TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
     EXPECT_NEAR(seq->intrinsics().cy, k.cy, 1e-3);
     for (int n : seq->frames()) {
       const auto f = seq->load(n);
+      ASSERT_TRUE(seq->pose(n));
+      EXPECT_EQ(seq->pose(n)->matrix(), f.T_world_camera.matrix());
       const Eigen::Isometry3d truth = scene.cameraPose(frames[n]);
       EXPECT_LT((f.T_world_camera.translation() - truth.translation()).norm(), 1e-5) << poses << " " << n;
       EXPECT_LT(Eigen::AngleAxisd(f.T_world_camera.linear().transpose() * truth.linear()).angle(), 1e-5);

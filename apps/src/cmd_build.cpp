@@ -11,6 +11,7 @@
 
 #include "mobmap/mapping/gravity.hpp"
 #include "mobmap/mapping/mobility_map.hpp"
+#include "mobmap/mapping/trajectory.hpp"
 #include "mobmap/perception/pipeline.hpp"
 
 #include <algorithm>
@@ -229,6 +230,7 @@ Command addBuildCommand(CLI::App& app) {
     bool force = false;
     bool extend = false;
     int checkpoint = 0;
+    std::vector<double> keyframes;  // metres, degrees
     bool quiet = false;
     bool no_free_space = false;
     std::string config;
@@ -272,9 +274,16 @@ Command addBuildCommand(CLI::App& app) {
                   "Also save the map every N fused frames while the run goes on (MAP.json says \"checkpoint\"); after a "
                   "crash, --extend with the remaining --frames finishes it")
       ->check(CLI::Range(1, 1000000));
+  auto* keyframes = cmd->add_option("--keyframes", o->keyframes,
+                                    "METRES,DEGREES: fuse only frames whose camera has moved at least METRES or turned "
+                                    "at least DEGREES since the last frame fused (0 turns a test off), e.g. 0.05,5; the "
+                                    "first selected frame is always fused. For sequences with their poses in files "
+                                    "(7-Scenes, TUM, .pcd frames with --poses)")
+                        ->delimiter(',')
+                        ->expected(2);
   cmd->add_flag("--no-free-space", o->no_free_space, "Skip free-space updates (faster; moved obstacles stay)");
   cmd->add_flag("--quiet,-q", o->quiet, "No progress output");
-  return [o, max_range, resolution, device, voxel]() {
+  return [o, max_range, resolution, device, voxel, keyframes]() {
     namespace fs = std::filesystem;
     std::error_code ec;
     if (fs::path(o->out).extension() != ".ot") throw UsageError("--out must end in .ot, got '" + o->out + "'");
@@ -316,6 +325,7 @@ Command addBuildCommand(CLI::App& app) {
     // a single .pcd or depth .png frame in its camera frame.
     std::unique_ptr<Sequence> dir;
     std::vector<int> frames;
+    int keyframes_considered = 0;  // frames selected before --keyframes (0: not used)
     std::optional<Eigen::Vector3d> gravity_world;
     LoadedFrame single;
     const bool live = device->count() > 0;
@@ -343,12 +353,37 @@ Command addBuildCommand(CLI::App& app) {
       gravity_world = dir->gravityDown();
       // Every frame needs a pose: check them all before the long run starts.
       for (int f : frames) dir->check(f);
+      if (keyframes->count() > 0) {
+        if (live || oni) {
+          throw UsageError("--keyframes needs the poses before the run (7-Scenes, TUM, .pcd frames with --poses); "
+                           "OpenNI2 frames get theirs as they arrive");
+        }
+        std::vector<Eigen::Isometry3d> poses;
+        poses.reserve(frames.size());
+        for (int f : frames) poses.push_back(*dir->pose(f));
+        std::vector<std::size_t> keep;
+        try {
+          keep = mapping::selectKeyframes(poses, o->keyframes[0], o->keyframes[1]);
+        } catch (const std::invalid_argument& e) {
+          throw UsageError(std::string("--") + e.what());  // "--keyframes: ..."
+        }
+        keyframes_considered = static_cast<int>(frames.size());
+        std::vector<int> kept;
+        kept.reserve(keep.size());
+        for (std::size_t i : keep) kept.push_back(frames[i]);
+        frames = std::move(kept);
+      }
       if (!o->quiet) std::fprintf(stderr, "%s\n", dir->describe().c_str());
       if (!dir->skipped().empty()) std::fprintf(stderr, "note: %s\n", dir->skipped().c_str());
+      if (keyframes_considered > 0 && !o->quiet) {
+        std::fprintf(stderr, "keyframes: %zu of the %d selected frames (%s)\n", frames.size(), keyframes_considered,
+                     describeKeyframeRule(o->keyframes[0], o->keyframes[1]).c_str());
+      }
     } else {
       single = loadSingleFrame(o->input, -1, o->intrinsics);
       frames.push_back(0);
       if (!o->frames.empty()) throw UsageError("--frames needs a directory input");
+      if (keyframes->count() > 0) throw UsageError("--keyframes needs a sequence of frames");
     }
     std::string gravity_source;
     if (gravity_world) gravity_source = live || oni ? "the static camera's +y axis" : "gravity-direction.txt";
@@ -468,6 +503,10 @@ Command addBuildCommand(CLI::App& app) {
       meta["frames"] = used;
       meta["frames_in_run"] = used;
       meta["frames_selected"] = frames.size();
+      if (keyframes_considered > 0) {
+        meta["keyframes"] = {{"min_translation_m", o->keyframes[0]}, {"min_rotation_deg", o->keyframes[1]},
+                             {"frames_considered", keyframes_considered}};
+      }
       if (is_dir && !dir->skipped().empty()) meta["skipped"] = dir->skipped();
       if (no_pose > 0) meta["frames_without_pose"] = no_pose;
       meta["frame_numbers"] = {frames.front(), last_fused};
@@ -553,9 +592,11 @@ Command addBuildCommand(CLI::App& app) {
     }
     const nlohmann::json meta = writeMap(false, run_s);
 
-    std::printf("\n%d of %zu frames fused (%d without a ground plane)%s in %.1f s (%.1f frames/s), %zu points, %zu map nodes (%zu leaves)\n",
-                used, frames.size(), no_ground, g_interrupted.load() ? ", INTERRUPTED" : "", run_s, frames_per_s, points,
-                map.tree().size(), map.tree().getNumLeafNodes());
+    const std::string keyframe_note =
+        keyframes_considered > 0 ? ", keyframes of " + std::to_string(keyframes_considered) + " selected" : "";
+    std::printf("\n%d of %zu frames fused (%d without a ground plane%s)%s in %.1f s (%.1f frames/s), %zu points, %zu map nodes (%zu leaves)\n",
+                used, frames.size(), no_ground, keyframe_note.c_str(), g_interrupted.load() ? ", INTERRUPTED" : "", run_s,
+                frames_per_s, points, map.tree().size(), map.tree().getNumLeafNodes());
     if (existing) {
       std::printf("the map now holds %d frames from %zu runs\n", meta["frames"].get<int>(), meta["earlier_runs"].size() + 1);
     }

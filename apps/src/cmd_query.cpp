@@ -199,6 +199,12 @@ void printMetadataSummary(const nlohmann::json& meta, const std::string& json_pa
     std::printf("frames: %d fused", (meta.contains("frames_in_run") ? meta["frames_in_run"] : meta["frames"]).get<int>());
     const double selected = number(meta, "frames_selected");
     if (std::isfinite(selected)) std::printf(" of %.0f selected", selected);
+    const auto& kf = meta.contains("keyframes") ? meta["keyframes"] : nlohmann::json();
+    const double considered = number(kf, "frames_considered");
+    if (std::isfinite(considered)) {
+      const std::string rule = describeKeyframeRule(number(kf, "min_translation_m"), number(kf, "min_rotation_deg"));
+      std::printf(" (keyframes of %.0f%s%s)", considered, rule.empty() ? "" : ": ", rule.c_str());
+    }
     std::printf("%s", frameRange(meta).c_str());
     const double no_pose = number(meta, "frames_without_pose");
     if (std::isfinite(no_pose)) std::printf(", %.0f skipped without a pose", no_pose);

@@ -1,5 +1,6 @@
 #include "map_files.hpp"
 
+#include <sstream>
 #include <string>
 
 namespace mobmap::app {
@@ -29,6 +30,14 @@ nlohmann::json metadataJson(const mapping::MapMetadata& meta) {
 
 nlohmann::json readMapMetadataJson(const std::string& ot_path) {
   return metadataJson(mapping::readMapMetadata(ot_path));  // checked
+}
+
+std::string describeKeyframeRule(double min_translation_m, double min_rotation_deg) {
+  std::ostringstream out;
+  if (min_translation_m > 0) out << "camera moved >= " << min_translation_m << " m";
+  if (min_translation_m > 0 && min_rotation_deg > 0) out << " or ";
+  if (min_rotation_deg > 0) out << (min_translation_m > 0 ? "" : "camera ") << "turned >= " << min_rotation_deg << " degrees";
+  return out.str();
 }
 
 }  // namespace mobmap::app

@@ -20,4 +20,8 @@ nlohmann::json metadataJson(const mapping::MapMetadata& meta);
 /// 5 MB rather than 15). Parses back to `meta`.
 std::string formatMapMetadata(const nlohmann::json& meta);
 
+/// The rule of `build --keyframes` in words, naming only the tests in use (a limit of
+/// 0 is off): "camera moved >= 0.05 m or turned >= 5 degrees".
+std::string describeKeyframeRule(double min_translation_m, double min_rotation_deg);
+
 }  // namespace mobmap::app

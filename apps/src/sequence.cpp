@@ -38,9 +38,14 @@ class SevenScenesSequence : public Sequence {
     SequenceFrame f;
     f.number = n;
     f.depth = dir_.readDepth(n);
-    f.T_world_camera.matrix() = dir_.readPose(n);
-    f.T_world_camera.linear() = mapping::nearestRotation(f.T_world_camera.linear());
+    f.T_world_camera = *pose(n);
     return f;
+  }
+  std::optional<Eigen::Isometry3d> pose(int n) const override {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.matrix() = dir_.readPose(n);
+    T.linear() = mapping::nearestRotation(T.linear());
+    return T;
   }
 
  private:
@@ -185,6 +190,7 @@ class PcdSequence : public Sequence {
     return f;
   }
   std::string skipped() const override { return skipped_; }
+  std::optional<Eigen::Isometry3d> pose(int n) const override { return entries_.at(static_cast<std::size_t>(n)).pose; }
 
  private:
   struct Entry {
@@ -252,6 +258,7 @@ class TumSequence : public Sequence {
     return f;
   }
   std::string skipped() const override { return skipped_; }
+  std::optional<Eigen::Isometry3d> pose(int n) const override { return entries_.at(static_cast<std::size_t>(n)).pose; }
 
  private:
   struct Entry {

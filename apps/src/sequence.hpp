@@ -41,6 +41,10 @@ class Sequence {
   /// Checks cheaply (before a long run) that frame `n` can be loaded; IoError if not.
   virtual void check(int n) const = 0;
   [[nodiscard]] virtual SequenceFrame load(int n) const = 0;
+  /// Frame `n`'s camera-to-world pose without its depth (the one load() gives), for
+  /// sequences that know their poses before the run; nullopt for streams (OpenNI2),
+  /// whose poses arrive with their frames.
+  [[nodiscard]] virtual std::optional<Eigen::Isometry3d> pose(int /*n*/) const { return std::nullopt; }
   /// Frames left out and why ("12 depth frames without a pose within 0.05 s"), or "".
   [[nodiscard]] virtual std::string skipped() const { return {}; }
 };

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 namespace mobmap::mapping {
 
@@ -63,6 +64,33 @@ std::optional<Eigen::Isometry3d> Trajectory::at(double t, double max_gap) const 
   Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
   out.matrix() = pose.getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>().asEigen();
   return out;
+}
+
+std::vector<std::size_t> selectKeyframes(const std::vector<Eigen::Isometry3d>& poses, double min_translation_m,
+                                         double min_rotation_deg) {
+  const auto check = [](double v, const char* what) {
+    if (!std::isfinite(v) || v < 0) {
+      throw std::invalid_argument(std::string("keyframes: ") + what + " must be >= 0, got " + std::to_string(v));
+    }
+  };
+  check(min_translation_m, "the minimum translation (m)");
+  check(min_rotation_deg, "the minimum rotation (degrees)");
+  if (min_translation_m == 0 && min_rotation_deg == 0) {
+    throw std::invalid_argument("keyframes: at least one of the minimum translation and rotation must be > 0");
+  }
+  std::vector<std::size_t> keep;
+  if (poses.empty()) return keep;
+  keep.push_back(0);
+  const double min_rotation_rad = min_rotation_deg * M_PI / 180.0;
+  for (std::size_t i = 1; i < poses.size(); ++i) {
+    const Eigen::Isometry3d& last = poses[keep.back()];
+    const bool moved = min_translation_m > 0 && (poses[i].translation() - last.translation()).norm() >= min_translation_m;
+    // Angle of R_last^T R_i (through a quaternion: accurate for small angles too).
+    const double angle = Eigen::AngleAxisd(last.linear().transpose() * poses[i].linear()).angle();
+    const bool turned = min_rotation_deg > 0 && angle >= min_rotation_rad;
+    if (moved || turned) keep.push_back(i);
+  }
+  return keep;
 }
 
 }  // namespace mobmap::mapping

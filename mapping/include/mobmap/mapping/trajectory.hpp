@@ -5,8 +5,10 @@
 
 #include <Eigen/Geometry>
 
+#include <cstddef>
 #include <memory>
 #include <optional>
+#include <vector>
 
 namespace mobmap::mapping {
 
@@ -32,5 +34,13 @@ class Trajectory {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+/// Keyframes of a camera path (camera-to-world poses in order): the first pose, then
+/// each pose whose camera has moved at least `min_translation_m` or turned at least
+/// `min_rotation_deg` (angle of the relative rotation) since the last keyframe. A limit
+/// of 0 is not used. Returns ascending indices into `poses`. std::invalid_argument for
+/// a negative or non-finite limit, or for both limits 0.
+std::vector<std::size_t> selectKeyframes(const std::vector<Eigen::Isometry3d>& poses, double min_translation_m,
+                                         double min_rotation_deg);
 
 }  // namespace mobmap::mapping
