@@ -247,6 +247,16 @@ TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   EXPECT_GT(nlohmann::json::parse(ev.out)["surfaces"][0]["voxels"].get<int>(), 100);  // the floor
   EXPECT_EQ(run("export " + map + " --png " + dir + "/top.png --pcd " + dir + "/s.pcd").code, 0);
   EXPECT_TRUE(fs::exists(dir + "/top.png"));
+  // A top view cut at a height: below the whole map is refused, saying where the map is.
+  const double z_min = ij["bounds_map"]["min"][2].get<double>(), z_max = ij["bounds_map"]["max"][2].get<double>();
+  EXPECT_EQ(run("export " + map + " --png " + dir + "/cut.png --max-z " + std::to_string((z_min + z_max) / 2)).code, 0);
+  EXPECT_TRUE(fs::exists(dir + "/cut.png"));
+  const Result below = run("export " + map + " --png " + dir + "/low.png --max-z " + std::to_string(z_min - 1));
+  EXPECT_EQ(below.code, 2);
+  EXPECT_NE(below.out.find("no surface voxel has its top at or below it (the lowest top is at z = "), std::string::npos)
+      << below.out;
+  EXPECT_FALSE(fs::exists(dir + "/low.png"));
+  EXPECT_EQ(run("export " + map + " --pcd " + dir + "/s2.pcd --max-z 0").code, 2);  // the cut is for --png
   EXPECT_EQ(run("overlay " + map + " --frame " + dir + "/seq:2 --out " + dir + "/ov.png").code, 0);
   EXPECT_TRUE(fs::exists(dir + "/ov.png"));
   fs::remove_all(dir);

@@ -396,6 +396,57 @@ TEST(TopView, EveryColumnHasItsOwnCellWhereverTheCameraIs) {
   EXPECT_THROW(computeTopView(mapping::MobilityOcTree(res)), std::invalid_argument);
 }
 
+// `export --max-z`: the top view cut at a height shows what lies under the cut (the floor
+// under a table), and a pruned block straddling the cut shows its highest voxel below it.
+TEST(TopView, ACutShowsTheHighestSurfaceBelowIt) {
+  const double res = 0.02;
+  mapping::MobilityOcTree tree(res);
+  const auto put = [&](double x, double y, double z, double mobility) {
+    tree.updateNode(octomap::point3d(x, y, z), true)->fuse(mobility, 0.01, 100.0);
+  };
+  for (int i = 0; i < 6; ++i) put((i + 0.5) * res, 0.5 * res, -0.01, 1.0);  // floor, tops at z = 0
+  for (int i = 0; i < 3; ++i) put((i + 0.5) * res, 0.5 * res, 0.71, 0.0);   // a table over half of it, tops at 0.72
+  // A 2 x 2 x 2 block of equal voxels, pruned into one leaf spanning z = 0.64 .. 0.68.
+  for (int i = 0; i < 2; ++i)
+    for (int j = 0; j < 2; ++j)
+      for (int k = 0; k < 2; ++k) put(0.4 + (i + 0.5) * res, 0.4 + (j + 0.5) * res, 0.64 + (k + 0.5) * res, 0.5);
+  tree.prune();
+  int pruned = 0;
+  for (auto it = tree.begin_leafs(); it != tree.end_leafs(); ++it) pruned += it.getSize() > 1.5 * res;
+  ASSERT_EQ(pruned, 1);
+  const auto topAt = [](const TopView& v, double x, double y) {
+    const int cx = static_cast<int>(std::floor((x - v.x0) / v.resolution + 0.5));
+    const int cy = static_cast<int>(std::floor((y - v.y0) / v.resolution + 0.5));
+    return std::make_pair(v.top[v.cell(cx, cy)], v.colour[v.cell(cx, cy)]);
+  };
+  const TopView all = computeTopView(tree);
+  EXPECT_NEAR(topAt(all, 0.01, 0.01).first, 0.72, 1e-9);
+  EXPECT_EQ(topAt(all, 0.01, 0.01).second, mobilityColour(0.0));
+  EXPECT_NEAR(topAt(all, 0.41, 0.41).first, 0.68, 1e-9);
+  // Between the floor and the table: the floor everywhere, the block whole.
+  const TopView under = computeTopView(tree, {}, 0, 0.70);
+  EXPECT_EQ(under.columns, all.columns);  // the same grid, so cuts line up
+  EXPECT_EQ(under.rows, all.rows);
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_NEAR(topAt(under, (i + 0.5) * res, 0.01).first, 0.0, 1e-9) << i;
+    EXPECT_EQ(topAt(under, (i + 0.5) * res, 0.01).second, mobilityColour(1.0)) << i;
+  }
+  EXPECT_NEAR(topAt(under, 0.41, 0.41).first, 0.68, 1e-9);
+  // Through the block: its lower voxels (top 0.66) are below the cut, its upper ones not.
+  const TopView through = computeTopView(tree, {}, 0, 0.67);
+  EXPECT_NEAR(topAt(through, 0.41, 0.41).first, 0.66, 1e-9);
+  EXPECT_NEAR(topAt(through, 0.43, 0.43).first, 0.66, 1e-9);
+  EXPECT_EQ(topAt(through, 0.41, 0.41).second, mobilityColour(0.5));
+  // A cut inside its lowest voxel leaves nothing of the block; one on a top face keeps it.
+  EXPECT_TRUE(std::isinf(topAt(computeTopView(tree, {}, 0, 0.65), 0.41, 0.41).first));
+  EXPECT_NEAR(topAt(computeTopView(tree, {}, 0, 0.66), 0.41, 0.41).first, 0.66, 1e-9);
+  // Below everything: an empty grid of the same size.
+  const TopView none = computeTopView(tree, {}, 0, -0.5);
+  EXPECT_EQ(none.columns, all.columns);
+  EXPECT_TRUE(std::all_of(none.top.begin(), none.top.end(), [](double z) { return std::isinf(z); }));
+  EXPECT_THROW(computeTopView(tree, {}, 0, std::nan("")), std::invalid_argument);
+}
+
 // A map with more columns than the picture may have: cells of k x k columns, each
 // showing the highest of its voxels, and a far camera path shrinks the map instead of
 // asking for a grid of millions of cells.

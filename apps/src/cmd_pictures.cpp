@@ -39,6 +39,7 @@ Command addExportCommand(CLI::App& app) {
   struct Options {
     std::string map, png, pcd;
     int max_pixels = 1400;
+    double max_z = std::numeric_limits<double>::infinity();
   };
   auto o = std::make_shared<Options>();
   cmd->add_option("MAP", o->map, "A .ot map")->required();
@@ -49,8 +50,13 @@ Command addExportCommand(CLI::App& app) {
                   "cell for k x k voxels (the highest)")
       ->check(CLI::Range(64, 16384))
       ->capture_default_str();
-  return [o]() {
+  auto* max_z = cmd->add_option("--max-z", o->max_z,
+                                "Top view: draw the highest surface at or below this height (map frame, z up, metres; "
+                                "`info` gives the bounds) to see the floor under tables or a room under its ceiling");
+  return [o, max_z]() {
     if (o->png.empty() && o->pcd.empty()) throw UsageError("export needs --png OUT.png and/or --pcd OUT.pcd");
+    if (max_z->count() > 0 && o->png.empty()) throw UsageError("--max-z cuts the top view: it needs --png");
+    if (!std::isfinite(o->max_z) && max_z->count() > 0) throw UsageError("--max-z must be a finite height in metres");
     const mapping::MobilityMap map = mapping::openMap(o->map);
     const auto& t = map.tree();
     if (!o->pcd.empty()) mapping::saveSurfacePcd(t, o->pcd);
@@ -71,9 +77,19 @@ Command addExportCommand(CLI::App& app) {
     }
     TopView view;
     try {
-      view = computeTopView(t, path, o->max_pixels);
+      view = computeTopView(t, path, o->max_pixels, o->max_z);
     } catch (const std::invalid_argument& e) {
       throw IoError(o->map, std::string("cannot draw a top view: ") + e.what());
+    }
+    if (std::all_of(view.top.begin(), view.top.end(), [](double z) { return std::isinf(z); })) {
+      double lowest = std::numeric_limits<double>::infinity();
+      for (auto it = t.begin_leafs(); it != t.end_leafs(); ++it) {
+        if (t.isNodeOccupied(*it)) lowest = std::min(lowest, it.getZ() + it.getSize() / 2);
+      }
+      char msg[160];
+      std::snprintf(msg, sizeof msg, "--max-z %g: no surface voxel has its top at or below it (the lowest top is at z = %.2f m)",
+                    o->max_z, lowest);
+      throw UsageError(msg);
     }
     const double res = view.resolution, x0 = view.x0, y0 = view.y0;
     const double extent = std::max(view.columns, view.rows) * res;
@@ -84,7 +100,14 @@ Command addExportCommand(CLI::App& app) {
     // when the map is a thin strip (a corridor) or a small picture was asked for.
     const int bar_h = std::clamp(h - 60, 100, 200);
     const int legend_h = 20 + bar_h + 60;
-    const char* title = "TOP VIEW: HIGHEST SURFACE PER COLUMN (X RIGHT, Y UP, MAP FRAME)";
+    std::string title_text = "TOP VIEW: HIGHEST SURFACE PER COLUMN (X RIGHT, Y UP, MAP FRAME)";
+    if (max_z->count() > 0) {
+      char cut[96];
+      std::snprintf(cut, sizeof cut, "TOP VIEW: HIGHEST SURFACE PER COLUMN AT OR BELOW Z = %.2f M (X RIGHT, Y UP, MAP FRAME)",
+                    o->max_z);
+      title_text = cut;
+    }
+    const char* title = title_text.c_str();
     Canvas c(std::max(w + 2 * margin + right, margin + 6 * static_cast<int>(std::strlen(title)) + 10),
              std::max(h, legend_h) + 2 * margin + 20);
     // Highest surface per column; x to the right, y up.
@@ -100,7 +123,7 @@ Command addExportCommand(CLI::App& app) {
       return std::make_pair(margin + static_cast<int>((p.x() - x0) / res * ppv + ppv / 2),
                             margin + static_cast<int>((view.rows - 1 - (p.y() - y0) / res) * ppv + ppv / 2));
     };
-    if (path.size() > 1) {
+    if (!path.empty()) {  // one position (a single frame) is drawn as a start mark alone
       for (std::size_t i = 1; i < path.size(); ++i) {
         if (std::find(run_starts.begin(), run_starts.end(), i) != run_starts.end()) continue;
         const auto a = toPixel(path[i - 1]);
@@ -114,7 +137,7 @@ Command addExportCommand(CLI::App& app) {
         c.fillRect(s.first - 3, s.second - 3, s.first + 3, s.second + 3, {20, 60, 230});
       }
       c.fillRect(margin + w + 30, margin + legend_h - 12, margin + w + 44, margin + legend_h - 11, {20, 60, 230});
-      c.text(margin + w + 50, margin + legend_h - 15, "CAMERA PATH", {20, 60, 230});
+      c.text(margin + w + 50, margin + legend_h - 15, path.size() > 1 ? "CAMERA PATH" : "CAMERA", {20, 60, 230});
     }
     // Scale bar: the longest of 0.1, 0.2, 0.5, 1, 2, 5 ... m within a quarter of the map.
     double bar_m = 0.1;

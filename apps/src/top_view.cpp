@@ -7,7 +7,8 @@
 namespace mobmap::app {
 
 TopView computeTopView(const mapping::MobilityOcTree& t, const std::vector<Eigen::Vector2d>& also_cover,
-                       int max_cells_per_side) {
+                       int max_cells_per_side, double max_z) {
+  if (std::isnan(max_z)) throw std::invalid_argument("the height to cut at is not a number");
   double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
   for (auto it = t.begin_leafs(); it != t.end_leafs(); ++it) {
     if (!t.isNodeOccupied(*it)) continue;
@@ -52,7 +53,15 @@ TopView computeTopView(const mapping::MobilityOcTree& t, const std::vector<Eigen
     const int span = static_cast<int>(std::lround(it.getSize() / res));
     const long col0 = std::lround((it.getX() - it.getSize() / 2 + res / 2 - col_x0) / res);
     const long row0 = std::lround((it.getY() - it.getSize() / 2 + res / 2 - col_y0) / res);
-    const double z = it.getZ() + it.getSize() / 2;
+    // Its top face, or under a cut through a pruned block, the top of its highest voxel
+    // below the cut (the block's voxels are all alike).
+    const double bottom = it.getZ() - it.getSize() / 2;
+    double z = it.getZ() + it.getSize() / 2;
+    if (z > max_z + 1e-9) {
+      const double voxels_below = std::floor((max_z - bottom) / res + 1e-9);
+      if (voxels_below < 1) continue;
+      z = bottom + voxels_below * res;
+    }
     const Rgb colour = voxelColour(*it);
     // The cells its columns fall in (one, unless the leaf is larger than a cell).
     const auto cellOf = [per](long column) { return column >= 0 ? column / per : -((-column + per - 1) / per); };

@@ -37,9 +37,12 @@ inline Rgb voxelColour(const mapping::MobilityOcTreeNode& n) {
 }
 
 /// `max_cells_per_side` > 0 picks the smallest k that keeps both sides within it (0: one
-/// column per cell). Throws std::invalid_argument if the tree has no occupied voxel, a
-/// point to cover is not finite, or the grid would exceed 2^20 cells per side.
+/// column per cell). `max_z` (map frame): only voxels whose top face is at or below it
+/// are drawn (the floor under a table, a room under its ceiling); the grid still covers
+/// every occupied voxel, so pictures cut at different heights line up. Throws
+/// std::invalid_argument if the tree has no occupied voxel, a point to cover or max_z
+/// is NaN, or the grid would exceed 2^20 cells per side.
 TopView computeTopView(const mapping::MobilityOcTree& tree, const std::vector<Eigen::Vector2d>& also_cover = {},
-                       int max_cells_per_side = 0);
+                       int max_cells_per_side = 0, double max_z = std::numeric_limits<double>::infinity());
 
 }  // namespace mobmap::app
