@@ -185,6 +185,8 @@ void printMetadataSummary(const nlohmann::json& meta, const std::string& json_pa
       const std::string input = r.contains("input") && r["input"].is_string() ? r["input"].get<std::string>() : "an unrecorded input";
       std::printf("  run %zu: %s", i + 1, input.c_str());
       if (r.contains("frames_in_run")) std::printf(", %d frames fused", r["frames_in_run"].get<int>());
+      const double considered = number(r.contains("keyframes") ? r["keyframes"] : nlohmann::json(), "frames_considered");
+      if (std::isfinite(considered)) std::printf(" (keyframes of %.0f)", considered);
       std::printf("%s", frameRange(r).c_str());
       if (r.contains("interrupted") && r["interrupted"].is_boolean() && r["interrupted"].get<bool>()) std::printf(", INTERRUPTED");
       if (r.contains("checkpoint") && r["checkpoint"] == true) std::printf(", ended at a checkpoint (the run did not finish)");
