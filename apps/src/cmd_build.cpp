@@ -360,7 +360,11 @@ Command addBuildCommand(CLI::App& app) {
         }
         std::vector<Eigen::Isometry3d> poses;
         poses.reserve(frames.size());
-        for (int f : frames) poses.push_back(*dir->pose(f));
+        for (int f : frames) {
+          const auto pose = dir->pose(f);
+          if (!pose) throw UsageError("--keyframes: " + o->input + " gives no poses before the run");
+          poses.push_back(*pose);
+        }
         std::vector<std::size_t> keep;
         try {
           keep = mapping::selectKeyframes(poses, o->keyframes[0], o->keyframes[1]);
