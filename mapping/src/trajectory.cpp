@@ -6,6 +6,7 @@
 #include <mrpt/poses/CPose3DInterpolator.h>
 
 #include <cmath>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -70,7 +71,9 @@ std::vector<std::size_t> selectKeyframes(const std::vector<Eigen::Isometry3d>& p
                                          double min_rotation_deg) {
   const auto check = [](double v, const char* what) {
     if (!std::isfinite(v) || v < 0) {
-      throw std::invalid_argument(std::string("keyframes: ") + what + " must be >= 0, got " + std::to_string(v));
+      std::ostringstream msg;
+      msg << "keyframes: " << what << " must be >= 0, got " << v;
+      throw std::invalid_argument(msg.str());
     }
   };
   check(min_translation_m, "the minimum translation (m)");
