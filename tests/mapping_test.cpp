@@ -336,6 +336,47 @@ TEST(MobilityMap, SnapAndFootprintQueries) {
   EXPECT_GT(edge.max_height_difference_m, 0.2);
 }
 
+// snapDown walks the column voxel by voxel: started on a voxel face (a height that is a
+// multiple of the resolution, where stepping a point down by the resolution rounds to
+// either side) it still finds the first surface below, and it stops at max_drop_m.
+TEST(MobilityMap, SnapDownFindsTheSurfaceBelowFromAnyStartHeight) {
+  for (const double res : {0.01, 0.02, 0.05}) {
+    MapParams p;
+    p.resolution_m = res;
+    MobilityMap map(p);
+    for (const int k : {3, 8, 13}) {
+      map.tree().updateNode(octomap::point3d(0.01f, 0.01f, static_cast<float>((k + 0.5) * res)), true)->fuse(1.0, 0.01, 100.0);
+    }
+    int asked = 0;
+    for (int m = 0; m <= 30; ++m) {
+      for (const double frac : {0.0, 0.5, 0.999}) {
+        const double z = (m + frac) * res;  // m + 0: on a face
+        // On a surface voxel's bottom face the start voxel is either one, by rounding.
+        if (frac == 0.0 && (m == 3 || m == 8 || m == 13)) continue;
+        // The first voxel at or below z: the highest k <= floor(z / res) among 3, 8, 13.
+        const int at = static_cast<int>(std::floor(z / res + 1e-9));
+        int want = -1;
+        for (const int k : {3, 8, 13}) want = k <= at ? k : want;
+        const auto q = map.snapDown({0.01, 0.01, z}, 40 * res);
+        ++asked;
+        if (want < 0) {
+          EXPECT_FALSE(q) << res << " " << z;
+          continue;
+        }
+        ASSERT_TRUE(q) << res << " " << z;
+        EXPECT_NEAR(q->centre.z(), (want + 0.5) * res, 1e-6) << res << " " << z;
+        // A drop that ends just above that voxel's top misses it; one that reaches into it finds it.
+        const double gap = z - (want + 1) * res;
+        if (gap > 0.1 * res) {
+          EXPECT_FALSE(map.snapDown({0.01, 0.01, z}, gap - 0.05 * res)) << res << " " << z;
+          EXPECT_TRUE(map.snapDown({0.01, 0.01, z}, gap + 0.05 * res)) << res << " " << z;
+        }
+      }
+    }
+    EXPECT_EQ(asked, 90);
+  }
+}
+
 TEST(MobilityMap, SeenThroughVoxelsBecomeFreeSoMovedObstaclesDisappear) {
   MapParams p;
   p.free_space_ray_stride_px = 4;  // rays are off by default

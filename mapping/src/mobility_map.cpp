@@ -311,9 +311,17 @@ PointQuery MobilityMap::query(const Eigen::Vector3d& p) const {
 }
 
 std::optional<PointQuery> MobilityMap::snapDown(const Eigen::Vector3d& p, double max_drop_m) const {
+  octomap::OcTreeKey key;
+  if (!p.allFinite() || !std::isfinite(max_drop_m) || !tree_->coordToKeyChecked(toOcto(p), key)) return std::nullopt;
+  // Voxel by voxel through the column, each asked at its centre: stepping a point down by
+  // the resolution from a height on a voxel face (z = 0.15 at 1 cm) lands on faces, where
+  // rounding can skip a voxel.
   const double res = tree_->getResolution();
-  for (double dz = 0.0; dz <= max_drop_m + 1e-9; dz += res) {
-    const PointQuery q = query(p - Eigen::Vector3d(0, 0, dz));
+  const double lowest = p.z() - max_drop_m;
+  for (int kz = key[2]; kz >= 0; --kz) {
+    const double centre = tree_->keyToCoord(static_cast<octomap::key_type>(kz));
+    if (kz != key[2] && centre + res / 2 <= lowest + 1e-9) break;  // wholly below the search
+    const PointQuery q = query({p.x(), p.y(), centre});
     if (q.state == VoxelState::kSurface) return q;
   }
   return std::nullopt;
