@@ -158,6 +158,12 @@ TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   const Result foot = run("query " + map + " --foot 2.0 0 0 0 0.25 0.12 --json");
   ASSERT_EQ(foot.code, 0) << foot.out;
   EXPECT_GT(nlohmann::json::parse(foot.out)["min_mobility"].get<double>(), 0.9);
+  // The floor under the sole: a level support plane at the floor's height.
+  const auto plane = nlohmann::json::parse(foot.out)["support_plane"];
+  ASSERT_TRUE(plane.is_object()) << foot.out;
+  EXPECT_NEAR(plane["point"][2].get<double>(), 0.0, 0.021);
+  EXPECT_GT(plane["normal"][2].get<double>(), 0.99);
+  EXPECT_LT(plane["tilt_deg"].get<double>(), 1.0);
   // A planner's batch: soles on standard input, one answer line each, in order. A sole
   // 25 cm above the floor finds it only when --snap reaches down that far.
   std::ofstream(dir + "/feet.txt") << "2.0 0 0 0 0.25 0.12\n\n2.0 0 0.25 0.5 0.25 0.12\n";

@@ -126,6 +126,17 @@ void CorridorMap::footprintsOnFloorAndAcrossTheStairs() const {
   const auto step = map_->footprint({6.0, 0.9, 0.1, 0.0, 0.25, 0.12}, 0.15, 0.15);
   EXPECT_GT(step.max_height_difference_m, 0.12);
   EXPECT_LT(step.min_mobility, 0.5);
+  // Soles along the ramps (scene: ramp i rises along +x from x = 1.5 + 1.2 i over 0.6 m):
+  // the support plane leans as the ramp does, to within a few degrees in 2 cm voxels.
+  for (const int i : {1, 2, 3}) {
+    const double angle = 5.0 + 10.0 * i, x = 1.5 + 1.2 * i + 0.3;
+    const auto ramp = map_->footprint({x, -0.9, 0.3 * std::tan(angle * M_PI / 180), 0.0, 0.25, 0.12});
+    ASSERT_TRUE(ramp.has_support_plane) << angle;
+    std::printf("[ info ] ramp %.0f deg: support plane tilt %.1f deg, rms %.3f m\n", angle, ramp.support_tilt_deg,
+                ramp.support_rms_m);
+    EXPECT_NEAR(ramp.support_tilt_deg, angle, 4.0);
+    EXPECT_LT(ramp.support_normal.x(), -0.2);  // leaning downhill, towards -x
+  }
 }
 
 TEST(CorridorMap, FusedKinectSequenceMatchesTheGroundTruth) {

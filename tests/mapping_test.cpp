@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <functional>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -375,6 +376,62 @@ TEST(MobilityMap, SnapDownFindsTheSurfaceBelowFromAnyStartHeight) {
     }
     EXPECT_EQ(asked, 90);
   }
+}
+
+// The support plane under a sole against analytic surfaces laid voxel by voxel: a floor,
+// a 12-degree ramp (soles along it, across it and turned), a 8 cm step.
+TEST(MobilityMap, TheSupportPlaneOfASoleFollowsFloorsRampsAndSteps) {
+  MapParams p;
+  p.resolution_m = 0.01;
+  MobilityMap map(p);
+  const double res = p.resolution_m;
+  const double slope = 12.0 * M_PI / 180.0;
+  // One voxel per column: the one holding the surface point above the column's centre.
+  const auto lay = [&](double x0, double x1, const std::function<double(double)>& height) {
+    for (int i = 0; x0 + (i + 0.5) * res < x1; ++i) {
+      for (int j = 0; j < 50; ++j) {
+        const double x = x0 + (i + 0.5) * res, y = (j + 0.5) * res;
+        map.tree().updateNode(octomap::point3d(static_cast<float>(x), static_cast<float>(y), static_cast<float>(height(x))), true)
+            ->fuse(1.0, 0.01, 100.0);
+      }
+    }
+  };
+  lay(0.0, 0.5, [](double) { return 0.003; });                                               // tops at 0.01
+  lay(1.0, 1.6, [&](double x) { return 0.2 + std::tan(slope) * (x - 1.0); });                // ramp
+  lay(2.0, 2.5, [](double x) { return x < 2.25 ? 0.003 : 0.083; });                          // step: tops 0.01, 0.09
+
+  const FootprintQuery flat = map.footprint({0.25, 0.25, 0.01, 0.4, 0.25, 0.12});
+  ASSERT_TRUE(flat.has_support_plane);
+  EXPECT_NEAR(flat.support_height_m, 0.01, 1e-6);
+  EXPECT_NEAR(flat.support_tilt_deg, 0.0, 1e-4);
+  EXPECT_NEAR(flat.support_normal.z(), 1.0, 1e-9);
+  EXPECT_LT(flat.support_rms_m, 1e-6);
+
+  const double xc = 1.3, true_z = 0.2 + std::tan(slope) * (xc - 1.0);
+  for (const double yaw : {0.0, M_PI / 2, 0.6, -2.5}) {
+    SCOPED_TRACE(yaw);
+    const FootprintQuery ramp = map.footprint({xc, 0.25, true_z, yaw, 0.25, 0.12});
+    ASSERT_TRUE(ramp.has_support_plane);
+    EXPECT_NEAR(ramp.support_tilt_deg, 12.0, 1.0);  // 1 cm steps over a 25 x 12 cm sole
+    // The normal leans downhill (-x), whichever way the sole points.
+    EXPECT_NEAR(ramp.support_normal.x(), -std::sin(slope), 0.02);
+    EXPECT_NEAR(ramp.support_normal.y(), 0.0, 0.02);
+    EXPECT_NEAR(ramp.support_normal.norm(), 1.0, 1e-9);
+    // Voxel tops lie 0..1 voxel above the surface: the plane half a voxel above, on average.
+    EXPECT_NEAR(ramp.support_height_m, true_z + res / 2, res / 2);
+    EXPECT_LT(ramp.support_rms_m, res / 2);
+  }
+
+  const FootprintQuery step = map.footprint({2.25, 0.25, 0.05, 0.0, 0.25, 0.12});
+  ASSERT_TRUE(step.has_support_plane);
+  EXPECT_NEAR(step.max_height_difference_m, 0.08, 1e-6);
+  // No plane fits a step: a fit through it leaves ~2 cm of residual and leans 20-odd degrees.
+  EXPECT_GT(step.support_rms_m, 0.015);
+  EXPECT_GT(step.support_tilt_deg, 15.0);
+
+  // A sole narrower than a voxel samples one line; a sole over nothing, no voxel.
+  EXPECT_FALSE(map.footprint({0.25, 0.25, 0.01, 0.0, 0.25, 0.005}).has_support_plane);
+  EXPECT_FALSE(map.footprint({5.0, 5.0, 0.0, 0.0, 0.25, 0.12}).has_support_plane);
 }
 
 TEST(MobilityMap, SeenThroughVoxelsBecomeFreeSoMovedObstaclesDisappear) {

@@ -106,18 +106,34 @@ Command addQueryCommand(CLI::App& app) {
         yaw = std::atan2(h.y(), h.x());
       }
       const auto f = map.footprint({c.x(), c.y(), c.z(), yaw, s[4], s[5]}, 0.1, o->snap >= 0 ? o->snap : 0.1);
+      // The support plane's height and normal in the frame the sole was given in.
+      const Eigen::Vector3d n = o->frame == "world" ? Eigen::Vector3d(map.rotationMapWorld().transpose() * f.support_normal)
+                                                    : f.support_normal;
+      const Eigen::Vector3d under_map(c.x(), c.y(), f.support_height_m);
+      const Eigen::Vector3d under =
+          o->frame == "world" ? Eigen::Vector3d(map.rotationMapWorld().transpose() * under_map) : under_map;
       if (o->json) {
-        std::cout << nlohmann::json{{"foot", s},
-                                    {"min_mobility", f.min_mobility},
-                                    {"mean_mobility", f.mean_mobility},
-                                    {"known_fraction", f.known_fraction},
-                                    {"max_height_difference_m", f.max_height_difference_m},
-                                    {"samples", f.samples}}
-                         .dump()
-                  << "\n";
+        nlohmann::json j{{"foot", s},
+                         {"min_mobility", f.min_mobility},
+                         {"mean_mobility", f.mean_mobility},
+                         {"known_fraction", f.known_fraction},
+                         {"max_height_difference_m", f.max_height_difference_m},
+                         {"samples", f.samples}};
+        j["support_plane"] = f.has_support_plane ? nlohmann::json{{"point", {under.x(), under.y(), under.z()}},
+                                                                  {"normal", {n.x(), n.y(), n.z()}},
+                                                                  {"tilt_deg", f.support_tilt_deg},
+                                                                  {"rms_m", f.support_rms_m}}
+                                                 : nlohmann::json();
+        std::cout << j.dump() << "\n";
       } else {
-        std::printf("sole: min mobility %.3f, mean %.3f, known %.0f %% of %d samples, height difference %.3f m\n",
-                    f.min_mobility, f.mean_mobility, 100 * f.known_fraction, f.samples, f.max_height_difference_m);
+        std::printf("sole: min mobility %.3f, mean %.3f, known %.0f %% of %d samples, height difference %.3f m", f.min_mobility,
+                    f.mean_mobility, 100 * f.known_fraction, f.samples, f.max_height_difference_m);
+        if (f.has_support_plane) {
+          std::printf("; support plane through (%.3f, %.3f, %.3f), normal (%.3f, %.3f, %.3f), tilt %.1f deg, rms %.3f m\n",
+                      under.x(), under.y(), under.z(), n.x(), n.y(), n.z(), f.support_tilt_deg, f.support_rms_m);
+        } else {
+          std::printf("; no support plane (fewer than 3 supported samples, or all on one line)\n");
+        }
       }
     };
     if (!o->foot.empty()) {

@@ -2,6 +2,8 @@
 
 #include "mobmap/mapping/gravity.hpp"
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <mrpt/math/CMatrixFixed.h>
 #include <mrpt/poses/CPose3D.h>
 
@@ -327,6 +329,47 @@ std::optional<PointQuery> MobilityMap::snapDown(const Eigen::Vector3d& p, double
   return std::nullopt;
 }
 
+namespace {
+
+// One supported sample: its place in the sole's frame (a along the yaw, b across, from the
+// sole's centre) and the top face of the voxel it rests on.
+struct SupportSample {
+  double a, b, top;
+};
+
+// z = h + ga * a + gb * b by least squares over the supported samples; the gradient is
+// turned into the map frame by the sole's yaw.
+void fitSupportPlane(const std::vector<SupportSample>& support, double cos_yaw, double sin_yaw, FootprintQuery& out) {
+  if (support.size() < 3) return;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : support) mean += Eigen::Vector3d(p.a, p.b, p.top);
+  mean /= static_cast<double>(support.size());
+  Eigen::Matrix2d ab = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d abz = Eigen::Vector2d::Zero();
+  for (const auto& p : support) {
+    const Eigen::Vector2d d(p.a - mean.x(), p.b - mean.y());
+    ab += d * d.transpose();
+    abz += d * (p.top - mean.z());
+  }
+  // Samples on one line (a sole one voxel wide) leave the plane undetermined.
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(ab);
+  if (eig.eigenvalues()(0) <= 1e-9 * std::max(1e-12, eig.eigenvalues()(1))) return;
+  const Eigen::Vector2d g = ab.ldlt().solve(abz);  // dz/da, dz/db
+  double sq = 0.0;
+  for (const auto& p : support) {
+    const double r = p.top - (mean.z() + g.dot(Eigen::Vector2d(p.a - mean.x(), p.b - mean.y())));
+    sq += r * r;
+  }
+  const double gx = cos_yaw * g.x() - sin_yaw * g.y(), gy = sin_yaw * g.x() + cos_yaw * g.y();
+  out.has_support_plane = true;
+  out.support_height_m = mean.z() - g.dot(mean.head<2>());  // at a = b = 0, the sole's centre
+  out.support_normal = Eigen::Vector3d(-gx, -gy, 1.0).normalized();
+  out.support_tilt_deg = std::atan(g.norm()) * 180.0 / M_PI;
+  out.support_rms_m = std::sqrt(sq / static_cast<double>(support.size()));
+}
+
+}  // namespace
+
 FootprintQuery MobilityMap::footprint(const Foot& f, double search_up_m, double search_down_m) const {
   FootprintQuery out;
   const double res = tree_->getResolution();
@@ -336,6 +379,10 @@ FootprintQuery MobilityMap::footprint(const Foot& f, double search_up_m, double 
   double sum = 0.0, zmin = std::numeric_limits<double>::infinity(), zmax = -zmin;
   int known = 0;
   out.min_mobility = 1.0;
+  // Supported samples for the plane: sole coordinates (a along the yaw, b across) and
+  // the top face of the voxel each rests on.
+  std::vector<SupportSample> support;
+  support.reserve(static_cast<std::size_t>(nl) * static_cast<std::size_t>(nw));
   for (int i = 0; i < nl; ++i) {
     for (int j = 0; j < nw; ++j) {
       const double a = (i + 0.5) * f.length / nl - 0.5 * f.length;
@@ -346,6 +393,7 @@ FootprintQuery MobilityMap::footprint(const Foot& f, double search_up_m, double 
       if (!q) continue;
       zmin = std::min(zmin, q->centre.z());
       zmax = std::max(zmax, q->centre.z());
+      support.push_back({a, b, q->centre.z() + q->size_m / 2});
       if (!q->has_mobility) continue;
       ++known;
       sum += q->mobility;
@@ -356,6 +404,7 @@ FootprintQuery MobilityMap::footprint(const Foot& f, double search_up_m, double 
   out.mean_mobility = known ? sum / known : 0.0;
   if (!known) out.min_mobility = 0.0;
   out.max_height_difference_m = std::isfinite(zmin) ? zmax - zmin : 0.0;
+  fitSupportPlane(support, c, s, out);
   return out;
 }
 

@@ -76,6 +76,19 @@ struct FootprintQuery {
   double known_fraction = 0.0;      ///< samples with a surface voxel that has a mobility
   double max_height_difference_m = 0.0;  ///< between the highest and lowest supporting voxel
   int samples = 0;
+  /// The support plane: least squares through the top faces of the supporting voxels
+  /// (z as a linear function of x and y). Needs >= 3 supported samples not on one line;
+  /// has_support_plane is false otherwise and the fields below keep their defaults.
+  /// Its height is where the sole rests. Its tilt comes from voxel tops, which step a
+  /// whole voxel at a time: over a 25 x 12 cm sole in a 2 cm map it was within 3 degrees
+  /// along 15-35 degree ramps, but one step across the sole's 12 cm reads as up to ~14
+  /// degrees (a 5-degree ramp read 12; docs/MAPPING.md, "Queries"). For slope, trust the
+  /// mobility, which perception measures in 1 cm voxels.
+  bool has_support_plane = false;
+  double support_height_m = 0.0;  ///< the plane's z under the sole's centre (map frame)
+  Eigen::Vector3d support_normal = Eigen::Vector3d::UnitZ();  ///< unit, upward (map frame)
+  double support_tilt_deg = 0.0;  ///< angle between the plane's normal and +z
+  double support_rms_m = 0.0;     ///< RMS of the top faces about the plane: unevenness under the sole
 };
 
 /// A rectangle sole: centre (x, y, z) in the map frame, yaw about +z (radians), length
