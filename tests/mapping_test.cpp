@@ -375,6 +375,8 @@ TEST(MobilityMap, SnapDownFindsTheSurfaceBelowFromAnyStartHeight) {
       }
     }
     EXPECT_EQ(asked, 90);
+    EXPECT_FALSE(map.snapDown({0.01, 0.01, (3.5) * res}, -res));  // a negative drop searches nothing
+    EXPECT_TRUE(map.snapDown({0.01, 0.01, (3.5) * res}, 0.0));    // a zero drop: the voxel at the point
   }
 }
 

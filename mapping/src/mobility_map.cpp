@@ -314,7 +314,9 @@ PointQuery MobilityMap::query(const Eigen::Vector3d& p) const {
 
 std::optional<PointQuery> MobilityMap::snapDown(const Eigen::Vector3d& p, double max_drop_m) const {
   octomap::OcTreeKey key;
-  if (!p.allFinite() || !std::isfinite(max_drop_m) || !tree_->coordToKeyChecked(toOcto(p), key)) return std::nullopt;
+  if (!p.allFinite() || !(max_drop_m >= 0) || !std::isfinite(max_drop_m) || !tree_->coordToKeyChecked(toOcto(p), key)) {
+    return std::nullopt;
+  }
   // Voxel by voxel through the column, each asked at its centre: stepping a point down by
   // the resolution from a height on a voxel face (z = 0.15 at 1 cm) lands on faces, where
   // rounding can skip a voxel.

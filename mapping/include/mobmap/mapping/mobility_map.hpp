@@ -130,7 +130,7 @@ class MobilityMap {
   /// State of the voxel holding `p_map` (map frame).
   [[nodiscard]] PointQuery query(const Eigen::Vector3d& p_map) const;
   /// The first surface voxel at or below `p_map` along -z within `max_drop_m`, searched
-  /// one voxel at a time; nullopt if none.
+  /// one voxel at a time; nullopt if none (or if max_drop_m is negative or not finite).
   [[nodiscard]] std::optional<PointQuery> snapDown(const Eigen::Vector3d& p_map, double max_drop_m) const;
   /// Mobility under a rectangular sole, sampled every voxel; each sample snaps down from
   /// foot.z + `search_up_m` over `search_up_m + search_down_m`.
