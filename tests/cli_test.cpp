@@ -248,6 +248,10 @@ TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   EXPECT_GT(ij["surface_leaves"].get<std::size_t>(), 100u);
   EXPECT_EQ(ij["metadata"]["trajectory_map"].size(), 4u);
   EXPECT_LT(ij["bounds_map"]["min"][2].get<double>(), ij["bounds_map"]["max"][2].get<double>());
+  // The corridor's floor (z = 0) is the walkable level holding most walkable voxels.
+  ASSERT_GE(ij["walkable_levels"].size(), 1u) << ij.dump();
+  EXPECT_NEAR(ij["walkable_levels"][0]["z_m"].get<double>(), 0.0, 0.03);
+  EXPECT_GT(ij["walkable_levels"][0]["share"].get<double>(), 0.5);
   const Result ev = run("evaluate " + map + " --truth " + dir + "/seq/ground_truth.json --min-count 1 --json");
   ASSERT_EQ(ev.code, 0) << ev.out;
   EXPECT_GT(nlohmann::json::parse(ev.out)["surfaces"][0]["voxels"].get<int>(), 100);  // the floor
@@ -530,6 +534,29 @@ TEST(Cli, LoungeFloorIsWalkableWithGravityFoundFromTheFloor) {
   }
   ASSERT_GT(on_floor, 500);
   EXPECT_GT(walkable, 0.75 * on_floor) << walkable << " of " << on_floor;
+  fs::remove_all(dir);
+}
+
+// `info`'s walkable levels on the real kitchen (frames 40-100, every third, which show
+// most floor): the floor about 1.47 m and the table top about 0.77 m below the world
+// origin along gravity (data README), the floor holding most walkable voxels.
+TEST(Cli, InfoFindsTheRedkitchenFloorAndTableTopLevels) {
+  const std::string data = std::string(MOBMAP_SHARED_DATA_DIR) + "/7scenes-redkitchen";
+  if (!fs::exists(data)) GTEST_SKIP() << "shared data not found at " << data;
+  const std::string dir = tempDir("levels");
+  const Result b = run("build " + data + " --frames 40:100:3 --out " + dir + "/m.ot --quiet");
+  ASSERT_EQ(b.code, 0) << b.out;
+  const Result info = run("info " + dir + "/m.ot --json");
+  ASSERT_EQ(info.code, 0) << info.out;
+  const auto levels = nlohmann::json::parse(info.out)["walkable_levels"];
+  ASSERT_GE(levels.size(), 2u) << levels.dump();
+  EXPECT_NEAR(levels[0]["z_m"].get<double>(), -1.47, 0.03) << levels.dump();
+  bool table = false;
+  for (const auto& l : levels) table = table || std::abs(l["z_m"].get<double>() + 0.77) < 0.03;
+  EXPECT_TRUE(table) << levels.dump();
+  const Result text = run("info " + dir + "/m.ot");
+  EXPECT_NE(text.out.find("walkable levels (top faces of voxels >= 0.75, share of them): z = -1.4"), std::string::npos)
+      << text.out;
   fs::remove_all(dir);
 }
 

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <functional>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <sstream>
 #include <vector>
@@ -274,8 +275,57 @@ void printMetadataSummary(const nlohmann::json& meta, const std::string& json_pa
 
 }  // namespace
 
+// Heights where walkable voxels (mobility >= 0.75) gather: floors, landings, table tops.
+// Top faces are binned per voxel (a pruned leaf counts once per column it covers); the
+// fullest bin not within 3 voxels of a level already taken starts a level, which takes
+// the bins next to it (noise spreads a floor over two), until the levels left hold under
+// 5 % of the walkable voxels. At most 4, fullest first.
+struct Level {
+  double z_m = 0.0;     // count-weighted mean top face
+  std::size_t voxels = 0;
+  double share = 0.0;   // of all walkable voxels
+};
+
+std::vector<Level> walkableLevels(const mapping::MobilityOcTree& t) {
+  const double res = t.getResolution();
+  std::map<long, std::size_t> bins;  // round(top / res) -> voxels
+  std::size_t total = 0;
+  for (auto it = t.begin_leafs(); it != t.end_leafs(); ++it) {
+    if (!t.isNodeOccupied(*it) || !it->hasMobility() || it->mobility() < 0.75) continue;
+    const auto columns = static_cast<std::size_t>(std::lround(std::pow(it.getSize() / res, 2)));
+    bins[std::lround((it.getZ() + it.getSize() / 2) / res)] += columns;
+    total += columns;
+  }
+  std::vector<Level> levels;
+  std::vector<long> taken;
+  while (levels.size() < 4 && !bins.empty()) {
+    long peak = 0;
+    std::size_t most = 0;
+    for (const auto& [b, n] : bins) {
+      const bool near = std::any_of(taken.begin(), taken.end(), [&](long k) { return std::abs(k - b) <= 3; });
+      if (!near && n > most) peak = b, most = n;
+    }
+    if (most == 0) break;
+    Level l;
+    double zsum = 0.0;
+    for (long b = peak - 1; b <= peak + 1; ++b) {
+      const auto it = bins.find(b);
+      if (it == bins.end()) continue;
+      l.voxels += it->second;
+      zsum += static_cast<double>(it->second) * static_cast<double>(b) * res;
+      bins.erase(it);
+    }
+    l.z_m = zsum / static_cast<double>(l.voxels);
+    l.share = static_cast<double>(l.voxels) / static_cast<double>(total);
+    if (l.share < 0.05) break;
+    levels.push_back(l);
+    taken.push_back(peak);
+  }
+  return levels;
+}
+
 Command addInfoCommand(CLI::App& app) {
-  auto* cmd = app.add_subcommand("info", "Describe a map: resolution, bounds, nodes, memory, mobility histogram, how it was built");
+  auto* cmd = app.add_subcommand("info", "Describe a map: resolution, bounds, nodes, memory, mobility histogram, walkable levels, how it was built");
   struct Options {
     std::string map;
     bool json = false;
@@ -315,6 +365,10 @@ Command addInfoCommand(CLI::App& app) {
                        {"surface_leaves_without_mobility", unknown_mob},
                        {"mobility_histogram", hist},
                        {"memory_bytes", t.memoryUsage()}};
+      j["walkable_levels"] = nlohmann::json::array();
+      for (const Level& l : walkableLevels(t)) {
+        j["walkable_levels"].push_back({{"z_m", l.z_m}, {"voxels", l.voxels}, {"share", l.share}});
+      }
       // An empty tree has no bounds (OctoMap reports its key range's limits).
       if (surface + free > 0) j["bounds_map"] = {{"min", {x0, y0, z0}}, {"max", {x1, y1, z1}}};
       j["metadata"] = meta.empty() ? nlohmann::json(nullptr) : meta;
@@ -335,6 +389,14 @@ Command addInfoCommand(CLI::App& app) {
       const int bar = known ? static_cast<int>(50.0 * static_cast<double>(hist[b]) / static_cast<double>(known)) : 0;
       std::printf("  %.1f-%.1f %8zu %s\n", static_cast<double>(b) / 10.0, static_cast<double>(b + 1) / 10.0, hist[b],
                   std::string(static_cast<std::size_t>(bar), '#').c_str());
+    }
+    const std::vector<Level> levels = walkableLevels(t);
+    if (!levels.empty()) {
+      std::printf("walkable levels (top faces of voxels >= 0.75, share of them):");
+      for (std::size_t i = 0; i < levels.size(); ++i) {
+        std::printf("%s z = %.2f m (%.0f %%)", i ? "," : "", levels[i].z_m, 100 * levels[i].share);
+      }
+      std::printf("\n");
     }
     if (meta.empty()) {
       std::printf("no metadata (%s.json is absent)\n", mapping::mapFileStem(o->map).c_str());
