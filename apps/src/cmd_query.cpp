@@ -275,6 +275,8 @@ void printMetadataSummary(const nlohmann::json& meta, const std::string& json_pa
 
 }  // namespace
 
+namespace {
+
 // Heights where walkable voxels (mobility >= 0.75) gather: floors, landings, table tops.
 // Top faces are binned per voxel (a pruned leaf counts once per column it covers); the
 // fullest bin not within 3 voxels of a level already taken starts a level, which takes
@@ -323,6 +325,8 @@ std::vector<Level> walkableLevels(const mapping::MobilityOcTree& t) {
   }
   return levels;
 }
+
+}  // namespace
 
 Command addInfoCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand("info", "Describe a map: resolution, bounds, nodes, memory, mobility histogram, walkable levels, how it was built");
