@@ -586,7 +586,6 @@ Command addBuildCommand(CLI::App& app) {
     std::signal(SIGINT, SIG_DFL);
     // Reading, perception and fusion of every frame, as the user waited for them.
     const double run_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - run_start).count();
-    const double frames_per_s = run_s > 0 ? (used + no_pose) / run_s : 0.0;
 
     if (used == 0 && no_pose > 0 && !g_interrupted.load()) {
       std::ostringstream msg;
@@ -600,7 +599,7 @@ Command addBuildCommand(CLI::App& app) {
         keyframes_considered > 0 ? ", keyframes of " + std::to_string(keyframes_considered) + " selected" : "";
     std::printf("\n%d of %zu frames fused (%d without a ground plane%s)%s in %.1f s (%.1f frames/s), %zu points, %zu map nodes (%zu leaves)\n",
                 used, frames.size(), no_ground, keyframe_note.c_str(), g_interrupted.load() ? ", INTERRUPTED" : "", run_s,
-                frames_per_s, points, map.tree().size(), map.tree().getNumLeafNodes());
+                meta["frames_per_second"].get<double>(), points, map.tree().size(), map.tree().getNumLeafNodes());
     if (existing) {
       std::printf("the map now holds %d frames from %zu runs\n", meta["frames"].get<int>(), meta["earlier_runs"].size() + 1);
     }
