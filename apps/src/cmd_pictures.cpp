@@ -57,12 +57,14 @@ Command addExportCommand(CLI::App& app) {
     if (o->png.empty() && o->pcd.empty()) throw UsageError("export needs --png OUT.png and/or --pcd OUT.pcd");
     if (max_z->count() > 0 && o->png.empty()) throw UsageError("--max-z cuts the top view: it needs --png");
     if (!std::isfinite(o->max_z) && max_z->count() > 0) throw UsageError("--max-z must be a finite height in metres");
-    const mapping::MobilityMap map = mapping::openMap(o->map);
+    auto tree = mapping::loadMobilityMap(o->map);  // its errors before MAP.json's, as openMap(path)
+    const mapping::MapMetadata metadata = mapping::readMapMetadata(o->map);
+    const mapping::MobilityMap map = mapping::openMap(std::move(tree), metadata);
     const auto& t = map.tree();
     if (!o->pcd.empty()) mapping::saveSurfacePcd(t, o->pcd);
     if (o->png.empty()) return 0;
     // The camera path may run outside the mapped surfaces: draw all of it.
-    const auto meta = readMapMetadataJson(o->map);
+    const auto meta = metadataJson(metadata);
     std::vector<Eigen::Vector2d> path;
     if (meta.contains("trajectory_map")) {
       for (const auto& p : meta["trajectory_map"]) path.emplace_back(p[0].get<double>(), p[1].get<double>());

@@ -273,10 +273,6 @@ void printMetadataSummary(const nlohmann::json& meta, const std::string& json_pa
   std::printf("all metadata: %s (or info --json)\n", json_path.c_str());
 }
 
-}  // namespace
-
-namespace {
-
 // Heights where walkable voxels (mobility >= 0.75) gather: floors, landings, table tops.
 // Top faces are binned per voxel (a pruned leaf counts once per column it covers); the
 // fullest bin not within 3 voxels of a level already taken starts a level, which takes
@@ -338,7 +334,9 @@ Command addInfoCommand(CLI::App& app) {
   cmd->add_option("MAP", o->map, "A .ot map")->required();
   cmd->add_flag("--json", o->json, "One JSON object: the figures above and the whole metadata file (camera path included)");
   return [o]() {
-    const mapping::MobilityMap map = mapping::openMap(o->map);
+    auto tree = mapping::loadMobilityMap(o->map);  // its errors before MAP.json's, as openMap(path)
+    const mapping::MapMetadata metadata = mapping::readMapMetadata(o->map);
+    const mapping::MobilityMap map = mapping::openMap(std::move(tree), metadata);
     const auto& t = map.tree();
     double x0, y0, z0, x1, y1, z1;
     t.getMetricMin(x0, y0, z0);
@@ -357,7 +355,7 @@ Command addInfoCommand(CLI::App& app) {
       }
       ++hist[static_cast<std::size_t>(std::clamp(static_cast<int>(it->mobility() * 10), 0, 9))];
     }
-    const auto meta = readMapMetadataJson(o->map);
+    const auto meta = metadataJson(metadata);
     if (o->json) {
       nlohmann::json j{{"map", o->map},
                        {"tree_type", t.getTreeType()},

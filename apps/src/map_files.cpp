@@ -28,10 +28,6 @@ nlohmann::json metadataJson(const mapping::MapMetadata& meta) {
   return meta.found ? nlohmann::json::parse(meta.text) : nlohmann::json::object();
 }
 
-nlohmann::json readMapMetadataJson(const std::string& ot_path) {
-  return metadataJson(mapping::readMapMetadata(ot_path));  // checked
-}
-
 std::string describeKeyframeRule(double min_translation_m, double min_rotation_deg) {
   std::ostringstream out;
   if (min_translation_m > 0) out << "camera moved >= " << min_translation_m << " m";

@@ -9,10 +9,8 @@
 
 namespace mobmap::app {
 
-/// Metadata written beside a map as STEM.json, checked as mapping::readMapMetadata()
-/// does (MapIoError naming the file): an empty object if there is none.
-nlohmann::json readMapMetadataJson(const std::string& ot_path);
-/// The same from metadata already read.
+/// MAP.json as read and checked by mapping::readMapMetadata(): an empty object if there
+/// is none.
 nlohmann::json metadataJson(const mapping::MapMetadata& meta);
 
 /// MAP.json's text: indented like nlohmann's dump(1), except that each trajectory_map

@@ -135,13 +135,16 @@ MapMetadata readMapMetadata(const std::string& ot_path) {
   return m;
 }
 
-MobilityMap openMap(const std::string& ot_path, MapParams params) {
-  auto tree = loadMobilityMap(ot_path);
-  const MapMetadata meta = readMapMetadata(ot_path);
+MobilityMap openMap(std::unique_ptr<MobilityOcTree> tree, const MapMetadata& metadata, MapParams params) {
   params.resolution_m = tree->getResolution();
-  MobilityMap map(std::move(tree), params, meta.R_map_world);
-  map.setFramesIntegrated(meta.frames);
+  MobilityMap map(std::move(tree), params, metadata.R_map_world);
+  map.setFramesIntegrated(metadata.frames);
   return map;
+}
+
+MobilityMap openMap(const std::string& ot_path, MapParams params) {
+  auto tree = loadMobilityMap(ot_path);  // the tree's errors before the metadata's
+  return openMap(std::move(tree), readMapMetadata(ot_path), params);
 }
 
 }  // namespace mobmap::mapping

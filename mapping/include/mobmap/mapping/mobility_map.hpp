@@ -214,5 +214,9 @@ MapMetadata readMapMetadata(const std::string& ot_path);
 /// worldToMap() takes points in the world frame of the poses it was built from. Errors
 /// as loadMobilityMap() and readMapMetadata().
 MobilityMap openMap(const std::string& ot_path, MapParams params = {});
+/// The same from a tree already loaded (loadMobilityMap) and its metadata already read
+/// (readMapMetadata), for callers that also want the rest of MAP.json (metadata.text)
+/// without reading and checking it twice.
+MobilityMap openMap(std::unique_ptr<MobilityOcTree> tree, const MapMetadata& metadata, MapParams params = {});
 
 }  // namespace mobmap::mapping
