@@ -4,13 +4,16 @@
 #include "simulation_writer.hpp"
 
 #include "mobmap/mapping/mobility_map.hpp"
+#include "mobmap/mapping/reachability.hpp"
 #include "mobmap/perception/pipeline.hpp"
 
 #include <gtest/gtest.h>
 
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
+#include <functional>
 #include <fstream>
 #include <set>
 
@@ -64,6 +67,7 @@ struct CorridorMap {
   void walkableAndUntraversableSurfacesScoreAsTheTableSays(const SurfaceBounds& bounds = SurfaceBounds()) const;
   void theMovingBoxLeavesNoSurfaceAtItsOldPlace() const;
   void footprintsOnFloorAndAcrossTheStairs() const;
+  void reachabilityFollowsStepsAndSlopes() const;
 };
 
 void CorridorMap::walkableAndUntraversableSurfacesScoreAsTheTableSays(const SurfaceBounds& bounds) const {
@@ -139,6 +143,75 @@ void CorridorMap::footprintsOnFloorAndAcrossTheStairs() const {
   }
 }
 
+// The places of a rectangle of columns whose top face is within 5 cm of `height(x)`:
+// the share of them that can be stood on, and that are reachable.
+struct Share {
+  int places = 0;
+  double standable = 0, reachable = 0;
+};
+Share shareOf(const mapping::Reachability& r, double x0, double x1, double y0, double y1,
+              const std::function<double(double)>& height) {
+  Share s;
+  for (const mapping::Place& p : r.places()) {
+    if (p.x < x0 || p.x > x1 || p.y < y0 || p.y > y1 || std::abs(p.top_z - height(p.x)) > 0.05) continue;
+    ++s.places;
+    s.standable += p.standable;
+    s.reachable += p.reachable;
+  }
+  if (s.places) s.standable /= s.places, s.reachable /= s.places;
+  return s;
+}
+
+void CorridorMap::reachabilityFollowsStepsAndSlopes() const {
+  const auto flat = [](double z) { return [z](double) { return z; }; };
+  const auto ramp = [](int i) {  // ramp i rises along +x from x = 1.5 + 1.2 i over 0.6 m
+    return [i](double x) { return (x - 1.5 - 1.2 * i) * std::tan((5.0 + 10.0 * i) * M_PI / 180); };
+  };
+  for (const double step : {0.15, 0.20}) {
+    SCOPED_TRACE(step);
+    mapping::ReachParams p;
+    p.max_step_m = step;
+    // From the floor in front of the walk's first camera position (1 m above, as a camera's).
+    const mapping::Reachability r = mapping::computeReachability(map_->tree(), {1.0, 0.0, 1.0}, p);
+    ASSERT_TRUE(r.start());
+    EXPECT_NEAR(r.places()[*r.start()].top_z, 0.01, 0.03);
+    // The walking path, the moving box's old place included, and the ramps that score walkable.
+    const Share path = shareOf(r, 1.0, 5.5, -0.3, 0.3, flat(0.01));
+    EXPECT_GT(path.places, 5000);
+    EXPECT_GT(path.reachable, 0.97);
+    for (const int i : {0, 1}) {
+      const Share s = shareOf(r, 1.6 + 1.2 * i, 2.0 + 1.2 * i, -1.2, -0.6, ramp(i));
+      EXPECT_GT(s.places, 100) << "ramp " << i;
+      EXPECT_GT(s.reachable, 0.9) << "ramp " << i;
+    }
+    // The 45-degree ramp cannot be stood on at all; the box top can, but not reached.
+    const Share steep = shareOf(r, 6.4, 6.8, -1.2, -0.6, ramp(4));
+    EXPECT_GT(steep.places, 100);
+    EXPECT_LT(steep.standable, 0.05);
+    EXPECT_EQ(steep.reachable, 0.0);
+    const Share box = shareOf(r, 4.65, 4.95, 0.65, 0.95, flat(0.5));
+    EXPECT_GT(box.places, 100);
+    EXPECT_GT(box.standable, 0.9);
+    EXPECT_EQ(box.reachable, 0.0);
+    std::printf("[ info ] steps up to %.2f m: reachable: walking path %.1f %%, ramp 5 deg %.1f %%, ramp 15 deg %.1f %%; box top "
+                "standable %.1f %%; stair treads", step, 100 * path.reachable, 100 * shareOf(r, 1.6, 2.0, -1.2, -0.6, ramp(0)).reachable,
+                100 * shareOf(r, 2.8, 3.2, -1.2, -0.6, ramp(1)).reachable, 100 * box.standable);
+    // 17 cm risers: the stairs are out of reach for 15 cm steps and within reach for 20.
+    for (int k = 1; k <= 4; ++k) {
+      const Share tread = shareOf(r, 6.0 + 0.3 * (k - 1) + 0.04, 6.3 + 0.3 * (k - 1) - 0.04, 0.45, 1.35, flat(0.17 * k));
+      std::printf(" %.1f/%.1f %%", 100 * tread.standable, 100 * tread.reachable);
+      EXPECT_GT(tread.places, 100) << "tread " << k;
+      EXPECT_GT(tread.standable, 0.8) << "tread " << k;
+      if (step < 0.17) {
+        EXPECT_EQ(tread.reachable, 0.0) << "tread " << k;
+      } else {
+        EXPECT_GT(tread.reachable, 0.8) << "tread " << k;
+      }
+    }
+    std::printf(" (standable/reachable)\n");
+  }
+}
+
 TEST(CorridorMap, FusedKinectSequenceMatchesTheGroundTruth) {
   const CorridorMap m;
   {
@@ -152,6 +225,10 @@ TEST(CorridorMap, FusedKinectSequenceMatchesTheGroundTruth) {
   {
     SCOPED_TRACE("footprints");
     m.footprintsOnFloorAndAcrossTheStairs();
+  }
+  {
+    SCOPED_TRACE("reachability");
+    m.reachabilityFollowsStepsAndSlopes();
   }
 }
 
