@@ -476,6 +476,39 @@ TEST(TopView, LargeMapsGetCellsOfSeveralColumnsShowingTheHighest) {
   const TopView fine = computeTopView(tree, {}, 150);
   EXPECT_EQ(fine.columns_per_cell, 1);
   EXPECT_EQ(fine.columns, 150);
+  // Each cell names the voxel it shows (reach colours cells by it): an occupied voxel
+  // whose top face is the cell's top, in one of the cell's columns; also when the floor
+  // is pruned into blocks.
+  const auto checkTopKeys = [](const mapping::MobilityOcTree& t, const TopView& view) {
+    int checked = 0;
+    for (int cy = 0; cy < view.rows; ++cy) {
+      for (int cx = 0; cx < view.columns; ++cx) {
+        if (view.empty(cx, cy)) continue;
+        const octomap::OcTreeKey k = view.top_key[view.cell(cx, cy)];
+        const auto* n = t.search(k);
+        ASSERT_TRUE(n && t.isNodeOccupied(n)) << cx << " " << cy;
+        const octomap::point3d c = t.keyToCoord(k);
+        EXPECT_NEAR(c.z() + t.getResolution() / 2, view.top[view.cell(cx, cy)], 1e-6) << cx << " " << cy;
+        EXPECT_LE(std::abs(c.x() - (view.x0 + cx * view.resolution)), view.resolution / 2 + 1e-6) << cx << " " << cy;
+        EXPECT_LE(std::abs(c.y() - (view.y0 + cy * view.resolution)), view.resolution / 2 + 1e-6) << cx << " " << cy;
+        ++checked;
+      }
+    }
+    EXPECT_EQ(checked, view.columns * view.rows);  // the map fills its grid
+  };
+  checkTopKeys(tree, v);
+  checkTopKeys(tree, fine);
+  mapping::MobilityOcTree pruned(tree);
+  for (int i = 0; i < 150; ++i) {  // a floor two voxels thick, all alike, prunes into 2 x 2 x 2 blocks and larger
+    for (int j = 0; j < 50; ++j) {
+      for (const float z : {-0.01f, -0.03f}) pruned.setNodeValue(octomap::point3d((i + 0.5) * res, (j + 0.5) * res, z), 1.0f)->setMobility(1.0, 100.0, 1);
+    }
+  }
+  pruned.updateInnerOccupancy();
+  pruned.prune();
+  ASSERT_LT(pruned.getNumLeafNodes(), tree.getNumLeafNodes() / 3);
+  checkTopKeys(pruned, computeTopView(pruned, {}, 40));
+  checkTopKeys(pruned, computeTopView(pruned, {}, 150));
   // A camera 10 km away (500,001 columns from the first): 501 columns per cell, and the
   // map is still drawn.
   const TopView far = computeTopView(tree, {Eigen::Vector2d(1e4, 0.0)}, 1000);

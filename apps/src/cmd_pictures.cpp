@@ -16,24 +16,6 @@
 #include <memory>
 
 namespace mobmap::app {
-namespace {
-
-void drawColourBar(Canvas& c, int x0, int y0, int height) {
-  for (int y = 0; y < height; ++y) c.fillRect(x0, y0 + y, x0 + 14, y0 + y, mobilityColour(1.0 - static_cast<double>(y) / (height - 1)));
-  c.rect(x0 - 1, y0 - 1, x0 + 15, y0 + height, {0, 0, 0});
-  for (double m : {0.0, 0.5, 1.0}) {
-    const int y = y0 + static_cast<int>(std::lround((1.0 - m) * (height - 1)));
-    char buf[8];
-    std::snprintf(buf, sizeof(buf), "%.1f", m);
-    c.text(x0 + 20, y - 3, buf, {0, 0, 0});
-  }
-  c.text(x0 - 10, y0 - 14, "MOBILITY", {0, 0, 0});
-  c.fillRect(x0, y0 + height + 12, x0 + 14, y0 + height + 24, kUnknownGrey);
-  c.text(x0 + 20, y0 + height + 15, "UNKNOWN", {0, 0, 0});
-}
-
-}  // namespace
-
 Command addExportCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand("export", "Export a map: a top-view PNG and/or surface voxels as PCD");
   struct Options {
@@ -63,99 +45,31 @@ Command addExportCommand(CLI::App& app) {
     const auto& t = map.tree();
     if (!o->pcd.empty()) mapping::saveSurfacePcd(t, o->pcd);
     if (o->png.empty()) return 0;
-    // The camera path may run outside the mapped surfaces: draw all of it.
-    const auto meta = metadataJson(metadata);
+    // The camera path may run outside the mapped surfaces: draw all of it. A map extended
+    // by later runs: each run's path starts afresh, marked by a square like the first.
+    const CameraPath camera = cameraPath(metadataJson(metadata));
     std::vector<Eigen::Vector2d> path;
-    if (meta.contains("trajectory_map")) {
-      for (const auto& p : meta["trajectory_map"]) path.emplace_back(p[0].get<double>(), p[1].get<double>());
-    }
-    // A map extended by later runs: each run's path starts afresh (no line from where
-    // one run ended to where the next began), marked by a square like the first.
-    std::vector<std::size_t> run_starts = {0};
-    if (meta.contains("earlier_runs")) {
-      for (const auto& run : meta["earlier_runs"]) {
-        if (run.contains("frames_in_run")) run_starts.push_back(run_starts.back() + run["frames_in_run"].get<std::size_t>());
-      }
-    }
+    for (const Eigen::Vector3d& p : camera.positions) path.push_back(p.head<2>());
     TopView view;
     try {
       view = computeTopView(t, path, o->max_pixels, o->max_z);
     } catch (const std::invalid_argument& e) {
       throw IoError(o->map, std::string("cannot draw a top view: ") + e.what());
     }
-    if (std::all_of(view.top.begin(), view.top.end(), [](double z) { return std::isinf(z); })) {
-      double lowest = std::numeric_limits<double>::infinity();
-      for (auto it = t.begin_leafs(); it != t.end_leafs(); ++it) {
-        if (t.isNodeOccupied(*it)) lowest = std::min(lowest, it.getZ() + it.getSize() / 2);
-      }
-      char msg[160];
-      std::snprintf(msg, sizeof msg, "--max-z %g: no surface voxel has its top at or below it (the lowest top is at z = %.2f m)",
-                    o->max_z, lowest);
-      throw UsageError(msg);
-    }
-    const double res = view.resolution, x0 = view.x0, y0 = view.y0;
-    const double extent = std::max(view.columns, view.rows) * res;
-    const int ppv = std::max(1, o->max_pixels / std::max(view.columns, view.rows));  // pixels per cell
-    const int w = view.columns * ppv, h = view.rows * ppv;
-    const int margin = 50, right = 110;
-    // The legend (colour bar, "unknown", "camera path") and the title need room even
-    // when the map is a thin strip (a corridor) or a small picture was asked for.
-    const int bar_h = std::clamp(h - 60, 100, 200);
-    const int legend_h = 20 + bar_h + 60;
-    std::string title_text = "TOP VIEW: HIGHEST SURFACE PER COLUMN (X RIGHT, Y UP, MAP FRAME)";
+    requireSurfaceBelowCut(view, t, o->max_z);
+    TopViewPicture picture;
+    picture.title = "TOP VIEW: HIGHEST SURFACE PER COLUMN (X RIGHT, Y UP, MAP FRAME)";
     if (max_z->count() > 0) {
       char cut[96];
       std::snprintf(cut, sizeof cut, "TOP VIEW: HIGHEST SURFACE PER COLUMN AT OR BELOW Z = %.2f M (X RIGHT, Y UP, MAP FRAME)",
                     o->max_z);
-      title_text = cut;
+      picture.title = cut;
     }
-    const char* title = title_text.c_str();
-    Canvas c(std::max(w + 2 * margin + right, margin + 6 * static_cast<int>(std::strlen(title)) + 10),
-             std::max(h, legend_h) + 2 * margin + 20);
-    // Highest surface per column; x to the right, y up.
-    for (int cy = 0; cy < view.rows; ++cy) {
-      for (int cx = 0; cx < view.columns; ++cx) {
-        const int px = margin + cx * ppv, py = margin + (view.rows - 1 - cy) * ppv;
-        c.fillRect(px, py, px + ppv - 1, py + ppv - 1, view.colour[view.cell(cx, cy)]);
-      }
-    }
-    c.rect(margin - 1, margin - 1, margin + w, margin + h, {0, 0, 0});
-    // Camera path, from the metadata.
-    auto toPixel = [&](const Eigen::Vector2d& p) {
-      return std::make_pair(margin + static_cast<int>((p.x() - x0) / res * ppv + ppv / 2),
-                            margin + static_cast<int>((view.rows - 1 - (p.y() - y0) / res) * ppv + ppv / 2));
-    };
-    if (!path.empty()) {  // one position (a single frame) is drawn as a start mark alone
-      for (std::size_t i = 1; i < path.size(); ++i) {
-        if (std::find(run_starts.begin(), run_starts.end(), i) != run_starts.end()) continue;
-        const auto a = toPixel(path[i - 1]);
-        const auto b = toPixel(path[i]);
-        c.line(a.first, a.second, b.first, b.second, {20, 60, 230});
-        c.line(a.first, a.second + 1, b.first, b.second + 1, {20, 60, 230});
-      }
-      for (const std::size_t start : run_starts) {
-        if (start >= path.size()) continue;
-        const auto s = toPixel(path[start]);
-        c.fillRect(s.first - 3, s.second - 3, s.first + 3, s.second + 3, {20, 60, 230});
-      }
-      c.fillRect(margin + w + 30, margin + legend_h - 12, margin + w + 44, margin + legend_h - 11, {20, 60, 230});
-      c.text(margin + w + 50, margin + legend_h - 15, path.size() > 1 ? "CAMERA PATH" : "CAMERA", {20, 60, 230});
-    }
-    // Scale bar: the longest of 0.1, 0.2, 0.5, 1, 2, 5 ... m within a quarter of the map.
-    double bar_m = 0.1;
-    for (double decade = 0.1; decade <= extent / 4; decade *= 10) {
-      for (const double f : {1.0, 2.0, 5.0}) {
-        if (decade * f <= extent / 4) bar_m = decade * f;
-      }
-    }
-    const int bar_px = std::max(1, static_cast<int>(std::lround(bar_m / res * ppv)));
-    const int by = margin + h + 18;
-    c.fillRect(margin, by, margin + bar_px, by + 4, {0, 0, 0});
-    char bar_label[32];
-    std::snprintf(bar_label, sizeof(bar_label), "%g M", bar_m);
-    c.text(margin + bar_px + 8, by - 1, bar_label, {0, 0, 0});
-    c.text(margin, 14, title, {0, 0, 0});
-    drawColourBar(c, margin + w + 30, margin + 20, bar_h);
+    picture.path = std::move(path);
+    picture.run_starts = camera.run_starts;
+    const Canvas c = drawTopView(view, picture, o->max_pixels);
+    const double res = view.resolution;
+    const int ppv = std::max(1, o->max_pixels / std::max(view.columns, view.rows));
     c.save(o->png);
     if (view.columns_per_cell == 1) {
       std::printf("wrote %s (%dx%d px, %d px per %g cm voxel)\n", o->png.c_str(), c.width(), c.height(), ppv, res * 100);

@@ -1,5 +1,6 @@
 #include "commands.hpp"
 #include "io_error.hpp"
+#include "levels.hpp"
 #include "map_files.hpp"
 
 #include <nlohmann/json.hpp>
@@ -274,52 +275,15 @@ void printMetadataSummary(const nlohmann::json& meta, const std::string& json_pa
 }
 
 // Heights where walkable voxels (mobility >= 0.75) gather: floors, landings, table tops.
-// Top faces are binned per voxel (a pruned leaf counts once per column it covers); the
-// fullest bin not within 3 voxels of a level already taken starts a level, which takes
-// the bins next to it (noise spreads a floor over two), until the levels left hold under
-// 5 % of the walkable voxels. At most 4, fullest first.
-struct Level {
-  double z_m = 0.0;     // count-weighted mean top face
-  std::size_t voxels = 0;
-  double share = 0.0;   // of all walkable voxels
-};
-
+// Top faces are binned per voxel (a pruned leaf counts once per column it covers).
 std::vector<Level> walkableLevels(const mapping::MobilityOcTree& t) {
   const double res = t.getResolution();
   std::map<long, std::size_t> bins;  // round(top / res) -> voxels
-  std::size_t total = 0;
   for (auto it = t.begin_leafs(); it != t.end_leafs(); ++it) {
     if (!t.isNodeOccupied(*it) || !it->hasMobility() || it->mobility() < 0.75) continue;
-    const auto columns = static_cast<std::size_t>(std::lround(std::pow(it.getSize() / res, 2)));
-    bins[std::lround((it.getZ() + it.getSize() / 2) / res)] += columns;
-    total += columns;
+    bins[std::lround((it.getZ() + it.getSize() / 2) / res)] += static_cast<std::size_t>(std::lround(std::pow(it.getSize() / res, 2)));
   }
-  std::vector<Level> levels;
-  std::vector<long> taken;
-  while (levels.size() < 4 && !bins.empty()) {
-    long peak = 0;
-    std::size_t most = 0;
-    for (const auto& [b, n] : bins) {
-      const bool near = std::any_of(taken.begin(), taken.end(), [&](long k) { return std::abs(k - b) <= 3; });
-      if (!near && n > most) peak = b, most = n;
-    }
-    if (most == 0) break;
-    Level l;
-    double zsum = 0.0;
-    for (long b = peak - 1; b <= peak + 1; ++b) {
-      const auto it = bins.find(b);
-      if (it == bins.end()) continue;
-      l.voxels += it->second;
-      zsum += static_cast<double>(it->second) * static_cast<double>(b) * res;
-      bins.erase(it);
-    }
-    l.z_m = zsum / static_cast<double>(l.voxels);
-    l.share = static_cast<double>(l.voxels) / static_cast<double>(total);
-    if (l.share < 0.05) break;
-    levels.push_back(l);
-    taken.push_back(peak);
-  }
-  return levels;
+  return gatherLevels(std::move(bins), res);
 }
 
 }  // namespace
@@ -369,7 +333,7 @@ Command addInfoCommand(CLI::App& app) {
                        {"memory_bytes", t.memoryUsage()}};
       j["walkable_levels"] = nlohmann::json::array();
       for (const Level& l : walkableLevels(t)) {
-        j["walkable_levels"].push_back({{"z_m", l.z_m}, {"voxels", l.voxels}, {"share", l.share}});
+        j["walkable_levels"].push_back({{"z_m", l.z_m}, {"voxels", l.count}, {"share", l.share}});
       }
       // An empty tree has no bounds (OctoMap reports its key range's limits).
       if (surface + free > 0) j["bounds_map"] = {{"min", {x0, y0, z0}}, {"max", {x1, y1, z1}}};

@@ -36,4 +36,17 @@ std::string describeKeyframeRule(double min_translation_m, double min_rotation_d
   return out.str();
 }
 
+CameraPath cameraPath(const nlohmann::json& meta) {
+  CameraPath c;
+  if (meta.contains("trajectory_map")) {
+    for (const auto& p : meta["trajectory_map"]) c.positions.emplace_back(p[0].get<double>(), p[1].get<double>(), p[2].get<double>());
+  }
+  if (meta.contains("earlier_runs")) {
+    for (const auto& run : meta["earlier_runs"]) {
+      if (run.contains("frames_in_run")) c.run_starts.push_back(c.run_starts.back() + run["frames_in_run"].get<std::size_t>());
+    }
+  }
+  return c;
+}
+
 }  // namespace mobmap::app

@@ -5,7 +5,10 @@
 
 #include <nlohmann/json.hpp>
 
+#include <Eigen/Core>
+
 #include <string>
+#include <vector>
 
 namespace mobmap::app {
 
@@ -21,5 +24,13 @@ std::string formatMapMetadata(const nlohmann::json& meta);
 /// The rule of `build --keyframes` in words, naming only the tests in use (a limit of
 /// 0 is off): "camera moved >= 0.05 m or turned >= 5 degrees".
 std::string describeKeyframeRule(double min_translation_m, double min_rotation_deg);
+
+/// The camera path MAP.json records (map frame), and where each run of a map extended
+/// with `build --extend` begins in it (0 first).
+struct CameraPath {
+  std::vector<Eigen::Vector3d> positions;
+  std::vector<std::size_t> run_starts{0};
+};
+CameraPath cameraPath(const nlohmann::json& meta);
 
 }  // namespace mobmap::app

@@ -1,7 +1,10 @@
 #include "top_view.hpp"
 
+#include "io_error.hpp"
+
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 namespace mobmap::app {
@@ -47,6 +50,7 @@ TopView computeTopView(const mapping::MobilityOcTree& t, const std::vector<Eigen
   v.top.assign(static_cast<std::size_t>(v.columns) * static_cast<std::size_t>(v.rows),
                -std::numeric_limits<double>::infinity());
   v.colour.assign(v.top.size(), {255, 255, 255});
+  v.top_key.assign(v.top.size(), octomap::OcTreeKey());
   for (auto it = t.begin_leafs(); it != t.end_leafs(); ++it) {
     if (!t.isNodeOccupied(*it)) continue;
     // A pruned leaf covers span x span columns.
@@ -73,11 +77,137 @@ TopView computeTopView(const mapping::MobilityOcTree& t, const std::vector<Eigen
         if (z > v.top[i]) {
           v.top[i] = z;
           v.colour[i] = colour;
+          const long column = std::max(col0, cx * per), row = std::max(row0, cy * per);
+          v.top_key[i] = t.coordToKey(octomap::point3d(static_cast<float>(col_x0 + static_cast<double>(column) * res),
+                                                       static_cast<float>(col_y0 + static_cast<double>(row) * res),
+                                                       static_cast<float>(z - res / 2)));
         }
       }
     }
   }
   return v;
+}
+
+}  // namespace mobmap::app
+
+namespace mobmap::app {
+namespace {
+
+const Rgb kBlack{0, 0, 0};
+const Rgb kPathBlue{20, 60, 230};
+
+// Returns the height it took below the bar (the "UNKNOWN" entry and the swatches).
+int drawColourBar(Canvas& c, int x0, int y0, int height, const std::vector<std::pair<Rgb, std::string>>& swatches) {
+  for (int y = 0; y < height; ++y) c.fillRect(x0, y0 + y, x0 + 14, y0 + y, mobilityColour(1.0 - static_cast<double>(y) / (height - 1)));
+  c.rect(x0 - 1, y0 - 1, x0 + 15, y0 + height, kBlack);
+  for (double m : {0.0, 0.5, 1.0}) {
+    const int y = y0 + static_cast<int>(std::lround((1.0 - m) * (height - 1)));
+    char buf[8];
+    std::snprintf(buf, sizeof(buf), "%.1f", m);
+    c.text(x0 + 20, y - 3, buf, kBlack);
+  }
+  c.text(x0 - 10, y0 - 14, "MOBILITY", kBlack);
+  int y = y0 + height + 12;
+  c.fillRect(x0, y, x0 + 14, y + 12, kUnknownGrey);
+  c.text(x0 + 20, y + 3, "UNKNOWN", kBlack);
+  for (const auto& [colour, label] : swatches) {
+    y += 18;
+    c.fillRect(x0, y, x0 + 14, y + 12, colour);
+    c.text(x0 + 20, y + 3, label, kBlack);
+  }
+  return y + 12 - (y0 + height);
+}
+
+}  // namespace
+
+void requireSurfaceBelowCut(const TopView& view, const mapping::MobilityOcTree& t, double max_z) {
+  if (!std::all_of(view.top.begin(), view.top.end(), [](double z) { return std::isinf(z); })) return;
+  double lowest = std::numeric_limits<double>::infinity();
+  for (auto it = t.begin_leafs(); it != t.end_leafs(); ++it) {
+    if (t.isNodeOccupied(*it)) lowest = std::min(lowest, it.getZ() + it.getSize() / 2);
+  }
+  char msg[160];
+  std::snprintf(msg, sizeof msg, "--max-z %g: no surface voxel has its top at or below it (the lowest top is at z = %.2f m)",
+                max_z, lowest);
+  throw UsageError(msg);
+}
+
+Canvas drawTopView(const TopView& view, const TopViewPicture& pic, int max_pixels) {
+  const double res = view.resolution, x0 = view.x0, y0 = view.y0;
+  const double extent = std::max(view.columns, view.rows) * res;
+  const int ppv = std::max(1, max_pixels / std::max(view.columns, view.rows));  // pixels per cell
+  const int w = view.columns * ppv, h = view.rows * ppv;
+  const int margin = 50;
+  // The legend (colour bar, swatches, path and mark) and the title need room even when
+  // the map is a thin strip (a corridor) or a small picture was asked for.
+  std::size_t longest_label = 11;  // "CAMERA PATH"
+  for (const auto& s : pic.swatches) longest_label = std::max(longest_label, s.second.size());
+  longest_label = std::max(longest_label, pic.mark_label.size());
+  const int right = std::max(110, 20 + 6 * static_cast<int>(longest_label));  // labels start 50 px right of the map
+  const int bar_h = std::clamp(h - 60 - 18 * static_cast<int>(pic.swatches.size() + (pic.mark ? 1 : 0)), 100, 200);
+  const int legend_h = 20 + bar_h + 60 + 18 * static_cast<int>(pic.swatches.size() + (pic.mark ? 1 : 0));
+  Canvas c(std::max(w + 2 * margin + right, margin + 6 * static_cast<int>(pic.title.size()) + 10),
+           std::max(h, legend_h) + 2 * margin + 20);
+  for (int cy = 0; cy < view.rows; ++cy) {
+    for (int cx = 0; cx < view.columns; ++cx) {
+      const int px = margin + cx * ppv, py = margin + (view.rows - 1 - cy) * ppv;
+      c.fillRect(px, py, px + ppv - 1, py + ppv - 1, view.colour[view.cell(cx, cy)]);
+    }
+  }
+  c.rect(margin - 1, margin - 1, margin + w, margin + h, kBlack);
+  auto toPixel = [&](const Eigen::Vector2d& p) {
+    return std::make_pair(margin + static_cast<int>((p.x() - x0) / res * ppv + ppv / 2),
+                          margin + static_cast<int>((view.rows - 1 - (p.y() - y0) / res) * ppv + ppv / 2));
+  };
+  const int legend_x = margin + w + 30;
+  const int below_bar = drawColourBar(c, legend_x, margin + 20, bar_h, pic.swatches);
+  int legend_y = margin + 20 + bar_h + below_bar + 18;
+  if (!pic.path.empty()) {  // one position (a single frame) is drawn as a start mark alone
+    for (std::size_t i = 1; i < pic.path.size(); ++i) {
+      if (std::find(pic.run_starts.begin(), pic.run_starts.end(), i) != pic.run_starts.end()) continue;
+      const auto a = toPixel(pic.path[i - 1]);
+      const auto b = toPixel(pic.path[i]);
+      c.line(a.first, a.second, b.first, b.second, kPathBlue);
+      c.line(a.first, a.second + 1, b.first, b.second + 1, kPathBlue);
+    }
+    for (const std::size_t start : pic.run_starts) {
+      if (start >= pic.path.size()) continue;
+      const auto s = toPixel(pic.path[start]);
+      c.fillRect(s.first - 3, s.second - 3, s.first + 3, s.second + 3, kPathBlue);
+    }
+    c.fillRect(legend_x, legend_y + 3, legend_x + 14, legend_y + 4, kPathBlue);
+    c.text(legend_x + 20, legend_y, pic.path.size() > 1 ? "CAMERA PATH" : "CAMERA", kPathBlue);
+    legend_y += 18;
+  }
+  if (pic.mark) {
+    const auto drawRing = [&](int px, int py) {
+      for (int r : {6, 7}) {
+        for (int a = 0; a < 64; ++a) {
+          const double t = a * 2 * M_PI / 64;
+          c.set(px + static_cast<int>(std::lround(r * std::cos(t))), py + static_cast<int>(std::lround(r * std::sin(t))), kBlack);
+        }
+      }
+    };
+    const auto m = toPixel(*pic.mark);
+    drawRing(m.first, m.second);
+    drawRing(legend_x + 7, legend_y + 3);
+    c.text(legend_x + 20, legend_y, pic.mark_label, kBlack);
+  }
+  // Scale bar: the longest of 0.1, 0.2, 0.5, 1, 2, 5 ... m within a quarter of the map.
+  double bar_m = 0.1;
+  for (double decade = 0.1; decade <= extent / 4; decade *= 10) {
+    for (const double f : {1.0, 2.0, 5.0}) {
+      if (decade * f <= extent / 4) bar_m = decade * f;
+    }
+  }
+  const int bar_px = std::max(1, static_cast<int>(std::lround(bar_m / res * ppv)));
+  const int by = margin + h + 18;
+  c.fillRect(margin, by, margin + bar_px, by + 4, kBlack);
+  char bar_label[32];
+  std::snprintf(bar_label, sizeof(bar_label), "%g M", bar_m);
+  c.text(margin + bar_px + 8, by - 1, bar_label, kBlack);
+  c.text(margin, 14, pic.title, kBlack);
+  return c;
 }
 
 }  // namespace mobmap::app

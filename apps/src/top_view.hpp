@@ -8,6 +8,8 @@
 #include <Eigen/Core>
 
 #include <limits>
+#include <optional>
+#include <string>
 #include <vector>
 
 namespace mobmap::app {
@@ -22,6 +24,9 @@ struct TopView {
   int columns = 0, rows = 0;  ///< cells across (x) and up (y)
   std::vector<double> top;   ///< per cell, row-major from y0 up: the top face's height, -inf if empty
   std::vector<Rgb> colour;   ///< per cell: mobility colour of that voxel, grey if unknown, white if empty
+  /// per cell: the finest-level key of the voxel whose top face is `top` (of a pruned
+  /// block, its voxel in the cell's first column it covers); meaningless where empty
+  std::vector<octomap::OcTreeKey> top_key;
   [[nodiscard]] std::size_t cell(int cx, int cy) const {
     return static_cast<std::size_t>(cy) * static_cast<std::size_t>(columns) + static_cast<std::size_t>(cx);
   }
@@ -44,5 +49,26 @@ inline Rgb voxelColour(const mapping::MobilityOcTreeNode& n) {
 /// is NaN, or the grid would exceed 2^20 cells per side.
 TopView computeTopView(const mapping::MobilityOcTree& tree, const std::vector<Eigen::Vector2d>& also_cover = {},
                        int max_cells_per_side = 0, double max_z = std::numeric_limits<double>::infinity());
+
+/// UsageError "--max-z Z: no surface voxel has its top at or below it (the lowest top is
+/// at z = ...)" when the cut left every cell of `view` empty.
+void requireSurfaceBelowCut(const TopView& view, const mapping::MobilityOcTree& tree, double max_z);
+
+/// What a top-view picture shows besides the cells: a title, the camera path, extra
+/// legend entries and one marked point.
+struct TopViewPicture {
+  std::string title;
+  std::vector<Eigen::Vector2d> path;      ///< camera positions, map frame (x, y)
+  std::vector<std::size_t> run_starts{0};  ///< indices into path where a run begins (no line into them)
+  /// Legend swatches under "UNKNOWN", e.g. {purple, "NOT REACHABLE"}.
+  std::vector<std::pair<Rgb, std::string>> swatches;
+  std::optional<Eigen::Vector2d> mark;     ///< drawn as a black ring, e.g. a start point
+  std::string mark_label;                  ///< its legend entry
+};
+
+/// The picture of `export --png` and `reach --png`: the cells (x right, y up), the camera
+/// path, a scale bar, the mobility colour bar and the legend. `max_pixels` is the
+/// longest side of the map area.
+Canvas drawTopView(const TopView& view, const TopViewPicture& picture, int max_pixels);
 
 }  // namespace mobmap::app
