@@ -252,6 +252,25 @@ TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   ASSERT_GE(ij["walkable_levels"].size(), 1u) << ij.dump();
   EXPECT_NEAR(ij["walkable_levels"][0]["z_m"].get<double>(), 0.0, 0.03);
   EXPECT_GT(ij["walkable_levels"][0]["share"].get<double>(), 0.5);
+  // Reach: from the first camera position, the corridor floor (z = 0) in view.
+  const Result walk = run("reach " + map + " --json");
+  ASSERT_EQ(walk.code, 0) << walk.out;
+  const auto rj = nlohmann::json::parse(walk.out);
+  EXPECT_NEAR(rj["start"]["place"][2].get<double>(), 0.0, 0.03);
+  EXPECT_GT(rj["reachable"]["area_m2"].get<double>(), 2.0) << rj.dump();
+  EXPECT_LE(rj["reachable"]["places"].get<std::size_t>(), rj["standable"]["places"].get<std::size_t>());
+  const Result reach_text = run("reach " + map + " --from 2.01 0.01 0 --png " + dir + "/reach.png");
+  ASSERT_EQ(reach_text.code, 0) << reach_text.out;
+  EXPECT_NE(reach_text.out.find("start: the surface at (2.01, 0.01, 0.02) m"), std::string::npos) << reach_text.out;
+  EXPECT_NE(reach_text.out.find("reachable:"), std::string::npos) << reach_text.out;
+  EXPECT_TRUE(fs::exists(dir + "/reach.png"));
+  const Result nowhere = run("reach " + map + " --from 50 50 0");
+  EXPECT_EQ(nowhere.code, 1);
+  EXPECT_NE(nowhere.out.find("no place to stand"), std::string::npos) << nowhere.out;
+  const Result bad_step = run("reach " + map + " --max-step -0.1");
+  EXPECT_EQ(bad_step.code, 2);
+  EXPECT_NE(bad_step.out.find("max_step_m"), std::string::npos) << bad_step.out;
+  EXPECT_EQ(run("reach " + map + " --max-z 0").code, 2);  // the cut is for --png
   const Result ev = run("evaluate " + map + " --truth " + dir + "/seq/ground_truth.json --min-count 1 --json");
   ASSERT_EQ(ev.code, 0) << ev.out;
   EXPECT_GT(nlohmann::json::parse(ev.out)["surfaces"][0]["voxels"].get<int>(), 100);  // the floor
@@ -540,7 +559,7 @@ TEST(Cli, LoungeFloorIsWalkableWithGravityFoundFromTheFloor) {
 // `info`'s walkable levels on the real kitchen (frames 40-100, every third, which show
 // most floor): the floor about 1.47 m and the table top about 0.77 m below the world
 // origin along gravity (data README), the floor holding most walkable voxels.
-TEST(Cli, InfoFindsTheRedkitchenFloorAndTableTopLevels) {
+TEST(Cli, InfoAndReachFindTheRedkitchenFloorAndTableTop) {
   const std::string data = std::string(MOBMAP_SHARED_DATA_DIR) + "/7scenes-redkitchen";
   if (!fs::exists(data)) GTEST_SKIP() << "shared data not found at " << data;
   const std::string dir = tempDir("levels");
@@ -557,6 +576,27 @@ TEST(Cli, InfoFindsTheRedkitchenFloorAndTableTopLevels) {
   const Result text = run("info " + dir + "/m.ot");
   EXPECT_NE(text.out.find("walkable levels (top faces of voxels >= 0.75, share of them): z = -1.4"), std::string::npos)
       << text.out;
+  // Reach from the first camera position starts on the floor, not on the table top
+  // nearer the camera, and cannot climb the 0.7 m to the table, which can be stood on.
+  const Result reach = run("reach " + dir + "/m.ot --json --png " + dir + "/reach.png");
+  ASSERT_EQ(reach.code, 0) << reach.out;
+  const auto rj = nlohmann::json::parse(reach.out);
+  EXPECT_NEAR(rj["start"]["place"][2].get<double>(), -1.47, 0.05) << rj.dump();
+  EXPECT_EQ(rj["start"]["rule"], "largest-level");
+  EXPECT_GT(rj["reachable"]["area_m2"].get<double>(), 0.5) << rj.dump();
+  bool table_unreachable = false;
+  for (const auto& l : rj["unreachable_levels"]) table_unreachable = table_unreachable || std::abs(l["z_m"].get<double>() + 0.77) < 0.05;
+  EXPECT_TRUE(table_unreachable) << rj.dump();
+  EXPECT_TRUE(fs::exists(dir + "/reach.png"));
+  // Started on the table top (the nearest place below a point 0.25 m above its middle),
+  // the floor is out of reach.
+  const Result on_table = run("reach " + dir + "/m.ot --json --from -0.58 1.62 -0.5 --start-radius 0.3");
+  ASSERT_EQ(on_table.code, 0) << on_table.out;
+  const auto tj = nlohmann::json::parse(on_table.out);
+  EXPECT_NEAR(tj["start"]["place"][2].get<double>(), -0.77, 0.05) << tj.dump();
+  bool floor_unreachable = false;
+  for (const auto& l : tj["unreachable_levels"]) floor_unreachable = floor_unreachable || std::abs(l["z_m"].get<double>() + 1.47) < 0.05;
+  EXPECT_TRUE(floor_unreachable) << tj.dump();
   fs::remove_all(dir);
 }
 

@@ -46,6 +46,7 @@ int main(int argc, char** argv) {
   commands["analyze"] = mobmap::app::addAnalyzeCommand(app);
   commands["build"] = mobmap::app::addBuildCommand(app);
   commands["query"] = mobmap::app::addQueryCommand(app);
+  commands["reach"] = mobmap::app::addReachCommand(app);
   commands["info"] = mobmap::app::addInfoCommand(app);
   commands["evaluate"] = mobmap::app::addEvaluateCommand(app);
   commands["export"] = mobmap::app::addExportCommand(app);

@@ -1,0 +1,214 @@
+// `mobmap reach`: which surfaces a robot can walk to from where it starts
+// (mapping::computeReachability), in numbers and as a top view.
+#include "commands.hpp"
+#include "io_error.hpp"
+#include "levels.hpp"
+#include "map_files.hpp"
+#include "top_view.hpp"
+
+#include "mobmap/mapping/reachability.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <limits>
+#include <memory>
+
+namespace mobmap::app {
+namespace {
+
+/// Standable places the robot cannot get to, in the pictures.
+constexpr Rgb kUnreachable{150, 70, 210};
+
+/// A surface that cannot be stood on: its colour washed out, so what is reachable stands out.
+Rgb pale(const Rgb& c) {
+  Rgb out;
+  for (std::size_t i = 0; i < 3; ++i) out[i] = static_cast<std::uint8_t>((c[i] * 2 + 255 * 3) / 5);
+  return out;
+}
+
+}  // namespace
+
+Command addReachCommand(CLI::App& app) {
+  auto* cmd = app.add_subcommand(
+      "reach", "Which walkable surfaces a robot can get to from where it starts, by steps and gaps it can manage");
+  struct Options {
+    std::string map, png, frame = "map", rule;
+    std::vector<double> from;
+    mapping::ReachParams params;
+    int max_pixels = 1400;
+    double max_z = std::numeric_limits<double>::infinity();
+    bool json = false;
+  };
+  auto o = std::make_shared<Options>();
+  cmd->add_option("MAP", o->map, "A .ot map written by `mobmap build`")->required();
+  cmd->add_option("--from", o->from,
+                  "X Y Z: where the robot is (metres); it starts on the walkable surface nearest below it. Default: the "
+                  "first camera position of the map's MAP.json")
+      ->expected(3);
+  cmd->add_option("--input-frame", o->frame, "Frame of --from: map (gravity aligned) or world (the data's own)")
+      ->check(CLI::IsMember({"map", "world"}))
+      ->capture_default_str();
+  cmd->add_option("--max-step", o->params.max_step_m, "Highest step up or down between neighbouring places, metres")
+      ->capture_default_str();
+  cmd->add_option("--min-mobility", o->params.min_mobility, "Lowest mobility the robot stands on")->capture_default_str();
+  cmd->add_option("--clearance", o->params.clearance_m,
+                  "Free height needed above a place (the robot's height), metres; 0 does not check. Unseen space counts as free")
+      ->capture_default_str();
+  cmd->add_option("--max-gap", o->params.max_gap_m,
+                  "Widest run of unobserved columns stepped over, metres (never across anything occupied near the walking height)")
+      ->capture_default_str();
+  auto* radius = cmd->add_option("--start-radius", o->params.start_radius_m,
+                                 "How far around the start point to look for a place to stand, metres (default 0.5 with "
+                                 "--from, 2 from the camera)");
+  cmd->add_option("--start", o->rule,
+                  "Which place near the start point to start on: the nearest (then the highest), or one on the height "
+                  "with the most standable area in the map, in the largest region there (for a camera position: the "
+                  "floor, not a chair seat or table nearer the camera). Default: nearest with --from, largest-level "
+                  "from the camera")
+      ->check(CLI::IsMember({"nearest", "largest-level"}));
+  cmd->add_option("--png", o->png,
+                  "Top view of the highest surface per column: reachable in mobility colours, purple where it can be stood on "
+                  "but not reached, pale where it cannot be stood on");
+  cmd->add_option("--max-pixels", o->max_pixels, "Longest side of the picture's map area (as export)")
+      ->check(CLI::Range(64, 16384))
+      ->capture_default_str();
+  auto* max_z = cmd->add_option("--max-z", o->max_z,
+                                "Top view: the highest surface at or below this height (map frame, metres), as export: "
+                                "the floor under a table");
+  cmd->add_flag("--json", o->json, "One JSON object instead of the text");
+  return [o, radius, max_z]() {
+    if (max_z->count() > 0 && o->png.empty()) throw UsageError("--max-z cuts the top view: it needs --png");
+    if (!std::isfinite(o->max_z) && max_z->count() > 0) throw UsageError("--max-z must be a finite height in metres");
+    if (radius->count() == 0) o->params.start_radius_m = o->from.empty() ? 2.0 : 0.5;
+    if (o->rule.empty()) o->rule = o->from.empty() ? "largest-level" : "nearest";
+    o->params.start_rule =
+        o->rule == "nearest" ? mapping::ReachParams::Start::kNearest : mapping::ReachParams::Start::kLargestLevel;
+    try {
+      mapping::validate(o->params);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
+    if (!o->from.empty() && !Eigen::Map<const Eigen::Vector3d>(o->from.data()).allFinite()) {
+      throw UsageError("--from: values must be finite");
+    }
+    auto tree = mapping::loadMobilityMap(o->map);
+    const mapping::MapMetadata metadata = mapping::readMapMetadata(o->map);
+    const mapping::MobilityMap map = mapping::openMap(std::move(tree), metadata);
+    const CameraPath camera = cameraPath(metadataJson(metadata));
+    std::vector<Eigen::Vector2d> path;
+    for (const Eigen::Vector3d& p : camera.positions) path.push_back(p.head<2>());
+    Eigen::Vector3d start;
+    if (!o->from.empty()) {
+      start = Eigen::Vector3d(o->from[0], o->from[1], o->from[2]);
+      if (o->frame == "world") start = map.worldToMap(start);
+    } else if (!camera.positions.empty()) {
+      start = camera.positions.front();
+    } else {
+      throw UsageError(o->map + ": no camera path in " + mapping::mapFileStem(o->map) +
+                       ".json to start from; give --from X Y Z");
+    }
+    const mapping::Reachability r = mapping::computeReachability(map.tree(), start, o->params);
+    if (!r.start()) {
+      char msg[256];
+      std::snprintf(msg, sizeof msg,
+                    "no place to stand (mobility >= %.2f) within %.2f m of (%.2f, %.2f) with its top at or below z = %.2f m "
+                    "(map frame); give --from nearer a walkable surface, or a larger --start-radius",
+                    o->params.min_mobility, o->params.start_radius_m, start.x(), start.y(), start.z() + o->params.max_step_m);
+      throw std::runtime_error(o->map + ": " + msg);
+    }
+    const mapping::Place& s = r.places()[*r.start()];
+    const double res = r.resolution(), cell_m2 = res * res;
+    // Where the standable places that cannot be reached gather.
+    std::map<long, std::size_t> bins;
+    for (const mapping::Place& p : r.places()) {
+      if (p.standable && !p.reachable) ++bins[std::lround(p.top_z / res)];
+    }
+    const std::size_t unreachable = r.standableCount() - r.reachableCount();
+    const std::vector<Level> levels = gatherLevels(std::move(bins), res);
+    const auto& q = o->params;
+    if (o->json) {
+      nlohmann::json j{{"start", {{"from", {start.x(), start.y(), start.z()}}, {"rule", o->rule}, {"place", {s.x, s.y, s.top_z}}}},
+                       {"frame", "map"},
+                       {"params",
+                        {{"max_step_m", q.max_step_m},
+                         {"min_mobility", q.min_mobility},
+                         {"clearance_m", q.clearance_m},
+                         {"max_gap_m", q.max_gap_m},
+                         {"start_radius_m", q.start_radius_m}}},
+                       {"standable", {{"places", r.standableCount()}, {"area_m2", r.standableCount() * cell_m2}}},
+                       {"reachable", {{"places", r.reachableCount()}, {"area_m2", r.reachableCount() * cell_m2}}},
+                       {"unreachable", {{"places", unreachable}, {"area_m2", unreachable * cell_m2}}}};
+      j["unreachable_levels"] = nlohmann::json::array();
+      for (const Level& l : levels) j["unreachable_levels"].push_back({{"z_m", l.z_m}, {"places", l.count}, {"share", l.share}});
+      std::cout << j.dump() << "\n";
+    } else {
+      std::printf("start: the surface at (%.2f, %.2f, %.2f) m, map frame (%s within %.2f m of %s)\n", s.x, s.y, s.top_z,
+                  o->rule == "nearest" ? "the nearest place to stand"
+                                       : "in the largest region of the map's largest walkable level, the nearest",
+                  q.start_radius_m, o->from.empty() ? "the first camera position" : "--from");
+      std::printf("robot: steps up to %.2f m, gaps up to %.2f m, stands on mobility >= %.2f, ", q.max_step_m, q.max_gap_m,
+                  q.min_mobility);
+      if (q.clearance_m > 0) {
+        std::printf("needs %.2f m of clearance\n", q.clearance_m);
+      } else {
+        std::printf("clearance not checked\n");
+      }
+      const double standable = static_cast<double>(r.standableCount());
+      std::printf("places to stand: %zu (%.2f m2)\n", r.standableCount(), standable * cell_m2);
+      std::printf("reachable:       %zu (%.2f m2, %.1f %%)\n", r.reachableCount(), r.reachableCount() * cell_m2,
+                  standable > 0 ? 100.0 * r.reachableCount() / standable : 0.0);
+      std::printf("not reachable:   %zu (%.2f m2)", unreachable, unreachable * cell_m2);
+      if (!levels.empty()) {
+        std::printf(", gathered at");
+        for (std::size_t i = 0; i < levels.size(); ++i) {
+          std::printf("%s z = %.2f m (%.2f m2)", i ? "," : "", levels[i].z_m, levels[i].count * cell_m2);
+        }
+      }
+      std::printf("\n");
+    }
+    if (o->png.empty()) return 0;
+    TopView view;
+    try {
+      view = computeTopView(map.tree(), path, o->max_pixels, o->max_z);
+    } catch (const std::invalid_argument& e) {
+      throw IoError(o->map, std::string("cannot draw a top view: ") + e.what());
+    }
+    requireSurfaceBelowCut(view, map.tree(), o->max_z);
+    for (std::size_t i = 0; i < view.top.size(); ++i) {
+      if (std::isinf(view.top[i])) continue;
+      const mapping::Place* p = r.placeAt(view.top_key[i]);
+      if (!p || !p->standable) {
+        view.colour[i] = pale(view.colour[i]);
+      } else if (!p->reachable) {
+        view.colour[i] = kUnreachable;
+      }
+    }
+    TopViewPicture picture;
+    char title[200];
+    std::snprintf(title, sizeof title, "REACHABLE FROM THE START: STEPS UP TO %.2f M, GAPS UP TO %.2f M, MOBILITY >= %.2f%s",
+                  q.max_step_m, q.max_gap_m, q.min_mobility, q.clearance_m > 0 ? ", WITH CLEARANCE" : "");
+    picture.title = title;
+    if (max_z->count() > 0) {
+      std::snprintf(title, sizeof title, " (HIGHEST SURFACE AT OR BELOW Z = %.2f M)", o->max_z);
+      picture.title += title;
+    }
+    picture.path = std::move(path);
+    picture.run_starts = camera.run_starts;
+    picture.swatches = {{kUnreachable, "NOT REACHABLE"}, {pale(mobilityColour(0.0)), "CANNOT STAND (PALE)"}};
+    picture.mark = Eigen::Vector2d(s.x, s.y);
+    picture.mark_label = "START";
+    const Canvas c = drawTopView(view, picture, o->max_pixels);
+    c.save(o->png);
+    if (!o->json) {
+      std::printf("wrote %s (the highest surface per column: reachable in mobility colours, purple where it can be stood on "
+                  "but not reached, pale where it cannot be stood on)\n",
+                  o->png.c_str());
+    }
+    return 0;
+  };
+}
+
+}  // namespace mobmap::app
