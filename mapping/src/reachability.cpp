@@ -25,6 +25,10 @@ struct Interval {
   float mobility;
 };
 
+// The key of the voxel holding coordinate c, as OctoMap's coordToKey computes it (but
+// not clamped to 16 bits, so callers can tell a point outside the tree).
+long keyOf(double c, double res) { return static_cast<long>(std::floor((1.0 / res) * c)) + 32768L; }
+
 // Whole voxels in `metres`, with a little slack so 0.15 / 0.01 counts as 15 (not 14.999...).
 int voxels(double metres, double res) { return static_cast<int>(std::floor(metres / res + 1e-6)); }
 
@@ -40,9 +44,7 @@ void validate(const ReachParams& p) {
 
 const Place* Reachability::placeBelow(const Eigen::Vector3d& p, double max_drop_m) const {
   if (!p.allFinite() || !(max_drop_m >= 0) || !std::isfinite(max_drop_m) || resolution_ <= 0) return nullptr;
-  // The z key of the voxel holding p, computed as OctoMap does (16-bit keys, centred).
-  const auto key = [this](double c) { return static_cast<long>(std::floor(c / resolution_)) + 32768L; };
-  const long kx = key(p.x()), ky = key(p.y()), kz = key(p.z());
+  const long kx = keyOf(p.x(), resolution_), ky = keyOf(p.y(), resolution_), kz = keyOf(p.z(), resolution_);
   if (kx < 0 || ky < 0 || kx > 65535 || ky > 65535) return nullptr;
   const auto col = columns_.find(columnOf(static_cast<unsigned>(kx), static_cast<unsigned>(ky)));
   if (col == columns_.end()) return nullptr;
@@ -182,8 +184,7 @@ Reachability computeReachability(const MobilityOcTree& tree, const Eigen::Vector
   }
 
   // The start among the standable places near the start point.
-  const auto keyOf = [res](double c) { return static_cast<long>(std::floor(c / res)) + 32768L; };
-  const long sx = keyOf(start.x()), sy = keyOf(start.y());
+  const long sx = keyOf(start.x(), res), sy = keyOf(start.y(), res);
   const long rad = static_cast<long>(std::ceil(params.start_radius_m / res));
   const double max_top = start.z() + params.max_step_m + 1e-9;
   // kLargestLevel: the height with the most standable places within 4 cm (at least a
