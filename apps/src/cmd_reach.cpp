@@ -112,11 +112,12 @@ Command addReachCommand(CLI::App& app) {
     }
     const mapping::Reachability r = mapping::computeReachability(map.tree(), start, o->params);
     if (!r.start()) {
-      char msg[256];
+      char msg[320];
       std::snprintf(msg, sizeof msg,
-                    "no place to stand (mobility >= %.2f) within %.2f m of (%.2f, %.2f) with its top at or below z = %.2f m "
+                    "no place to stand (mobility >= %.2f%s) within %.2f m of (%.2f, %.2f) with its top at or below z = %.2f m "
                     "(map frame); give --from nearer a walkable surface, or a larger --start-radius",
-                    o->params.min_mobility, o->params.start_radius_m, start.x(), start.y(), start.z() + o->params.max_step_m);
+                    o->params.min_mobility, o->rule == "nearest" ? "" : ", on the map's largest walkable level",
+                    o->params.start_radius_m, start.x(), start.y(), start.z() + o->params.max_step_m);
       throw std::runtime_error(o->map + ": " + msg);
     }
     const mapping::Place& s = r.places()[*r.start()];
