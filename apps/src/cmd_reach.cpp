@@ -62,7 +62,7 @@ Command addReachCommand(CLI::App& app) {
       ->capture_default_str();
   auto* radius = cmd->add_option("--start-radius", o->params.start_radius_m,
                                  "How far around the start point to look for a place to stand, metres (default 0.5 with "
-                                 "--from, 2 from the camera)");
+                                 "--from, 5 from the camera: a level camera 1.5 m up first sees the floor ~4 m ahead)");
   cmd->add_option("--start", o->rule,
                   "Which place near the start point to start on: the nearest (then the highest), or one on the height "
                   "with the most standable area in the map, in the largest region there (for a camera position: the "
@@ -82,7 +82,7 @@ Command addReachCommand(CLI::App& app) {
   return [o, radius, max_z]() {
     if (max_z->count() > 0 && o->png.empty()) throw UsageError("--max-z cuts the top view: it needs --png");
     if (!std::isfinite(o->max_z) && max_z->count() > 0) throw UsageError("--max-z must be a finite height in metres");
-    if (radius->count() == 0) o->params.start_radius_m = o->from.empty() ? 2.0 : 0.5;
+    if (radius->count() == 0) o->params.start_radius_m = o->from.empty() ? 5.0 : 0.5;
     if (o->rule.empty()) o->rule = o->from.empty() ? "largest-level" : "nearest";
     o->params.start_rule =
         o->rule == "nearest" ? mapping::ReachParams::Start::kNearest : mapping::ReachParams::Start::kLargestLevel;
