@@ -521,6 +521,13 @@ TEST(Cli, FivePeopleAloneMapsAWalkableFloorAndUntraversablePeople) {
   EXPECT_GT(walkable, 0.75 * on_floor) << walkable << " of " << on_floor;
   ASSERT_GT(upright, 3000);
   EXPECT_GT(blocked, 0.95 * upright) << blocked << " of " << upright;
+  // Reach from the camera: the floor it first sees 2-3 m ahead, most of it reachable
+  // around the people.
+  const Result reach = run("reach " + dir + "/m.ot --json");
+  ASSERT_EQ(reach.code, 0) << reach.out;
+  const auto rj = nlohmann::json::parse(reach.out);
+  EXPECT_NEAR(rj["start"]["place"][2].get<double>(), -1.30, 0.06) << rj.dump();
+  EXPECT_GT(rj["reachable"]["places"].get<double>(), 0.75 * rj["standable"]["places"].get<double>()) << rj.dump();
   fs::remove_all(dir);
 }
 
