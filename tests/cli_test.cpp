@@ -264,6 +264,28 @@ TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   EXPECT_NE(reach_text.out.find("start: the surface at (2.01, 0.01, 0.02) m"), std::string::npos) << reach_text.out;
   EXPECT_NE(reach_text.out.find("reachable:"), std::string::npos) << reach_text.out;
   EXPECT_TRUE(fs::exists(dir + "/reach.png"));
+  // --pcd: every place with its flags; as many reachable as the summary says, each standable.
+  ASSERT_EQ(run("reach " + map + " --pcd " + dir + "/reach.pcd").code, 0);
+  std::ifstream pcd(dir + "/reach.pcd");
+  std::string line;
+  std::size_t points = 0, reachable = 0, declared = 0;
+  while (std::getline(pcd, line) && line != "DATA ascii") {
+    if (line.rfind("POINTS ", 0) == 0) declared = std::stoul(line.substr(7));
+  }
+  while (std::getline(pcd, line)) {
+    std::istringstream in(line);
+    std::vector<std::string> f{std::istream_iterator<std::string>(in), std::istream_iterator<std::string>()};
+    ASSERT_EQ(f.size(), 6u) << line;
+    const double m = std::stod(f[3]);  // "nan" when unknown, which >> would not read
+    const int standable = std::stoi(f[4]), reached = std::stoi(f[5]);
+    ++points;
+    if (!reached) continue;
+    ++reachable;
+    EXPECT_EQ(standable, 1) << line;
+    EXPECT_GE(m, 0.5) << line;
+  }
+  EXPECT_EQ(points, declared);
+  EXPECT_EQ(reachable, rj["reachable"]["places"].get<std::size_t>());
   const Result nowhere = run("reach " + map + " --from 50 50 0");
   EXPECT_EQ(nowhere.code, 1);
   EXPECT_NE(nowhere.out.find("no place to stand"), std::string::npos) << nowhere.out;

@@ -1,6 +1,7 @@
 // `mobmap reach`: which surfaces a robot can walk to from where it starts
 // (mapping::computeReachability), in numbers and as a top view.
 #include "commands.hpp"
+#include "files.hpp"
 #include "io_error.hpp"
 #include "levels.hpp"
 #include "map_files.hpp"
@@ -35,7 +36,7 @@ Command addReachCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "reach", "Which walkable surfaces a robot can get to from where it starts, by steps and gaps it can manage");
   struct Options {
-    std::string map, png, frame = "map", rule;
+    std::string map, png, pcd, frame = "map", rule;
     std::vector<double> from;
     mapping::ReachParams params;
     int max_pixels = 1400;
@@ -72,6 +73,9 @@ Command addReachCommand(CLI::App& app) {
   cmd->add_option("--png", o->png,
                   "Top view of the highest surface per column: reachable in mobility colours, purple where it can be stood on "
                   "but not reached, pale where it cannot be stood on");
+  cmd->add_option("--pcd", o->pcd,
+                  "Every place (the top voxel of each run of occupied voxels in a column) at its top face, with fields "
+                  "mobility (nan if unknown), standable and reachable (0 or 1); map frame, ASCII");
   cmd->add_option("--max-pixels", o->max_pixels, "Longest side of the picture's map area (as export)")
       ->check(CLI::Range(64, 16384))
       ->capture_default_str();
@@ -169,6 +173,20 @@ Command addReachCommand(CLI::App& app) {
         }
       }
       std::printf("\n");
+    }
+    if (!o->pcd.empty()) {
+      std::string text = "# .PCD v0.7 - mobmap reach: places (top faces of runs of occupied voxels), map frame\n"
+                         "VERSION 0.7\nFIELDS x y z mobility standable reachable\nSIZE 4 4 4 4 1 1\nTYPE F F F F U U\n"
+                         "COUNT 1 1 1 1 1 1\nWIDTH " + std::to_string(r.places().size()) +
+                         "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + std::to_string(r.places().size()) + "\nDATA ascii\n";
+      char line[128];
+      for (const mapping::Place& p : r.places()) {
+        std::snprintf(line, sizeof line, "%.4f %.4f %.4f %.5f %d %d\n", p.x, p.y, p.top_z, p.has_mobility ? p.mobility : std::nan(""),
+                      p.standable ? 1 : 0, p.reachable ? 1 : 0);
+        text += line;
+      }
+      writeTextFileAtomically(o->pcd, text);
+      if (!o->json) std::printf("wrote %s (%zu places)\n", o->pcd.c_str(), r.places().size());
     }
     if (o->png.empty()) return 0;
     TopView view;
