@@ -88,9 +88,6 @@ TopView computeTopView(const mapping::MobilityOcTree& t, const std::vector<Eigen
   return v;
 }
 
-}  // namespace mobmap::app
-
-namespace mobmap::app {
 namespace {
 
 const Rgb kBlack{0, 0, 0};
