@@ -27,7 +27,8 @@ void put(MobilityOcTree& t, int i, int j, int k, double mobility) {
 }
 
 // A floor (tops at 0.02 m) with stairs up to a platform, a ledge, a table, a walled room,
-// a hole across the floor and a strip of poor floor in front of an annex. Every region
+// a hole across the floor, a dais beside a noisy floor voxel and a strip of poor floor
+// in front of an annex. Every region
 // is a rectangle of columns [i0, i1) x [j0, j1).
 struct Scene {
   MobilityOcTree tree{kRes};
@@ -67,6 +68,14 @@ struct Scene {
         }
       }
     }
+    // A dais with its top 16 cm above the floor's (0.18 m), x and y in [0.2, 0.3), and
+    // beside it one floor voxel a voxel too high (noise): 14 cm from the dais's top.
+    for (int i = 10; i < 15; ++i) {
+      for (int j = 10; j < 15; ++j) {
+        for (int k = 1; k <= 8; ++k) put(tree, i, j, k, k == 8 ? 1.0 : 0.0);
+      }
+    }
+    put(tree, 9, 12, 1, 1.0);
     // An annex, x in [3.1, 3.5), y in [0, 0.8), reached only over floor of mobility 0.2
     // 10 cm wide along its west side (x in [3.0, 3.1)) and its north side (y in [0.8, 0.9)).
     for (int i = 150; i < 175; ++i) {
@@ -118,10 +127,19 @@ TEST(Reachability, StepsLedgesTablesWallsHolesAndPoorFloor) {
   for (const Place& p : r.places()) reachable += p.reachable;
   EXPECT_EQ(reachable, r.reachableCount());
 
+  // The dais: tops 7 voxels apart (the noisy floor voxel) may hide a step of nearly 8,
+  // 16 cm, more than 15; within 20 cm it is reachable.
+  EXPECT_TRUE(placeAt(r, 0.19, 0.25, 0.04).reachable);
+  EXPECT_FALSE(placeAt(r, 0.25, 0.25, 0.18).reachable);
+
   // Each limit moves what is reachable, and only that.
   ReachParams p;
-  p.max_step_m = 0.30;
+  p.max_step_m = 0.30;  // tops 15 voxels apart may hide a step of nearly 16: not enough
+  EXPECT_FALSE(placeAt(computeReachability(s.tree, camera, p), 2.5, 0.3, 0.32).reachable);
+  p.max_step_m = 0.32;
   EXPECT_TRUE(placeAt(computeReachability(s.tree, camera, p), 2.5, 0.3, 0.32).reachable);
+  p.max_step_m = 0.20;
+  EXPECT_TRUE(placeAt(computeReachability(s.tree, camera, p), 0.25, 0.25, 0.18).reachable);
   p.max_step_m = 0.09;  // the 10 cm stairs are too high now
   const Reachability low = computeReachability(s.tree, camera, p);
   EXPECT_FALSE(placeAt(low, 1.1, 0.3, 0.12).reachable);
@@ -168,6 +186,7 @@ TEST(Reachability, RejectsInvalidParamsAndStartsNamingThem) {
   const MobilityOcTree t(kRes);
   for (const auto& [field, set] : std::vector<std::pair<std::string, std::function<void(ReachParams&)>>>{
            {"max_step_m", [](ReachParams& p) { p.max_step_m = -0.1; }},
+           {"max_step_m", [](ReachParams& p) { p.max_step_m = 0.039; }},  // under two 2 cm voxels
            {"min_mobility", [](ReachParams& p) { p.min_mobility = 1.5; }},
            {"clearance_m", [](ReachParams& p) { p.clearance_m = NAN; }},
            {"max_gap_m", [](ReachParams& p) { p.max_gap_m = 2.0; }},
@@ -195,7 +214,7 @@ std::set<std::tuple<int, int, int>> bruteForceReachable(const std::set<std::tupl
     bool standable;
   };
   std::vector<P> places;
-  const int step = static_cast<int>(std::floor(p.max_step_m / kRes + 1e-6));
+  const int step = static_cast<int>(std::floor(p.max_step_m / kRes + 1e-6)) - 1;  // a voxel of margin
   const int gap = static_cast<int>(std::floor(p.max_gap_m / kRes + 1e-6));
   const int clear = static_cast<int>(std::ceil(p.clearance_m / kRes - 1e-6));
   for (const auto& [i, j, k] : occupied) {
@@ -328,7 +347,7 @@ TEST(Reachability, EqualsABruteForceReferenceOnRandomMapsWithPrunedBlocks) {
     t.prune();
     for (auto it = t.begin_leafs(); it != t.end_leafs(); ++it) pruned += it.getSize() > 1.5 * kRes;
     ReachParams p;
-    p.max_step_m = 0.02 * static_cast<int>(u(rng) * 4);
+    p.max_step_m = 0.02 * (2 + static_cast<int>(u(rng) * 3));
     p.max_gap_m = 0.02 * static_cast<int>(u(rng) * 3);
     p.clearance_m = u(rng) < 0.5 ? 0.0 : 0.02 * static_cast<int>(1 + u(rng) * 6);
     p.min_mobility = 0.5;

@@ -52,7 +52,8 @@ Command addReachCommand(CLI::App& app) {
   cmd->add_option("--input-frame", o->frame, "Frame of --from: map (gravity aligned) or world (the data's own)")
       ->check(CLI::IsMember({"map", "world"}))
       ->capture_default_str();
-  cmd->add_option("--max-step", o->params.max_step_m, "Highest step up or down between neighbouring places, metres")
+  cmd->add_option("--max-step", o->params.max_step_m, "Highest step up or down between neighbouring places, metres (tops are known to a voxel, so "
+                  "tops n voxels apart need n + 1 voxels within it; at least two voxels)")
       ->capture_default_str();
   cmd->add_option("--min-mobility", o->params.min_mobility, "Lowest mobility the robot stands on")->capture_default_str();
   cmd->add_option("--clearance", o->params.clearance_m,
@@ -114,7 +115,13 @@ Command addReachCommand(CLI::App& app) {
       throw UsageError(o->map + ": no camera path in " + mapping::mapFileStem(o->map) +
                        ".json to start from; give --from X Y Z");
     }
-    const mapping::Reachability r = mapping::computeReachability(map.tree(), start, o->params);
+    const mapping::Reachability r = [&] {
+      try {
+        return mapping::computeReachability(map.tree(), start, o->params);
+      } catch (const std::invalid_argument& e) {  // a step under two voxels of this map
+        throw UsageError(e.what());
+      }
+    }();
     if (!r.start()) {
       char msg[320];
       std::snprintf(msg, sizeof msg,

@@ -132,7 +132,17 @@ Reachability computeReachability(const MobilityOcTree& tree, const Eigen::Vector
   // the lower place to a step (or the clearance) above the higher one: a wall, an
   // obstacle or a surface too poor to stand on blocks it. The rule is symmetric, so the
   // regions do not depend on where a fill starts.
-  const int step_vox = voxels(params.max_step_m, res);
+  // Tops are voxel faces: tops n voxels apart can hide a true step of nearly n + 1
+  // voxels (a floor at the bottom of its voxel, a tread at the top of its own). A join
+  // needs n + 1 voxels within max_step_m, so the step is surely within it; otherwise a
+  // 17 cm riser read as 14 cm (floor noise one voxel up) passed a 15 cm limit.
+  const int step_vox = voxels(params.max_step_m, res) - 1;
+  if (step_vox < 1) {
+    std::ostringstream msg;
+    msg << "ReachParams: max_step_m is " << params.max_step_m << " (must be at least two voxels, " << 2 * res
+        << " m in this map: tops are known to a voxel, and a floor's tops differ by one)";
+    throw std::invalid_argument(msg.str());
+  }
   const int gap_vox = voxels(params.max_gap_m, res);
   const auto clearColumn = [&](long kx, long ky, int band_lo, int band_hi) {
     if (kx < 0 || ky < 0 || kx > 65535 || ky > 65535) return false;

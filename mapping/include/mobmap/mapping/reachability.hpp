@@ -18,7 +18,11 @@ namespace mobmap::mapping {
 
 /// What the robot can do, units in the names.
 struct ReachParams {
-  double max_step_m = 0.15;     ///< largest rise or drop between neighbouring places (stairs: 0.15-0.18)
+  /// Largest rise or drop between neighbouring places (stairs: 0.15-0.18). Tops are voxel
+  /// faces, so tops n voxels apart are joined only if n + 1 voxels are within this: the
+  /// true step is then surely within it (at 2 cm, 0.15 joins tops up to 12 cm apart).
+  /// At least two voxels.
+  double max_step_m = 0.15;
   double min_mobility = 0.5;    ///< a place can be stood on when its fused mobility is at least this
   /// Height above a place that must hold no occupied voxel (the robot's height); 0 does
   /// not check. Unknown space counts as free: the map only knows what it has seen.
@@ -92,10 +96,11 @@ class Reachability {
 /// Finds every place of `tree` (pruned blocks count voxel by voxel), decides which can be
 /// stood on, splits those into regions and marks the region of the start place
 /// (params.start_rule) reachable. Two standable places are joined when they are in
-/// neighbouring columns (8 around) with tops at most max_step_m apart, or in a straight
-/// line across up to max_gap_m of columns that hold no occupied voxel from max_step_m
-/// below the lower top to max_step_m (or the clearance) above the higher. Map frame, z up. std::invalid_argument for invalid params or a non-finite
-/// start; std::length_error if the map has more than 2^26 columns.
+/// neighbouring columns (8 around) with tops at most max_step_m apart (less a voxel, see
+/// ReachParams), or in a straight line across up to max_gap_m of columns that hold no
+/// occupied voxel from that step below the lower top to that step (or the clearance)
+/// above the higher. Map frame, z up. std::invalid_argument for invalid params (a
+/// max_step_m under two voxels too) or a non-finite start; std::length_error if the map has more than 2^26 columns.
 [[nodiscard]] Reachability computeReachability(const MobilityOcTree& tree, const Eigen::Vector3d& start_map,
                                                const ReachParams& params = {});
 
