@@ -48,8 +48,7 @@ Command addExportCommand(CLI::App& app) {
     // The camera path may run outside the mapped surfaces: draw all of it. A map extended
     // by later runs: each run's path starts afresh, marked by a square like the first.
     const CameraPath camera = cameraPath(metadataJson(metadata));
-    std::vector<Eigen::Vector2d> path;
-    for (const Eigen::Vector3d& p : camera.positions) path.push_back(p.head<2>());
+    std::vector<Eigen::Vector2d> path = camera.xy();
     TopView view;
     try {
       view = computeTopView(t, path, o->max_pixels, o->max_z);

@@ -103,8 +103,7 @@ Command addReachCommand(CLI::App& app) {
     const mapping::MapMetadata metadata = mapping::readMapMetadata(o->map);
     const mapping::MobilityMap map = mapping::openMap(std::move(tree), metadata);
     const CameraPath camera = cameraPath(metadataJson(metadata));
-    std::vector<Eigen::Vector2d> path;
-    for (const Eigen::Vector3d& p : camera.positions) path.push_back(p.head<2>());
+    std::vector<Eigen::Vector2d> path = camera.xy();
     Eigen::Vector3d start;
     if (!o->from.empty()) {
       start = Eigen::Vector3d(o->from[0], o->from[1], o->from[2]);

@@ -36,6 +36,13 @@ std::string describeKeyframeRule(double min_translation_m, double min_rotation_d
   return out.str();
 }
 
+std::vector<Eigen::Vector2d> CameraPath::xy() const {
+  std::vector<Eigen::Vector2d> out;
+  out.reserve(positions.size());
+  for (const Eigen::Vector3d& p : positions) out.push_back(p.head<2>());
+  return out;
+}
+
 CameraPath cameraPath(const nlohmann::json& meta) {
   CameraPath c;
   if (meta.contains("trajectory_map")) {

@@ -30,6 +30,8 @@ std::string describeKeyframeRule(double min_translation_m, double min_rotation_d
 struct CameraPath {
   std::vector<Eigen::Vector3d> positions;
   std::vector<std::size_t> run_starts{0};
+  /// The positions seen from above (x, y): what a top view draws and covers.
+  [[nodiscard]] std::vector<Eigen::Vector2d> xy() const;
 };
 CameraPath cameraPath(const nlohmann::json& meta);
 

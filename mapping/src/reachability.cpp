@@ -18,6 +18,8 @@ void fail(const char* field, double value, const char* rule) {
 
 std::uint32_t columnOf(unsigned kx, unsigned ky) { return (static_cast<std::uint32_t>(kx) << 16) | ky; }
 
+bool inTree(long kx, long ky) { return kx >= 0 && ky >= 0 && kx <= 65535 && ky <= 65535; }
+
 // Part of a column: voxels lo..hi (z keys) of one leaf, all with the leaf's mobility.
 struct Interval {
   int lo, hi;
@@ -45,11 +47,10 @@ void validate(const ReachParams& p) {
 const Place* Reachability::placeBelow(const Eigen::Vector3d& p, double max_drop_m) const {
   if (!p.allFinite() || !(max_drop_m >= 0) || !std::isfinite(max_drop_m) || resolution_ <= 0) return nullptr;
   const long kx = keyOf(p.x(), resolution_), ky = keyOf(p.y(), resolution_), kz = keyOf(p.z(), resolution_);
-  if (kx < 0 || ky < 0 || kx > 65535 || ky > 65535) return nullptr;
-  const auto col = columns_.find(columnOf(static_cast<unsigned>(kx), static_cast<unsigned>(ky)));
-  if (col == columns_.end()) return nullptr;
+  const auto* col = columnAt(kx, ky);
+  if (!col) return nullptr;
   const Place* best = nullptr;
-  for (const std::uint32_t i : col->second) {  // lowest first: the last that fits is the highest
+  for (const std::uint32_t i : *col) {  // lowest first: the last that fits is the highest
     const Place& pl = places_[i];
     if (pl.key[2] > kz) break;
     if (pl.top_z >= p.z() - max_drop_m - 1e-9) best = &pl;
@@ -57,10 +58,16 @@ const Place* Reachability::placeBelow(const Eigen::Vector3d& p, double max_drop_
   return best;
 }
 
+const std::vector<std::uint32_t>* Reachability::columnAt(long kx, long ky) const {
+  if (!inTree(kx, ky)) return nullptr;
+  const auto col = columns_.find(columnOf(static_cast<unsigned>(kx), static_cast<unsigned>(ky)));
+  return col == columns_.end() ? nullptr : &col->second;
+}
+
 const Place* Reachability::placeAt(const octomap::OcTreeKey& key) const {
-  const auto col = columns_.find(columnOf(key[0], key[1]));
-  if (col == columns_.end()) return nullptr;
-  for (const std::uint32_t i : col->second) {
+  const auto* col = columnAt(key[0], key[1]);
+  if (!col) return nullptr;
+  for (const std::uint32_t i : *col) {
     if (places_[i].key[2] == key[2]) return &places_[i];
   }
   return nullptr;
@@ -145,10 +152,10 @@ Reachability computeReachability(const MobilityOcTree& tree, const Eigen::Vector
   }
   const int gap_vox = voxels(params.max_gap_m, res);
   const auto clearColumn = [&](long kx, long ky, int band_lo, int band_hi) {
-    if (kx < 0 || ky < 0 || kx > 65535 || ky > 65535) return false;
-    const auto col = r.columns_.find(columnOf(static_cast<unsigned>(kx), static_cast<unsigned>(ky)));
-    if (col == r.columns_.end()) return true;
-    for (const std::uint32_t i : col->second) {
+    if (!inTree(kx, ky)) return false;
+    const auto* col = r.columnAt(kx, ky);
+    if (!col) return true;
+    for (const std::uint32_t i : *col) {
       if (r.run_bottom_[i] <= band_hi && r.places_[i].key[2] >= band_lo) return false;
     }
     return true;
@@ -171,10 +178,10 @@ Reachability computeReachability(const MobilityOcTree& tree, const Eigen::Vector
           if (dx == 0 && dy == 0) continue;
           for (int n = 1; n <= 1 + gap_vox; ++n) {
             const long kx = static_cast<long>(from.key[0]) + n * dx, ky = static_cast<long>(from.key[1]) + n * dy;
-            if (kx < 0 || ky < 0 || kx > 65535 || ky > 65535) break;
-            const auto col = r.columns_.find(columnOf(static_cast<unsigned>(kx), static_cast<unsigned>(ky)));
-            if (col == r.columns_.end()) continue;  // nothing to land on here; perhaps further on
-            for (const std::uint32_t j : col->second) {
+            if (!inTree(kx, ky)) break;
+            const auto* col = r.columnAt(kx, ky);
+            if (!col) continue;  // nothing to land on here; perhaps further on
+            for (const std::uint32_t j : *col) {
               const int kz_to = r.places_[j].key[2];
               if (region[j] >= 0 || !r.places_[j].standable || std::abs(kz_to - kz) > step_vox) continue;
               bool clear = true;
@@ -219,10 +226,9 @@ Reachability computeReachability(const MobilityOcTree& tree, const Eigen::Vector
   for (long dx = -rad; dx <= rad; ++dx) {
     for (long dy = -rad; dy <= rad; ++dy) {
       const long kx = sx + dx, ky = sy + dy;
-      if (kx < 0 || ky < 0 || kx > 65535 || ky > 65535) continue;
-      const auto col = r.columns_.find(columnOf(static_cast<unsigned>(kx), static_cast<unsigned>(ky)));
-      if (col == r.columns_.end()) continue;
-      for (const std::uint32_t i : col->second) {
+      const auto* col = r.columnAt(kx, ky);
+      if (!col) continue;
+      for (const std::uint32_t i : *col) {
         const Place& pl = r.places_[i];
         const double d2 = (pl.x - start.x()) * (pl.x - start.x()) + (pl.y - start.y()) * (pl.y - start.y());
         if (!pl.standable || pl.top_z > max_top || d2 > params.start_radius_m * params.start_radius_m + 1e-12) continue;

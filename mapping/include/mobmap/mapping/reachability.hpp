@@ -83,6 +83,9 @@ class Reachability {
 
  private:
   friend Reachability computeReachability(const MobilityOcTree&, const Eigen::Vector3d&, const ReachParams&);
+  /// Indices of the places in column (kx, ky), lowest first; nullptr if the column holds
+  /// none or lies outside the tree's 16-bit keys.
+  [[nodiscard]] const std::vector<std::uint32_t>* columnAt(long kx, long ky) const;
   ReachParams params_;
   double resolution_ = 0;
   std::vector<Place> places_;
