@@ -182,6 +182,75 @@ TEST(Reachability, StepsLedgesTablesWallsHolesAndPoorFloor) {
   EXPECT_EQ(nowhere.reachableCount(), 0u);
 }
 
+TEST(SoleSamples, OnePerVoxelCellCentresTurnedWithTheYawAndNoneForInvalidSoles) {
+  for (const double yaw : {0.0, 0.7, M_PI / 2}) {
+    const Foot f{1.0, -2.0, 0.3, yaw, 0.25, 0.12};
+    const std::vector<SoleSample> samples = soleSamples(f, kRes);
+    ASSERT_EQ(samples.size(), 13u * 6u);  // ceil(0.25 / 0.02) x ceil(0.12 / 0.02)
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    std::set<std::pair<long, long>> cells;
+    for (const SoleSample& s : samples) {
+      // Cell centres of a 13 x 6 grid over the sole: a = (i + 0.5) * 0.25 / 13 - 0.125.
+      const double i = (s.a + 0.125) / (0.25 / 13) - 0.5, j = (s.b + 0.06) / 0.02 - 0.5;
+      EXPECT_NEAR(i, std::round(i), 1e-9);
+      EXPECT_NEAR(j, std::round(j), 1e-9);
+      cells.insert({std::lround(i), std::lround(j)});
+      EXPECT_NEAR(s.x, 1.0 + std::cos(yaw) * s.a - std::sin(yaw) * s.b, 1e-12);
+      EXPECT_NEAR(s.y, -2.0 + std::sin(yaw) * s.a + std::cos(yaw) * s.b, 1e-12);
+      mean += Eigen::Vector2d(s.x, s.y);
+    }
+    EXPECT_EQ(cells.size(), samples.size());  // every cell once
+    EXPECT_LT((mean / samples.size() - Eigen::Vector2d(1.0, -2.0)).norm(), 1e-12);
+  }
+  EXPECT_EQ(soleSamples({0, 0, 0, 0, 0.01, 0.01}, kRes).size(), 1u);  // smaller than a voxel: one
+  EXPECT_TRUE(soleSamples({0, 0, 0, 0, 0.0, 0.1}, kRes).empty());
+  EXPECT_TRUE(soleSamples({0, 0, 0, NAN, 0.2, 0.1}, kRes).empty());
+  EXPECT_TRUE(soleSamples({INFINITY, 0, 0, 0, 0.2, 0.1}, kRes).empty());
+  EXPECT_TRUE(soleSamples({0, 0, 0, 0, 1e6, 0.1}, kRes).empty());  // 5e7 voxels long
+  EXPECT_TRUE(soleSamples({0, 0, 0, 0, 0.2, 0.1}, 0.0).empty());
+}
+
+TEST(Reachability, SoleCountsTheSamplesOnReachablePlaces) {
+  const Scene s;
+  const Reachability r = computeReachability(s.tree, {1.505, 0.8, 1.3});
+  // 24 x 12 cm soles: 12 x 6 samples, one per column.
+  const auto sole = [&](double x, double y, double z) { return r.sole({x, y, z, 0.0, 0.24, 0.12}, 0.1, 0.4); };
+  const SoleReach open = sole(1.5, 1.0, 0.02);
+  EXPECT_EQ(open.samples, 72);
+  EXPECT_EQ(open.on_place, 72);
+  EXPECT_EQ(open.reachable, 72);
+  EXPECT_DOUBLE_EQ(open.reachableFraction(), 1.0);
+  // On the ledge (30 cm up): every sample can be stood on, none reached.
+  const SoleReach ledge = sole(2.5, 0.3, 0.32);
+  EXPECT_EQ(ledge.standable, 72);
+  EXPECT_EQ(ledge.reachable, 0);
+  // Across the ledge's edge at x = 2.30, at the ledge's height: the 6 columns of samples
+  // west of it find the floor 0.30 m down (within the 0.4 searched), the 6 east of it the ledge.
+  const SoleReach edge = sole(2.30, 0.3, 0.32);
+  EXPECT_EQ(edge.on_place, 72);
+  EXPECT_EQ(edge.standable, 72);
+  EXPECT_EQ(edge.reachable, 36);
+  EXPECT_DOUBLE_EQ(edge.reachableFraction(), 0.5);
+  // Searching only 0.1 m down, the floor is out of the band: the west half finds nothing.
+  const SoleReach shallow = r.sole({2.30, 0.3, 0.32, 0.0, 0.24, 0.12}, 0.1, 0.1);
+  EXPECT_EQ(shallow.on_place, 36);
+  EXPECT_EQ(shallow.reachable, 0);
+  // Over the 4 cm hole (x in [0.40, 0.44)): two of its 12 columns of samples have no place.
+  const SoleReach hole = sole(0.42, 0.5, 0.02);
+  EXPECT_EQ(hole.on_place, 60);
+  EXPECT_EQ(hole.reachable, 60);
+  EXPECT_NEAR(hole.reachableFraction(), 60.0 / 72.0, 1e-12);
+  // The poor strip (mobility 0.2) is a place but cannot be stood on.
+  const SoleReach poor = r.sole({3.05, 0.4, 0.02, 0.0, 0.08, 0.08}, 0.1, 0.1);
+  EXPECT_EQ(poor.on_place, 16);
+  EXPECT_EQ(poor.standable, 0);
+  // Turned a quarter: the same sole across the edge now lies along it, on the floor side.
+  const SoleReach along = r.sole({2.28, 0.3, 0.32, M_PI / 2, 0.24, 0.12}, 0.1, 0.4);
+  EXPECT_EQ(along.samples, 72);
+  EXPECT_EQ(along.reachable, 48);  // x = 2.23 ... 2.33: 4 of its 6 rows are west of 2.30
+  EXPECT_EQ(Reachability().sole({0, 0, 0, 0, 0.2, 0.1}).samples, 0);
+}
+
 TEST(Reachability, RejectsInvalidParamsAndStartsNamingThem) {
   const MobilityOcTree t(kRes);
   for (const auto& [field, set] : std::vector<std::pair<std::string, std::function<void(ReachParams&)>>>{

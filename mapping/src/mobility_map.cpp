@@ -372,41 +372,52 @@ void fitSupportPlane(const std::vector<SupportSample>& support, double cos_yaw, 
 
 }  // namespace
 
-FootprintQuery MobilityMap::footprint(const Foot& f, double search_up_m, double search_down_m) const {
-  FootprintQuery out;
-  const double res = tree_->getResolution();
+std::vector<SoleSample> soleSamples(const Foot& f, double res) {
+  const bool valid = std::isfinite(f.x) && std::isfinite(f.y) && std::isfinite(f.yaw) && f.length > 0 && f.width > 0 &&
+                     res > 0 && f.length / res <= kMaxSoleSamplesPerSide && f.width / res <= kMaxSoleSamplesPerSide;
+  if (!valid) return {};
   const int nl = std::max(1, static_cast<int>(std::ceil(f.length / res)));
   const int nw = std::max(1, static_cast<int>(std::ceil(f.width / res)));
   const double c = std::cos(f.yaw), s = std::sin(f.yaw);
-  double sum = 0.0, zmin = std::numeric_limits<double>::infinity(), zmax = -zmin;
-  int known = 0;
-  out.min_mobility = 1.0;
-  // Supported samples for the plane: sole coordinates (a along the yaw, b across) and
-  // the top face of the voxel each rests on.
-  std::vector<SupportSample> support;
-  support.reserve(static_cast<std::size_t>(nl) * static_cast<std::size_t>(nw));
+  std::vector<SoleSample> out;
+  out.reserve(static_cast<std::size_t>(nl) * static_cast<std::size_t>(nw));
   for (int i = 0; i < nl; ++i) {
     for (int j = 0; j < nw; ++j) {
       const double a = (i + 0.5) * f.length / nl - 0.5 * f.length;
       const double b = (j + 0.5) * f.width / nw - 0.5 * f.width;
-      const Eigen::Vector3d p(f.x + c * a - s * b, f.y + s * a + c * b, f.z + search_up_m);
-      ++out.samples;
-      const auto q = snapDown(p, search_up_m + search_down_m);
-      if (!q) continue;
-      zmin = std::min(zmin, q->centre.z());
-      zmax = std::max(zmax, q->centre.z());
-      support.push_back({a, b, q->centre.z() + q->size_m / 2});
-      if (!q->has_mobility) continue;
-      ++known;
-      sum += q->mobility;
-      out.min_mobility = std::min(out.min_mobility, q->mobility);
+      out.push_back({a, b, f.x + c * a - s * b, f.y + s * a + c * b});
     }
+  }
+  return out;
+}
+
+FootprintQuery MobilityMap::footprint(const Foot& f, double search_up_m, double search_down_m) const {
+  FootprintQuery out;
+  const std::vector<SoleSample> samples = soleSamples(f, tree_->getResolution());
+  double sum = 0.0, zmin = std::numeric_limits<double>::infinity(), zmax = -zmin;
+  int known = 0;
+  out.min_mobility = 1.0;
+  // Supported samples for the plane: sole coordinates and the top face of the voxel
+  // each rests on.
+  std::vector<SupportSample> support;
+  support.reserve(samples.size());
+  for (const SoleSample& sample : samples) {
+    ++out.samples;
+    const auto q = snapDown({sample.x, sample.y, f.z + search_up_m}, search_up_m + search_down_m);
+    if (!q) continue;
+    zmin = std::min(zmin, q->centre.z());
+    zmax = std::max(zmax, q->centre.z());
+    support.push_back({sample.a, sample.b, q->centre.z() + q->size_m / 2});
+    if (!q->has_mobility) continue;
+    ++known;
+    sum += q->mobility;
+    out.min_mobility = std::min(out.min_mobility, q->mobility);
   }
   out.known_fraction = out.samples ? static_cast<double>(known) / out.samples : 0.0;
   out.mean_mobility = known ? sum / known : 0.0;
   if (!known) out.min_mobility = 0.0;
   out.max_height_difference_m = std::isfinite(zmin) ? zmax - zmin : 0.0;
-  fitSupportPlane(support, c, s, out);
+  fitSupportPlane(support, std::cos(f.yaw), std::sin(f.yaw), out);
   return out;
 }
 

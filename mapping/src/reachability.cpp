@@ -58,6 +58,20 @@ const Place* Reachability::placeBelow(const Eigen::Vector3d& p, double max_drop_
   return best;
 }
 
+SoleReach Reachability::sole(const Foot& foot, double search_up_m, double search_down_m) const {
+  SoleReach out;
+  if (resolution_ <= 0) return out;
+  for (const SoleSample& s : soleSamples(foot, resolution_)) {
+    ++out.samples;
+    const Place* p = placeBelow({s.x, s.y, foot.z + search_up_m}, search_up_m + search_down_m);
+    if (!p) continue;
+    ++out.on_place;
+    out.standable += p->standable ? 1 : 0;
+    out.reachable += p->reachable ? 1 : 0;
+  }
+  return out;
+}
+
 const std::vector<std::uint32_t>* Reachability::columnAt(long kx, long ky) const {
   if (!inTree(kx, ky)) return nullptr;
   const auto col = columns_.find(columnOf(static_cast<unsigned>(kx), static_cast<unsigned>(ky)));

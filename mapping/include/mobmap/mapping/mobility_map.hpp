@@ -2,6 +2,7 @@
 /// @file mobility_map.hpp
 /// Fusing scored frames into a MobilityOcTree, and the queries a footstep planner asks.
 
+#include "mobmap/mapping/foot.hpp"
 #include "mobmap/mapping/mobility_octree.hpp"
 #include "mobmap/perception/camera.hpp"
 #include "mobmap/perception/pipeline.hpp"
@@ -89,12 +90,6 @@ struct FootprintQuery {
   Eigen::Vector3d support_normal = Eigen::Vector3d::UnitZ();  ///< unit, upward (map frame)
   double support_tilt_deg = 0.0;  ///< angle between the plane's normal and +z
   double support_rms_m = 0.0;     ///< RMS of the top faces about the plane: unevenness under the sole
-};
-
-/// A rectangle sole: centre (x, y, z) in the map frame, yaw about +z (radians), length
-/// along the yaw direction, width across, metres.
-struct Foot {
-  double x = 0, y = 0, z = 0, yaw = 0, length = 0.2, width = 0.1;
 };
 
 /// Fuses scored frames. Frames: the map frame is gravity aligned (z up);

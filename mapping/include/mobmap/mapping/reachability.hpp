@@ -4,6 +4,7 @@
 /// stepping no higher than it can climb. Mobility says whether a surface can be stood
 /// on; a table top is as flat as the floor, and only reachability tells them apart.
 
+#include "mobmap/mapping/foot.hpp"
 #include "mobmap/mapping/mobility_octree.hpp"
 
 #include <Eigen/Core>
@@ -62,6 +63,17 @@ struct Place {
   bool reachable = false;     ///< standable and connected to the start by steps and gaps within the limits
 };
 
+/// How much of a sole rests on places the robot can get to: Reachability::sole().
+struct SoleReach {
+  int samples = 0;    ///< soleSamples() of the foot, one per voxel
+  int on_place = 0;   ///< samples with a place in the band searched under them
+  int standable = 0;  ///< of those, on a standable place
+  int reachable = 0;  ///< of those, on a reachable place
+  /// reachable / samples (0 without samples): like FootprintQuery::known_fraction, a
+  /// hole under part of the sole lowers it.
+  [[nodiscard]] double reachableFraction() const { return samples > 0 ? static_cast<double>(reachable) / samples : 0.0; }
+};
+
 /// The result of computeReachability(): every place of the map and which are reachable.
 /// Immutable; safe to query from several threads.
 class Reachability {
@@ -78,6 +90,10 @@ class Reachability {
   /// The highest place in the column of `p_map` whose top voxel is at or below the voxel
   /// holding p, with its top face no lower than `max_drop_m` below p.z; nullptr if none.
   [[nodiscard]] const Place* placeBelow(const Eigen::Vector3d& p_map, double max_drop_m) const;
+  /// The samples of `foot` (soleSamples()), each on placeBelow((x, y, foot.z +
+  /// search_up_m), search_up_m + search_down_m): the band MobilityMap::footprint()
+  /// searches with the same arguments, so both answers speak of the same surface.
+  [[nodiscard]] SoleReach sole(const Foot& foot, double search_up_m = 0.1, double search_down_m = 0.1) const;
   /// The place whose run's top voxel is `key`; nullptr if that voxel is not a run's top.
   [[nodiscard]] const Place* placeAt(const octomap::OcTreeKey& key) const;
 
