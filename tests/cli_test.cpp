@@ -293,6 +293,17 @@ TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   EXPECT_EQ(bad_step.code, 2);
   EXPECT_NE(bad_step.out.find("max_step_m"), std::string::npos) << bad_step.out;
   EXPECT_EQ(run("reach " + map + " --max-z 0").code, 2);  // the cut is for --png
+  // query --reach: the floor under a point from the same start; the robot's options need --reach.
+  const Result on_floor = run("query " + map + " 2.01 0.01 0.3 --snap 0.5 --reach --from 2.01 0.01 0");
+  ASSERT_EQ(on_floor.code, 0) << on_floor.out;
+  EXPECT_NE(on_floor.out.find("reach: surface top at z = 0.020 m, reachable"), std::string::npos) << on_floor.out;
+  const Result sole_text = run("query " + map + " --foot 2.01 0.01 0 0 0.25 0.12 --reach --from 2.01 0.01 0");
+  ASSERT_EQ(sole_text.code, 0) << sole_text.out;
+  EXPECT_NE(sole_text.out.find("reach: 78 of 78 samples on reachable surfaces (100 %)"), std::string::npos) << sole_text.out;
+  const Result orphan = run("query " + map + " 2 0 0 --max-step 0.2");
+  EXPECT_EQ(orphan.code, 2);
+  EXPECT_NE(orphan.out.find("requires --reach"), std::string::npos) << orphan.out;
+  EXPECT_EQ(run("query " + map + " 2 0 0 --reach --from 50 50 0").code, 1);  // no place to start on
   const Result ev = run("evaluate " + map + " --truth " + dir + "/seq/ground_truth.json --min-count 1 --json");
   ASSERT_EQ(ev.code, 0) << ev.out;
   EXPECT_GT(nlohmann::json::parse(ev.out)["surfaces"][0]["voxels"].get<int>(), 100);  // the floor
@@ -626,6 +637,47 @@ TEST(Cli, InfoAndReachFindTheRedkitchenFloorAndTableTop) {
   bool floor_unreachable = false;
   for (const auto& l : tj["unreachable_levels"]) floor_unreachable = floor_unreachable || std::abs(l["z_m"].get<double>() + 1.47) < 0.05;
   EXPECT_TRUE(floor_unreachable) << tj.dump();
+  // query --reach answers the same for points and soles: 5 cm above each start place,
+  // snapped down; soles centred there. The note (standard error) names the start.
+  const auto& f = rj["start"]["place"];
+  const auto& t = tj["start"]["place"];
+  char lines[256];
+  std::snprintf(lines, sizeof lines, "%.3f %.3f %.3f\n%.3f %.3f %.3f\n", f[0].get<double>(), f[1].get<double>(),
+                f[2].get<double>() + 0.05, t[0].get<double>(), t[1].get<double>(), t[2].get<double>() + 0.05);
+  std::ofstream(dir + "/points.txt") << lines;
+  std::snprintf(lines, sizeof lines, "%.3f %.3f %.3f 0 0.1 0.06\n%.3f %.3f %.3f 0 0.1 0.06\n", f[0].get<double>(),
+                f[1].get<double>(), f[2].get<double>(), t[0].get<double>(), t[1].get<double>(), t[2].get<double>());
+  std::ofstream(dir + "/soles.txt") << lines;
+  // The JSON answers among the lines (standard error is merged in by run()).
+  const auto answers = [](const std::string& out) {
+    std::vector<nlohmann::json> js;
+    std::istringstream in(out);
+    for (std::string l; std::getline(in, l);) {
+      if (!l.empty() && l[0] == '{') js.push_back(nlohmann::json::parse(l));
+    }
+    return js;
+  };
+  for (const bool from_table : {false, true}) {
+    const std::string start = from_table ? " --from -0.58 1.62 -0.5 --start-radius 0.3" : "";
+    const Result points = run("query " + dir + "/m.ot --snap 0.2 --reach --json" + start + " < " + dir + "/points.txt");
+    ASSERT_EQ(points.code, 0) << points.out;
+    EXPECT_NE(points.out.find(from_table ? "map frame (nearest rule)" : "map frame (largest-level rule)"), std::string::npos)
+        << points.out;
+    const auto pj = answers(points.out);
+    ASSERT_EQ(pj.size(), 2u) << points.out;
+    EXPECT_NEAR(pj[0]["reach"]["place"][2].get<double>(), f[2].get<double>(), 1e-6) << pj[0].dump();
+    EXPECT_NEAR(pj[1]["reach"]["place"][2].get<double>(), t[2].get<double>(), 1e-6) << pj[1].dump();
+    EXPECT_TRUE(pj[0]["reach"]["standable"].get<bool>() && pj[1]["reach"]["standable"].get<bool>());
+    EXPECT_EQ(pj[0]["reach"]["reachable"].get<bool>(), !from_table) << pj[0].dump();
+    EXPECT_EQ(pj[1]["reach"]["reachable"].get<bool>(), from_table) << pj[1].dump();
+    const Result soles = run("query " + dir + "/m.ot --feet --reach --json" + start + " < " + dir + "/soles.txt");
+    ASSERT_EQ(soles.code, 0) << soles.out;
+    const auto sj = answers(soles.out);
+    ASSERT_EQ(sj.size(), 2u) << soles.out;
+    EXPECT_EQ(sj[0]["reach"]["samples"].get<int>(), 15);  // 10 x 6 cm in a 2 cm map: 5 x 3
+    EXPECT_GT(sj[from_table ? 1 : 0]["reach"]["reachable_fraction"].get<double>(), 0.5) << sj[0].dump() << sj[1].dump();
+    EXPECT_EQ(sj[from_table ? 0 : 1]["reach"]["reachable"].get<int>(), 0) << sj[0].dump() << sj[1].dump();
+  }
   fs::remove_all(dir);
 }
 

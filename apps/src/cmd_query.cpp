@@ -2,6 +2,7 @@
 #include "io_error.hpp"
 #include "levels.hpp"
 #include "map_files.hpp"
+#include "reach_options.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -12,6 +13,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <vector>
 
@@ -60,6 +62,26 @@ nlohmann::json pointJson(const mapping::PointQuery& q) {
   return j;
 }
 
+nlohmann::json placeJson(const mapping::Place* p) {
+  if (!p) return {{"place", nullptr}, {"standable", false}, {"reachable", false}};
+  return {{"place", {p->x, p->y, p->top_z}}, {"standable", p->standable}, {"reachable", p->reachable}};
+}
+
+// The reach line of a point's answer (text).
+void printPlace(const mapping::Place* p, double drop) {
+  if (!p) {
+    std::printf("  reach: no surface within %.3f m below\n", drop);
+  } else if (p->reachable) {
+    std::printf("  reach: surface top at z = %.3f m, reachable\n", p->top_z);
+  } else if (p->standable) {
+    std::printf("  reach: surface top at z = %.3f m, can be stood on but not reached\n", p->top_z);
+  } else if (p->has_mobility) {
+    std::printf("  reach: surface top at z = %.3f m, cannot be stood on (mobility %.3f)\n", p->top_z, p->mobility);
+  } else {
+    std::printf("  reach: surface top at z = %.3f m, cannot be stood on (mobility unknown)\n", p->top_z);
+  }
+}
+
 void printPoint(const mapping::PointQuery& q) {
   std::printf("%-8s voxel (%.3f, %.3f, %.3f) size %.3f m", mapping::toString(q.state), q.centre.x(), q.centre.y(),
               q.centre.z(), q.size_m);
@@ -82,6 +104,8 @@ Command addQueryCommand(CLI::App& app) {
     double snap = -1;
     std::string frame = "map";
     bool json = false;
+    bool reach = false;
+    ReachOptions robot;
   };
   auto o = std::make_shared<Options>();
   cmd->add_option("MAP", o->map, "A .ot map written by `mobmap build`")->required();
@@ -95,9 +119,28 @@ Command addQueryCommand(CLI::App& app) {
   cmd->add_option("--input-frame", o->frame, "Frame of the given coordinates: map (gravity aligned) or world (the data's own)")
       ->check(CLI::IsMember({"map", "world"}))->capture_default_str();
   cmd->add_flag("--json", o->json, "One JSON object per answer");
+  auto* reach = cmd->add_flag(
+      "--reach", o->reach,
+      "Also say whether the robot can get there (as `mobmap reach`, with its options below): for a point, the surface "
+      "under it (the top of the occupied run at or below it, within --snap or one voxel); for a sole, how many of its "
+      "samples rest on reachable surfaces");
+  addReachOptions(*cmd, o->robot, "--input-frame");
+  for (CLI::Option* opt : o->robot.options) opt->needs(reach);
   return [o]() {
-    const mapping::MobilityMap map = mapping::openMap(o->map);
+    auto tree = mapping::loadMobilityMap(o->map);
+    const mapping::MapMetadata metadata = mapping::readMapMetadata(o->map);
+    const mapping::MobilityMap map = mapping::openMap(std::move(tree), metadata);
     auto toMap = [&](Eigen::Vector3d p) { return o->frame == "world" ? map.worldToMap(p) : p; };
+    // With --reach: which places the robot can get to, worked out once for every answer.
+    std::optional<ReachRun> run;
+    if (o->reach) {
+      run = runReach(o->robot, map, o->map, o->frame == "world", cameraPath(metadataJson(metadata)));
+      const mapping::Place& s = run->result.places()[*run->result.start()];
+      std::fprintf(stderr,
+                   "note: reach from the surface at (%.2f, %.2f, %.2f) m, map frame (%s rule): %zu of %zu places to stand "
+                   "are reachable\n",
+                   s.x, s.y, s.top_z, o->robot.rule.c_str(), run->result.reachableCount(), run->result.standableCount());
+    }
     // A sole: X Y Z YAW LENGTH WIDTH. `where` names its source in errors.
     auto answerFoot = [&](const std::vector<double>& s, const std::string& where) {
       if (!(s[4] > 0 && s[5] > 0 && s[4] <= 10 && s[5] <= 10)) throw UsageError(where + ": LENGTH and WIDTH must be in (0, 10] m");
@@ -107,7 +150,11 @@ Command addQueryCommand(CLI::App& app) {
         const Eigen::Vector3d h = map.rotationMapWorld() * Eigen::Vector3d(std::cos(yaw), std::sin(yaw), 0);
         yaw = std::atan2(h.y(), h.x());
       }
-      const auto f = map.footprint({c.x(), c.y(), c.z(), yaw, s[4], s[5]}, 0.1, o->snap >= 0 ? o->snap : 0.1);
+      const mapping::Foot sole{c.x(), c.y(), c.z(), yaw, s[4], s[5]};
+      const double down = o->snap >= 0 ? o->snap : 0.1;
+      const auto f = map.footprint(sole, 0.1, down);
+      std::optional<mapping::SoleReach> sole_reach;
+      if (run) sole_reach = run->result.sole(sole, 0.1, down);
       // The support plane's height and normal in the frame the sole was given in.
       const Eigen::Vector3d n = o->frame == "world" ? Eigen::Vector3d(map.rotationMapWorld().transpose() * f.support_normal)
                                                     : f.support_normal;
@@ -126,6 +173,13 @@ Command addQueryCommand(CLI::App& app) {
                                                                   {"tilt_deg", f.support_tilt_deg},
                                                                   {"rms_m", f.support_rms_m}}
                                                  : nlohmann::json();
+        if (sole_reach) {
+          j["reach"] = {{"samples", sole_reach->samples},
+                        {"on_place", sole_reach->on_place},
+                        {"standable", sole_reach->standable},
+                        {"reachable", sole_reach->reachable},
+                        {"reachable_fraction", sole_reach->reachableFraction()}};
+        }
         std::cout << j.dump() << "\n";
       } else {
         std::printf("sole: min mobility %.3f, mean %.3f, known %.0f %% of %d samples, height difference %.3f m", f.min_mobility,
@@ -135,6 +189,12 @@ Command addQueryCommand(CLI::App& app) {
                       under.x(), under.y(), under.z(), n.x(), n.y(), n.z(), f.support_tilt_deg, f.support_rms_m);
         } else {
           std::printf("; no support plane (fewer than 3 supported samples, or all on one line)\n");
+        }
+        if (sole_reach) {
+          const mapping::SoleReach& r = *sole_reach;
+          std::printf("  reach: %d of %d samples on reachable surfaces (%.0f %%); %d on surfaces that can be stood on, %d on "
+                      "any surface\n",
+                      r.reachable, r.samples, 100 * r.reachableFraction(), r.standable, r.on_place);
         }
       }
     };
@@ -159,14 +219,20 @@ Command addQueryCommand(CLI::App& app) {
       } else {
         q = map.query(p);
       }
+      const double drop = o->snap >= 0 ? o->snap : map.tree().getResolution();
+      const mapping::Place* place = run ? run->result.placeBelow(p, drop) : nullptr;
       if (o->json) {
         nlohmann::json j = found ? pointJson(q) : nlohmann::json{{"state", "no surface within snap distance"}};
         j["query"] = {p.x(), p.y(), p.z()};
+        if (run) j["reach"] = placeJson(place);
         std::cout << j.dump() << "\n";
-      } else if (found) {
-        printPoint(q);
       } else {
-        std::printf("no surface within %.3f m below (%.3f, %.3f, %.3f)\n", o->snap, p.x(), p.y(), p.z());
+        if (found) {
+          printPoint(q);
+        } else {
+          std::printf("no surface within %.3f m below (%.3f, %.3f, %.3f)\n", o->snap, p.x(), p.y(), p.z());
+        }
+        if (run) printPlace(place, drop);
       }
     };
     if (!o->xyz.empty()) {

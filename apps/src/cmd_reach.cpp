@@ -5,6 +5,7 @@
 #include "io_error.hpp"
 #include "levels.hpp"
 #include "map_files.hpp"
+#include "reach_options.hpp"
 #include "top_view.hpp"
 
 #include "mobmap/mapping/reachability.hpp"
@@ -36,41 +37,18 @@ Command addReachCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "reach", "Which walkable surfaces a robot can get to from where it starts, by steps and gaps it can manage");
   struct Options {
-    std::string map, png, pcd, frame = "map", rule;
-    std::vector<double> from;
-    mapping::ReachParams params;
+    std::string map, png, pcd, frame = "map";
+    ReachOptions reach;
     int max_pixels = 1400;
     double max_z = std::numeric_limits<double>::infinity();
     bool json = false;
   };
   auto o = std::make_shared<Options>();
   cmd->add_option("MAP", o->map, "A .ot map written by `mobmap build`")->required();
-  cmd->add_option("--from", o->from,
-                  "X Y Z: where the robot is (metres); it starts on the walkable surface nearest below it. Default: the "
-                  "first camera position of the map's MAP.json")
-      ->expected(3);
+  addReachOptions(*cmd, o->reach, "--input-frame");
   cmd->add_option("--input-frame", o->frame, "Frame of --from: map (gravity aligned) or world (the data's own)")
       ->check(CLI::IsMember({"map", "world"}))
       ->capture_default_str();
-  cmd->add_option("--max-step", o->params.max_step_m, "Highest step up or down between neighbouring places, metres (tops are known to a voxel, so "
-                  "tops n voxels apart need n + 1 voxels within it; at least two voxels)")
-      ->capture_default_str();
-  cmd->add_option("--min-mobility", o->params.min_mobility, "Lowest mobility the robot stands on")->capture_default_str();
-  cmd->add_option("--clearance", o->params.clearance_m,
-                  "Free height needed above a place (the robot's height), metres; 0 does not check. Unseen space counts as free")
-      ->capture_default_str();
-  cmd->add_option("--max-gap", o->params.max_gap_m,
-                  "Widest run of unobserved columns stepped over, metres (never across anything occupied near the walking height)")
-      ->capture_default_str();
-  auto* radius = cmd->add_option("--start-radius", o->params.start_radius_m,
-                                 "How far around the start point to look for a place to stand, metres (default 0.5 with "
-                                 "--from, 5 from the camera: a level camera 1.5 m up first sees the floor ~4 m ahead)");
-  cmd->add_option("--start", o->rule,
-                  "Which place near the start point to start on: the nearest (then the highest), or one on the height "
-                  "with the most standable area in the map, in the largest region there (for a camera position: the "
-                  "floor, not a chair seat or table nearer the camera). Default: nearest with --from, largest-level "
-                  "from the camera")
-      ->check(CLI::IsMember({"nearest", "largest-level"}));
   cmd->add_option("--png", o->png,
                   "Top view of the highest surface per column: reachable in mobility colours, purple where it can be stood on "
                   "but not reached, pale where it cannot be stood on");
@@ -84,52 +62,18 @@ Command addReachCommand(CLI::App& app) {
                                 "Top view: the highest surface at or below this height (map frame, metres), as export: "
                                 "the floor under a table");
   cmd->add_flag("--json", o->json, "One JSON object instead of the text");
-  return [o, radius, max_z]() {
+  return [o, max_z]() {
     if (max_z->count() > 0 && o->png.empty()) throw UsageError("--max-z cuts the top view: it needs --png");
     if (!std::isfinite(o->max_z) && max_z->count() > 0) throw UsageError("--max-z must be a finite height in metres");
-    if (radius->count() == 0) o->params.start_radius_m = o->from.empty() ? 5.0 : 0.5;
-    if (o->rule.empty()) o->rule = o->from.empty() ? "largest-level" : "nearest";
-    o->params.start_rule =
-        o->rule == "nearest" ? mapping::ReachParams::Start::kNearest : mapping::ReachParams::Start::kLargestLevel;
-    try {
-      mapping::validate(o->params);
-    } catch (const std::invalid_argument& e) {
-      throw UsageError(e.what());
-    }
-    if (!o->from.empty() && !Eigen::Map<const Eigen::Vector3d>(o->from.data()).allFinite()) {
-      throw UsageError("--from: values must be finite");
-    }
     auto tree = mapping::loadMobilityMap(o->map);
     const mapping::MapMetadata metadata = mapping::readMapMetadata(o->map);
     const mapping::MobilityMap map = mapping::openMap(std::move(tree), metadata);
     const CameraPath camera = cameraPath(metadataJson(metadata));
     std::vector<Eigen::Vector2d> path = camera.xy();
-    Eigen::Vector3d start;
-    if (!o->from.empty()) {
-      start = Eigen::Vector3d(o->from[0], o->from[1], o->from[2]);
-      if (o->frame == "world") start = map.worldToMap(start);
-    } else if (!camera.positions.empty()) {
-      start = camera.positions.front();
-    } else {
-      throw UsageError(o->map + ": no camera path in " + mapping::mapFileStem(o->map) +
-                       ".json to start from; give --from X Y Z");
-    }
-    const mapping::Reachability r = [&] {
-      try {
-        return mapping::computeReachability(map.tree(), start, o->params);
-      } catch (const std::invalid_argument& e) {  // a step under two voxels of this map
-        throw UsageError(e.what());
-      }
-    }();
-    if (!r.start()) {
-      char msg[320];
-      std::snprintf(msg, sizeof msg,
-                    "no place to stand (mobility >= %.2f%s) within %.2f m of (%.2f, %.2f) with its top at or below z = %.2f m "
-                    "(map frame); give --from nearer a walkable surface, or a larger --start-radius",
-                    o->params.min_mobility, o->rule == "nearest" ? "" : ", on the map's largest walkable level",
-                    o->params.start_radius_m, start.x(), start.y(), start.z() + o->params.max_step_m);
-      throw std::runtime_error(o->map + ": " + msg);
-    }
+    const ReachRun run = runReach(o->reach, map, o->map, o->frame == "world", camera);
+    const mapping::Reachability& r = run.result;
+    const Eigen::Vector3d& start = run.from;
+    const std::string& rule = o->reach.rule;
     const mapping::Place& s = r.places()[*r.start()];
     const double res = r.resolution(), cell_m2 = res * res;
     // Where the standable places that cannot be reached gather.
@@ -139,9 +83,9 @@ Command addReachCommand(CLI::App& app) {
     }
     const std::size_t unreachable = r.standableCount() - r.reachableCount();
     const std::vector<Level> levels = gatherLevels(std::move(bins), res);
-    const auto& q = o->params;
+    const auto& q = o->reach.params;
     if (o->json) {
-      nlohmann::json j{{"start", {{"from", {start.x(), start.y(), start.z()}}, {"rule", o->rule}, {"place", {s.x, s.y, s.top_z}}}},
+      nlohmann::json j{{"start", {{"from", {start.x(), start.y(), start.z()}}, {"rule", rule}, {"place", {s.x, s.y, s.top_z}}}},
                        {"frame", "map"},
                        {"params",
                         {{"max_step_m", q.max_step_m},
@@ -157,9 +101,9 @@ Command addReachCommand(CLI::App& app) {
       std::cout << j.dump() << "\n";
     } else {
       std::printf("start: the surface at (%.2f, %.2f, %.2f) m, map frame (%s within %.2f m of %s)\n", s.x, s.y, s.top_z,
-                  o->rule == "nearest" ? "the nearest place to stand"
+                  rule == "nearest" ? "the nearest place to stand"
                                        : "in the largest region of the map's largest walkable level, the nearest",
-                  q.start_radius_m, o->from.empty() ? "the first camera position" : "--from");
+                  q.start_radius_m, o->reach.from.empty() ? "the first camera position" : "--from");
       std::printf("robot: steps up to %.2f m, gaps up to %.2f m, stands on mobility >= %.2f, ", q.max_step_m, q.max_gap_m,
                   q.min_mobility);
       if (q.clearance_m > 0) {
