@@ -90,6 +90,8 @@ Command addDemoCommand(CLI::App& app) {
               << "      " << exe << " query " << map_path << " --foot 3.0 -0.9 0.08 0 0.25 0.12   (a sole on the 15-degree ramp)\n"
               << "      " << exe << " info " << map_path << "\n"
               << "      " << exe << " reach " << map_path << " --png " << o->out << "/reach.png   (where a robot stepping 15 cm can walk)\n"
+              << "      " << exe << " query " << map_path
+              << " --foot 4.8 0.8 0.5 0 0.25 0.12 --reach   (the box top: flat, but 0.5 m up and out of reach)\n"
               << "      " << exe << " evaluate " << map_path << " --truth " << seq << "/ground_truth.json\n"
               << "      " << exe << " export " << map_path << " --png " << o->out << "/top.png\n";
     return 0;
