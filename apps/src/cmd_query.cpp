@@ -127,6 +127,7 @@ Command addQueryCommand(CLI::App& app) {
   addReachOptions(*cmd, o->robot, "--input-frame");
   for (CLI::Option* opt : o->robot.options) opt->needs(reach);
   return [o]() {
+    if (o->reach) resolveReachOptions(o->robot);
     auto tree = mapping::loadMobilityMap(o->map);
     const mapping::MapMetadata metadata = mapping::readMapMetadata(o->map);
     const mapping::MobilityMap map = mapping::openMap(std::move(tree), metadata);

@@ -65,6 +65,7 @@ Command addReachCommand(CLI::App& app) {
   return [o, max_z]() {
     if (max_z->count() > 0 && o->png.empty()) throw UsageError("--max-z cuts the top view: it needs --png");
     if (!std::isfinite(o->max_z) && max_z->count() > 0) throw UsageError("--max-z must be a finite height in metres");
+    resolveReachOptions(o->reach);
     auto tree = mapping::loadMobilityMap(o->map);
     const mapping::MapMetadata metadata = mapping::readMapMetadata(o->map);
     const mapping::MobilityMap map = mapping::openMap(std::move(tree), metadata);
@@ -102,7 +103,7 @@ Command addReachCommand(CLI::App& app) {
     } else {
       std::printf("start: the surface at (%.2f, %.2f, %.2f) m, map frame (%s within %.2f m of %s)\n", s.x, s.y, s.top_z,
                   rule == "nearest" ? "the nearest place to stand"
-                                       : "in the largest region of the map's largest walkable level, the nearest",
+                                    : "in the largest region of the map's largest walkable level, the nearest",
                   q.start_radius_m, o->reach.from.empty() ? "the first camera position" : "--from");
       std::printf("robot: steps up to %.2f m, gaps up to %.2f m, stands on mobility >= %.2f, ", q.max_step_m, q.max_gap_m,
                   q.min_mobility);

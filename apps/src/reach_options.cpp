@@ -41,8 +41,7 @@ void addReachOptions(CLI::App& cmd, ReachOptions& o, const std::string& from_fra
   };
 }
 
-ReachRun runReach(ReachOptions& o, const mapping::MobilityMap& map, const std::string& map_path, bool from_in_world,
-                  const CameraPath& camera) {
+void resolveReachOptions(ReachOptions& o) {
   if (o.radius->count() == 0) o.params.start_radius_m = o.from.empty() ? 5.0 : 0.5;
   if (o.rule.empty()) o.rule = o.from.empty() ? "largest-level" : "nearest";
   o.params.start_rule =
@@ -52,10 +51,17 @@ ReachRun runReach(ReachOptions& o, const mapping::MobilityMap& map, const std::s
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
+  if (!o.from.empty() && !Eigen::Map<const Eigen::Vector3d>(o.from.data()).allFinite()) {
+    throw UsageError("--from: values must be finite");
+  }
+}
+
+ReachRun runReach(ReachOptions& o, const mapping::MobilityMap& map, const std::string& map_path, bool from_in_world,
+                  const CameraPath& camera) {
+  resolveReachOptions(o);
   ReachRun run;
   if (!o.from.empty()) {
     run.from = Eigen::Vector3d(o.from[0], o.from[1], o.from[2]);
-    if (!run.from.allFinite()) throw UsageError("--from: values must be finite");
     if (from_in_world) run.from = map.worldToMap(run.from);
   } else if (!camera.positions.empty()) {
     run.from = camera.positions.front();

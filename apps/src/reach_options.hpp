@@ -29,14 +29,18 @@ struct ReachOptions {
 /// names the option that sets the frame --from is given in.
 void addReachOptions(CLI::App& cmd, ReachOptions& o, const std::string& from_frame_option);
 
+/// Resolves the defaults (start rule and radius by whether --from was given) and checks
+/// the parameters and --from: UsageError. Commands call it before loading the map, so a
+/// usage error is reported as one; runReach calls it again (it changes nothing then).
+void resolveReachOptions(ReachOptions& o);
+
 /// A reachability run: the point it started from (map frame) and its result.
 struct ReachRun {
   Eigen::Vector3d from = Eigen::Vector3d::Zero();
   mapping::Reachability result;
 };
 
-/// Resolves the defaults (start rule and radius by whether --from was given), checks the
-/// parameters (UsageError), finds the start point (--from, in the world frame when
+/// resolveReachOptions(o), then finds the start point (--from, in the world frame when
 /// `from_in_world`, else the first position of `camera`; UsageError if neither) and
 /// runs computeReachability. No place to start on: std::runtime_error naming `map_path`,
 /// the radius and the rule.
