@@ -4,6 +4,7 @@
 #include <mobmap/gp/mobility_model.hpp>
 #include <mobmap/mapping/gravity.hpp>
 #include <mobmap/mapping/mobility_map.hpp>
+#include <mobmap/mapping/reachability.hpp>
 
 #include <cmath>
 #include <cstdio>
@@ -23,10 +24,14 @@ int main(int argc, char** argv) {
   try {
     const mobmap::mapping::MobilityMap map = mobmap::mapping::openMap(argv[1]);
     const Eigen::Vector3d at = map.worldToMap({2.0, 0.0, 0.0});
-    const auto foot = map.footprint({at.x(), at.y(), at.z(), 0.0, 0.25, 0.12});
-    std::printf("%d frames; sole at 2 m: min mobility %.3f over %.0f %% known\n", map.framesIntegrated(),
-                foot.min_mobility, 100 * foot.known_fraction);
-    return map.framesIntegrated() == 2 && foot.known_fraction > 0.9 && foot.min_mobility > 0.9 ? 0 : 1;
+    const mobmap::mapping::Foot sole{at.x(), at.y(), at.z(), 0.0, 0.25, 0.12};
+    const auto foot = map.footprint(sole);
+    // Can a robot standing 0.5 m further along the floor walk there?
+    const auto reach = mobmap::mapping::computeReachability(map.tree(), map.worldToMap({2.5, 0.0, 0.5}));
+    const double reachable = reach.sole(sole).reachableFraction();
+    std::printf("%d frames; sole at 2 m: min mobility %.3f over %.0f %% known, %.0f %% on reachable surfaces\n",
+                map.framesIntegrated(), foot.min_mobility, 100 * foot.known_fraction, 100 * reachable);
+    return map.framesIntegrated() == 2 && foot.known_fraction > 0.9 && foot.min_mobility > 0.9 && reachable > 0.9 ? 0 : 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "%s\n", e.what());
     return 1;
