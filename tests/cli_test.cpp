@@ -1,5 +1,6 @@
 // The `mobmap` executable as a user runs it: outputs, exit codes, error messages.
 #include <nlohmann/json.hpp>
+#include <octomap/ColorOcTree.h>
 
 #include <gtest/gtest.h>
 
@@ -18,6 +19,7 @@
 #include <functional>
 #include <iterator>
 #include <map>
+#include <memory>
 #include <vector>
 #include <sstream>
 #include <string>
@@ -286,6 +288,24 @@ TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   }
   EXPECT_EQ(points, declared);
   EXPECT_EQ(reachable, rj["reachable"]["places"].get<std::size_t>());
+  // --octovis: stock OctoMap reads it; as many purple voxels as standable places out of
+  // reach, and the start place in its mobility colour (green on the floor).
+  ASSERT_EQ(run("reach " + map + " --octovis " + dir + "/reach.octovis.ot").code, 0);
+  {
+    std::unique_ptr<octomap::AbstractOcTree> abstract(octomap::AbstractOcTree::read(dir + "/reach.octovis.ot"));
+    auto* colour = dynamic_cast<octomap::ColorOcTree*>(abstract.get());
+    ASSERT_NE(colour, nullptr);
+    std::size_t purple = 0;
+    for (auto it = colour->begin_leafs(); it != colour->end_leafs(); ++it) {
+      purple += it->getColor() == octomap::ColorOcTreeNode::Color(150, 70, 210);
+    }
+    EXPECT_EQ(purple, rj["unreachable"]["places"].get<std::size_t>());
+    const auto& start = rj["start"]["place"];
+    const auto* at = colour->search(start[0].get<double>(), start[1].get<double>(), start[2].get<double>() - 0.01);
+    ASSERT_NE(at, nullptr);
+    EXPECT_GT(at->getColor().g, 150);
+    EXPECT_EQ(at->getColor().b, 0);
+  }
   const Result nowhere = run("reach " + map + " --from 50 50 0");
   EXPECT_EQ(nowhere.code, 1);
   EXPECT_NE(nowhere.out.find("no place to stand"), std::string::npos) << nowhere.out;

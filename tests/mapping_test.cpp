@@ -13,12 +13,14 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <filesystem>
 #include <fstream>
 #include <random>
 #include <set>
 #include <thread>
+#include <tuple>
 
 namespace mobmap::mapping {
 namespace {
@@ -674,6 +676,64 @@ TEST(MapFiles, BtAndOctovisExportLoadInStockOctomapWithTheSameOccupiedVoxels) {
     }
   }
   EXPECT_EQ(coloured, ours.size());
+}
+
+// A colour per voxel: a pruned block is written voxel by voxel, each in the colour its
+// own key is given, and stock OctoMap reads every one back.
+TEST(MapFiles, OctovisExportColoursEachVoxelByItsKeyAlsoInsidePrunedBlocks) {
+  MobilityOcTree t(0.02);
+  // An 8 x 8 x 8 block aligned to the tree's 8-voxel cells (keys from 32768), one value
+  // throughout so it prunes, and one lone voxel with another mobility.
+  std::set<std::tuple<int, int, int>> voxels;
+  for (int i = 0; i < 8; ++i) {
+    for (int j = 0; j < 8; ++j) {
+      for (int k = 0; k < 8; ++k) {
+        const octomap::OcTreeKey key(static_cast<octomap::key_type>(32768 + i), static_cast<octomap::key_type>(32768 + j),
+                                     static_cast<octomap::key_type>(32768 + k));
+        auto* n = t.updateNode(key, 2.0f);
+        n->setMobility(0.8, 0.01, 2);
+        voxels.insert({32768 + i, 32768 + j, 32768 + k});
+      }
+    }
+  }
+  auto* lone = t.updateNode(octomap::OcTreeKey(32800, 32800, 32800), 2.0f);
+  lone->setMobility(0.1, 0.01, 2);
+  voxels.insert({32800, 32800, 32800});
+  t.updateInnerOccupancy();
+  t.prune();
+  std::size_t leaves = 0, widest = 0;
+  for (auto it = t.begin_leafs(); it != t.end_leafs(); ++it) {
+    ++leaves;
+    widest = std::max<std::size_t>(widest, std::lround(it.getSize() / 0.02));
+  }
+  ASSERT_EQ(widest, 8u) << "the block did not prune";
+  ASSERT_EQ(leaves, 2u);
+  const auto code = [](const octomap::OcTreeKey& k) {
+    return VoxelRgb{static_cast<std::uint8_t>(k[0] % 256), static_cast<std::uint8_t>(k[1] % 256),
+                    static_cast<std::uint8_t>((k[2] * 7) % 256)};
+  };
+  const std::string ov = tempPath("keys.octovis.ot");
+  saveOctovisColorTree(t, ov, [&](const octomap::OcTreeKey& k, const MobilityOcTreeNode& n) {
+    // The node is the leaf holding the voxel: the block's or the lone voxel's.
+    EXPECT_NEAR(n.mobility(), k[0] == 32800 ? 0.1 : 0.8, 1e-3);  // stored in 16 bits
+    return code(k);
+  });
+  std::unique_ptr<octomap::AbstractOcTree> abstract(octomap::AbstractOcTree::read(ov));
+  auto* colour = dynamic_cast<octomap::ColorOcTree*>(abstract.get());
+  ASSERT_NE(colour, nullptr);
+  std::set<std::tuple<int, int, int>> read;
+  for (auto it = colour->begin_leafs(); it != colour->end_leafs(); ++it) {
+    ASSERT_EQ(it.getDepth(), 16u);
+    const octomap::OcTreeKey k = it.getKey();
+    read.insert({k[0], k[1], k[2]});
+    EXPECT_EQ(it->getColor(), octomap::ColorOcTreeNode::Color(code(k)[0], code(k)[1], code(k)[2]));
+  }
+  EXPECT_EQ(read, voxels);
+  // The one-argument export is this with the mobility colours.
+  EXPECT_EQ(mobilityRgb(*t.search(octomap::OcTreeKey(32800, 32800, 32800))), (VoxelRgb{255, 44, 0}));
+  MobilityOcTreeNode unknown;
+  EXPECT_EQ(mobilityRgb(unknown), (VoxelRgb{140, 140, 140}));
+  std::remove(ov.c_str());
 }
 
 TEST(MapParams, RejectsAbsurdValuesNamingTheField) {

@@ -37,7 +37,7 @@ Command addReachCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "reach", "Which walkable surfaces a robot can get to from where it starts, by steps and gaps it can manage");
   struct Options {
-    std::string map, png, pcd, frame = "map";
+    std::string map, png, pcd, octovis, frame = "map";
     ReachOptions reach;
     int max_pixels = 1400;
     double max_z = std::numeric_limits<double>::infinity();
@@ -55,6 +55,10 @@ Command addReachCommand(CLI::App& app) {
   cmd->add_option("--pcd", o->pcd,
                   "Every place (the top voxel of each run of occupied voxels in a column) at its top face, with fields "
                   "mobility (nan if unknown), standable and reachable (0 or 1); map frame, ASCII");
+  cmd->add_option("--octovis", o->octovis,
+                  "A ColorOcTree .ot for stock octovis, in the picture's colours: each place reachable in mobility colours, "
+                  "purple where it can be stood on but not reached, every other occupied voxel (walls, the voxels under a "
+                  "place, places that cannot be stood on) pale");
   cmd->add_option("--max-pixels", o->max_pixels, "Longest side of the picture's map area (as export)")
       ->check(CLI::Range(64, 16384))
       ->capture_default_str();
@@ -138,6 +142,16 @@ Command addReachCommand(CLI::App& app) {
       }
       writeTextFileAtomically(o->pcd, text);
       if (!o->json) std::printf("wrote %s (%zu places)\n", o->pcd.c_str(), r.places().size());
+    }
+    if (!o->octovis.empty()) {
+      mapping::saveOctovisColorTree(map.tree(), o->octovis,
+                                    [&](const octomap::OcTreeKey& key, const mapping::MobilityOcTreeNode& node) -> mapping::VoxelRgb {
+                                      const mapping::Place* p = r.placeAt(key);
+                                      if (p && p->reachable) return mobilityColour(p->mobility);
+                                      if (p && p->standable) return kUnreachable;
+                                      return pale(mapping::mobilityRgb(node));
+                                    });
+      if (!o->json) std::printf("wrote %s (open with octovis)\n", o->octovis.c_str());
     }
     if (o->png.empty()) return 0;
     TopView view;

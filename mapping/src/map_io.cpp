@@ -129,16 +129,21 @@ void saveOccupancyBt(const MobilityOcTree& tree, const std::string& path) {
   });
 }
 
+VoxelRgb mobilityRgb(const MobilityOcTreeNode& node) {
+  if (!node.hasMobility()) return {140, 140, 140};
+  const double m = node.mobility();
+  return {static_cast<std::uint8_t>(std::lround(255 * std::min(1.0, 2.0 * (1.0 - m)))),
+          static_cast<std::uint8_t>(std::lround(220 * std::min(1.0, 2.0 * m))), 0};
+}
+
 void saveOctovisColorTree(const MobilityOcTree& tree, const std::string& path) {
-  octomap::ColorOcTree colour(tree.getResolution());
+  saveOctovisColorTree(tree, path, [](const octomap::OcTreeKey&, const MobilityOcTreeNode& node) { return mobilityRgb(node); });
+}
+
+void saveOctovisColorTree(const MobilityOcTree& tree, const std::string& path,
+                          const std::function<VoxelRgb(const octomap::OcTreeKey&, const MobilityOcTreeNode&)>& colour) {
+  octomap::ColorOcTree out(tree.getResolution());
   forEachOccupiedVoxel(tree, [&](const MobilityOcTree::leaf_iterator& it) {
-    std::uint8_t r = 140, g = 140, b = 140;  // occupied, mobility unknown
-    if (it->hasMobility()) {
-      const double m = it->mobility();
-      r = static_cast<std::uint8_t>(std::lround(255 * std::min(1.0, 2.0 * (1.0 - m))));
-      g = static_cast<std::uint8_t>(std::lround(220 * std::min(1.0, 2.0 * m)));
-      b = 0;
-    }
     // A pruned leaf covers 2^(16-depth) voxels per side: write each one.
     const unsigned int depth = it.getDepth();
     const unsigned int span = 1u << (tree.getTreeDepth() - depth);
@@ -148,14 +153,15 @@ void saveOctovisColorTree(const MobilityOcTree& tree, const std::string& path) {
         for (unsigned int dz = 0; dz < span; ++dz) {
           const octomap::OcTreeKey k(static_cast<octomap::key_type>(base[0] + dx), static_cast<octomap::key_type>(base[1] + dy),
                                      static_cast<octomap::key_type>(base[2] + dz));
-          colour.setNodeValue(k, it->getLogOdds(), true);
-          colour.setNodeColor(k, r, g, b);
+          const VoxelRgb c = colour(k, *it);
+          out.setNodeValue(k, it->getLogOdds(), true);
+          out.setNodeColor(k, c[0], c[1], c[2]);
         }
       }
     }
   });
-  colour.updateInnerOccupancy();
-  writeAtomically(path, [&](std::ostream& s) { return colour.write(s); });
+  out.updateInnerOccupancy();
+  writeAtomically(path, [&](std::ostream& s) { return out.write(s); });
 }
 
 void saveSurfacePcd(const MobilityOcTree& tree, const std::string& path) {

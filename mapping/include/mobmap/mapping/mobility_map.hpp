@@ -10,6 +10,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <array>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <cstdint>
@@ -178,9 +180,18 @@ void saveMobilityMap(const MobilityOcTree& tree, const std::string& path);
 std::unique_ptr<MobilityOcTree> loadMobilityMap(const std::string& path);
 /// Occupancy only, OctoMap's binary .bt (readable by any OctoMap tool), atomically.
 void saveOccupancyBt(const MobilityOcTree& tree, const std::string& path);
-/// A ColorOcTree .ot for stock octovis: mobility red (0) to green (1), grey where a
-/// voxel is occupied without a mobility estimate. Free space is not exported.
+/// A voxel's colour in a ColorOcTree export: red, green, blue.
+using VoxelRgb = std::array<std::uint8_t, 3>;
+/// Mobility red (0) to green (1); grey (140) for a voxel without a mobility estimate.
+[[nodiscard]] VoxelRgb mobilityRgb(const MobilityOcTreeNode& node);
+/// A ColorOcTree .ot for stock octovis: every occupied voxel in mobilityRgb() colours.
+/// Free space is not exported. Written atomically.
 void saveOctovisColorTree(const MobilityOcTree& tree, const std::string& path);
+/// The same, each occupied voxel in the colour `colour(key, node)` gives it: `key` is the
+/// voxel's finest-level key (a pruned leaf is asked once for every voxel it covers, with
+/// its own key), `node` the leaf holding it.
+void saveOctovisColorTree(const MobilityOcTree& tree, const std::string& path,
+                          const std::function<VoxelRgb(const octomap::OcTreeKey&, const MobilityOcTreeNode&)>& colour);
 /// Surface voxel centres as ASCII PCD with fields x y z mobility variance count.
 void saveSurfacePcd(const MobilityOcTree& tree, const std::string& path);
 
