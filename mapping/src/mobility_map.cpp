@@ -1,6 +1,7 @@
 #include "mobmap/mapping/mobility_map.hpp"
 
 #include "mobmap/mapping/gravity.hpp"
+#include "param_error.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -12,17 +13,10 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <sstream>
 #include <unordered_map>
 
 namespace mobmap::mapping {
 namespace {
-
-void fail(const char* field, double value, const char* rule) {
-  std::ostringstream msg;
-  msg << "MapParams: " << field << " is " << value << " (" << rule << ")";
-  throw std::invalid_argument(msg.str());
-}
 
 constexpr int kBlock = 16;  // voxels per block edge in the occupied-voxel index
 
@@ -38,16 +32,16 @@ octomap::point3d toOcto(const Eigen::Vector3d& p) {
 }  // namespace
 
 void validate(const MapParams& p) {
-  if (!(p.resolution_m >= 0.001 && p.resolution_m <= 10)) fail("resolution_m", p.resolution_m, "must be in [0.001, 10]");
-  if (!(p.max_range_m > 0) || !std::isfinite(p.max_range_m)) fail("max_range_m", p.max_range_m, "must be finite and > 0");
-  if (!(p.prob_hit > 0.5 && p.prob_hit < 1)) fail("prob_hit", p.prob_hit, "must be in (0.5, 1)");
-  if (!(p.prob_miss > 0 && p.prob_miss < 0.5)) fail("prob_miss", p.prob_miss, "must be in (0, 0.5)");
-  if (!(p.clamp_min > 0 && p.clamp_min < 0.5)) fail("clamp_min", p.clamp_min, "must be in (0, 0.5)");
-  if (!(p.clamp_max > 0.5 && p.clamp_max < 1)) fail("clamp_max", p.clamp_max, "must be in (0.5, 1)");
-  if (!(p.max_weight > 0) || !std::isfinite(p.max_weight)) fail("max_weight", p.max_weight, "must be finite and > 0");
-  if (!(p.range_variance_per_m2 >= 0) || !std::isfinite(p.range_variance_per_m2)) fail("range_variance_per_m2", p.range_variance_per_m2, "must be finite and >= 0");
-  if (!(p.free_space_margin_m >= 0) || !std::isfinite(p.free_space_margin_m)) fail("free_space_margin_m", p.free_space_margin_m, "must be finite and >= 0");
-  if (p.free_space_ray_stride_px < 0) fail("free_space_ray_stride_px", p.free_space_ray_stride_px, "must be >= 0");
+  if (!(p.resolution_m >= 0.001 && p.resolution_m <= 10)) detail::failParam("MapParams", "resolution_m", p.resolution_m, "must be in [0.001, 10]");
+  if (!(p.max_range_m > 0) || !std::isfinite(p.max_range_m)) detail::failParam("MapParams", "max_range_m", p.max_range_m, "must be finite and > 0");
+  if (!(p.prob_hit > 0.5 && p.prob_hit < 1)) detail::failParam("MapParams", "prob_hit", p.prob_hit, "must be in (0.5, 1)");
+  if (!(p.prob_miss > 0 && p.prob_miss < 0.5)) detail::failParam("MapParams", "prob_miss", p.prob_miss, "must be in (0, 0.5)");
+  if (!(p.clamp_min > 0 && p.clamp_min < 0.5)) detail::failParam("MapParams", "clamp_min", p.clamp_min, "must be in (0, 0.5)");
+  if (!(p.clamp_max > 0.5 && p.clamp_max < 1)) detail::failParam("MapParams", "clamp_max", p.clamp_max, "must be in (0.5, 1)");
+  if (!(p.max_weight > 0) || !std::isfinite(p.max_weight)) detail::failParam("MapParams", "max_weight", p.max_weight, "must be finite and > 0");
+  if (!(p.range_variance_per_m2 >= 0) || !std::isfinite(p.range_variance_per_m2)) detail::failParam("MapParams", "range_variance_per_m2", p.range_variance_per_m2, "must be finite and >= 0");
+  if (!(p.free_space_margin_m >= 0) || !std::isfinite(p.free_space_margin_m)) detail::failParam("MapParams", "free_space_margin_m", p.free_space_margin_m, "must be finite and >= 0");
+  if (p.free_space_ray_stride_px < 0) detail::failParam("MapParams", "free_space_ray_stride_px", p.free_space_ray_stride_px, "must be >= 0");
 }
 
 const char* toString(VoxelState s) {

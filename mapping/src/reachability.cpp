@@ -1,5 +1,7 @@
 #include "mobmap/mapping/reachability.hpp"
 
+#include "param_error.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <deque>
@@ -9,12 +11,6 @@
 
 namespace mobmap::mapping {
 namespace {
-
-void fail(const char* field, double value, const char* rule) {
-  std::ostringstream msg;
-  msg << "ReachParams: " << field << " is " << value << " (" << rule << ")";
-  throw std::invalid_argument(msg.str());
-}
 
 std::uint32_t columnOf(unsigned kx, unsigned ky) { return (static_cast<std::uint32_t>(kx) << 16) | ky; }
 
@@ -37,11 +33,11 @@ int voxels(double metres, double res) { return static_cast<int>(std::floor(metre
 }  // namespace
 
 void validate(const ReachParams& p) {
-  if (!(p.max_step_m >= 0) || !std::isfinite(p.max_step_m)) fail("max_step_m", p.max_step_m, "must be finite and >= 0");
-  if (!(p.min_mobility >= 0 && p.min_mobility <= 1)) fail("min_mobility", p.min_mobility, "must be in [0, 1]");
-  if (!(p.clearance_m >= 0) || !std::isfinite(p.clearance_m)) fail("clearance_m", p.clearance_m, "must be finite and >= 0");
-  if (!(p.max_gap_m >= 0 && p.max_gap_m <= 1)) fail("max_gap_m", p.max_gap_m, "must be in [0, 1]");
-  if (!(p.start_radius_m >= 0 && p.start_radius_m <= 100)) fail("start_radius_m", p.start_radius_m, "must be in [0, 100]");
+  if (!(p.max_step_m >= 0) || !std::isfinite(p.max_step_m)) detail::failParam("ReachParams", "max_step_m", p.max_step_m, "must be finite and >= 0");
+  if (!(p.min_mobility >= 0 && p.min_mobility <= 1)) detail::failParam("ReachParams", "min_mobility", p.min_mobility, "must be in [0, 1]");
+  if (!(p.clearance_m >= 0) || !std::isfinite(p.clearance_m)) detail::failParam("ReachParams", "clearance_m", p.clearance_m, "must be finite and >= 0");
+  if (!(p.max_gap_m >= 0 && p.max_gap_m <= 1)) detail::failParam("ReachParams", "max_gap_m", p.max_gap_m, "must be in [0, 1]");
+  if (!(p.start_radius_m >= 0 && p.start_radius_m <= 100)) detail::failParam("ReachParams", "start_radius_m", p.start_radius_m, "must be in [0, 100]");
 }
 
 const Place* Reachability::placeBelow(const Eigen::Vector3d& p, double max_drop_m) const {
