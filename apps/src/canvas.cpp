@@ -1,5 +1,7 @@
 #include "canvas.hpp"
 
+#include "mobmap/mapping/mobility_map.hpp"
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -57,9 +59,7 @@ const Glyph& glyphFor(char c) {
 
 Rgb mobilityColour(double m) {
   if (!std::isfinite(m)) return {128, 128, 128};
-  m = std::clamp(m, 0.0, 1.0);
-  return {static_cast<std::uint8_t>(std::lround(255 * std::min(1.0, 2.0 * (1.0 - m)))),
-          static_cast<std::uint8_t>(std::lround(220 * std::min(1.0, 2.0 * m))), 0};
+  return mapping::mobilityRgb(m);
 }
 
 Canvas::Canvas(int width, int height, Rgb background) {

@@ -12,7 +12,8 @@ namespace mobmap::app {
 
 using Rgb = std::array<std::uint8_t, 3>;
 
-/// Mobility colour: red at 0, yellow at 0.5, green at 1 (the paper's figures).
+/// Mobility colour: red at 0, yellow at 0.5, green at 1 (the paper's figures), as
+/// mapping::mobilityRgb() and so the octovis export; grey (128) for a non-finite value.
 Rgb mobilityColour(double mobility);
 
 class Canvas {

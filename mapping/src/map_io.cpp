@@ -4,6 +4,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -129,11 +130,14 @@ void saveOccupancyBt(const MobilityOcTree& tree, const std::string& path) {
   });
 }
 
-VoxelRgb mobilityRgb(const MobilityOcTreeNode& node) {
-  if (!node.hasMobility()) return {140, 140, 140};
-  const double m = node.mobility();
+VoxelRgb mobilityRgb(double m) {
+  m = std::clamp(m, 0.0, 1.0);
   return {static_cast<std::uint8_t>(std::lround(255 * std::min(1.0, 2.0 * (1.0 - m)))),
           static_cast<std::uint8_t>(std::lround(220 * std::min(1.0, 2.0 * m))), 0};
+}
+
+VoxelRgb mobilityRgb(const MobilityOcTreeNode& node) {
+  return node.hasMobility() ? mobilityRgb(node.mobility()) : VoxelRgb{140, 140, 140};
 }
 
 void saveOctovisColorTree(const MobilityOcTree& tree, const std::string& path) {

@@ -55,8 +55,7 @@ const Place* Reachability::placeBelow(const Eigen::Vector3d& p, double max_drop_
 }
 
 SoleReach Reachability::sole(const Foot& foot, double search_up_m, double search_down_m) const {
-  SoleReach out;
-  if (resolution_ <= 0) return out;
+  SoleReach out;  // a default Reachability has resolution 0: soleSamples() then gives none
   for (const SoleSample& s : soleSamples(foot, resolution_)) {
     ++out.samples;
     const Place* p = placeBelow({s.x, s.y, foot.z + search_up_m}, search_up_m + search_down_m);

@@ -182,7 +182,10 @@ std::unique_ptr<MobilityOcTree> loadMobilityMap(const std::string& path);
 void saveOccupancyBt(const MobilityOcTree& tree, const std::string& path);
 /// A voxel's colour in a ColorOcTree export: red, green, blue.
 using VoxelRgb = std::array<std::uint8_t, 3>;
-/// Mobility red (0) to green (1); grey (140) for a voxel without a mobility estimate.
+/// Mobility red (0) through yellow (0.5) to green (1), clamped to [0, 1]: the colours of
+/// the octovis export and of the tool's pictures.
+[[nodiscard]] VoxelRgb mobilityRgb(double mobility);
+/// mobilityRgb(node.mobility()); grey (140) for a voxel without a mobility estimate.
 [[nodiscard]] VoxelRgb mobilityRgb(const MobilityOcTreeNode& node);
 /// A ColorOcTree .ot for stock octovis: every occupied voxel in mobilityRgb() colours.
 /// Free space is not exported. Written atomically.
