@@ -482,7 +482,7 @@ Command addBuildCommand(CLI::App& app) {
     };
 
     std::signal(SIGINT, onSigint);
-    Progress progress("build", static_cast<int>(frames.size()), o->quiet);
+    Progress progress("build", static_cast<int>(frames.size()), o->quiet, run_start);
     std::vector<std::pair<std::string, double>> stage_ms;  // in pipeline order
     std::size_t points = 0;
     int used = 0, no_ground = 0, no_pose = 0;

@@ -12,9 +12,11 @@ namespace mobmap::app {
 
 class Progress {
  public:
-  Progress(std::string label, int total, bool quiet)
-      : label_(std::move(label)), total_(total), quiet_(quiet), tty_(::isatty(2) == 1),
-        start_(std::chrono::steady_clock::now()) {}
+  /// Rates and the ETA count from `start` (default: now); pass the job's own start when
+  /// work done before the first update belongs to it.
+  Progress(std::string label, int total, bool quiet,
+           std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now())
+      : label_(std::move(label)), total_(total), quiet_(quiet), tty_(::isatty(2) == 1), start_(start) {}
 
   void update(int done, const std::string& extra = "") {
     if (quiet_ || total_ <= 0) return;
