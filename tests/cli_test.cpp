@@ -457,9 +457,19 @@ TEST(Cli, BuildMapsASingleDepthPngWithItsIntrinsics) {
   EXPECT_EQ(bare.code, 2);
   EXPECT_NE(bare.out.find("--intrinsics"), std::string::npos) << bare.out;
   EXPECT_FALSE(fs::exists(dir + "/m.ot"));
-  const Result b = run("build " + png + " --intrinsics " + dir + "/seq/camera-intrinsics.txt --out " + dir + "/m.ot --quiet");
+  const Result b = run("build " + png + " --intrinsics " + dir + "/seq/camera-intrinsics.txt --out " + dir + "/m.ot");
   ASSERT_EQ(b.code, 0) << b.out;
   EXPECT_NE(b.out.find("1 of 1 frames fused (0 without a ground plane)"), std::string::npos) << b.out;
+  // The progress line's rate counts from the run's start, as the summary's does: the
+  // frame perceived before the frame loop (to find "down") is not left out of it.
+  const std::size_t at_progress = b.out.find("build 1/1 frames (");
+  const std::size_t at_summary = b.out.find("frames/s)");
+  ASSERT_NE(at_progress, std::string::npos) << b.out;
+  ASSERT_NE(at_summary, std::string::npos) << b.out;
+  const double progress_fps = std::stod(b.out.substr(at_progress + 18));
+  const double summary_fps = std::stod(b.out.substr(b.out.rfind('(', at_summary) + 1));
+  EXPECT_GT(summary_fps, 0.0) << b.out;
+  EXPECT_LT(progress_fps, 1.5 * summary_fps + 0.1) << b.out;
   // Map frame: origin at the camera, z up, the camera's forward axis along +y.
   const Result q = run("query " + dir + "/m.ot 0 1.8 -1.0 --snap 1.0 --json");
   ASSERT_EQ(q.code, 0) << q.out;
