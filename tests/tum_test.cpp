@@ -16,10 +16,13 @@
 
 #include <unistd.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 
 namespace mobmap {
@@ -150,6 +153,110 @@ TEST(TumSequence, AssociatesDepthWithInterpolatedPosesAndSkipsFramesInAGap) {
   fs::remove_all(dir);
 }
 
+// `overlay` reads a TUM frame as `build` numbers it, over its registered colour image
+// (rgb.txt, paired within 0.02 s), and paints the map where the frame sees it: the
+// floor's pixels in green, the box and ramp sides' in red.
+TEST(TumSequence, OverlayPaintsTheMapOverTheFramesRegisteredColourImage) {
+  sim::CorridorParams p;
+  p.frames = 240;       // the moving box moves from frame 40 on: it stands still in frames 0-11
+  p.noise = sim::NoiseModel::kNone;
+  p.speed_mps = 12.0;  // 0.4 m per frame: frame 6 stands before the steeper ramps
+  const sim::CorridorScene scene(p);
+  const std::string dir = writeTum(scene, 12, 1000);  // no gap: sequence index = frame
+  const auto& k = scene.params().intrinsics;
+  // Colour 5 ms after each depth frame, a pattern that names the frame in blue; frame
+  // 3's colour is 30 ms late, too far to pair with its depth.
+  auto pattern = [](int u, int v, int f) -> std::array<std::uint8_t, 3> {
+    return {static_cast<std::uint8_t>(u % 200), static_cast<std::uint8_t>(v % 200), static_cast<std::uint8_t>(10 * f)};
+  };
+  fs::create_directories(fs::path(dir) / "rgb");
+  {
+    std::ofstream rgb_txt(fs::path(dir) / "rgb.txt");
+    rgb_txt << "# color images\n# timestamp filename\n";
+    for (int f = 0; f < 12; ++f) {
+      app::ImageRgb img{k.width, k.height, {}};
+      for (int v = 0; v < k.height; ++v) {
+        for (int u = 0; u < k.width; ++u) img.pixels.push_back(pattern(u, v, f));
+      }
+      const double t = kT0 + f / 30.0 + (f == 3 ? 0.03 : 0.005);
+      char name[64];
+      std::snprintf(name, sizeof(name), "rgb/%.6f.png", t);
+      app::writePngRgb((fs::path(dir) / name).string(), img);
+      rgb_txt << std::fixed << t << " " << name << "\n";
+    }
+  }
+  const std::string intrinsics = "585,585,320,240";
+  const auto seq = app::openSequence(dir, intrinsics, 0.02);
+  ASSERT_EQ(seq->frames().size(), 12u);
+  for (int n : {0, 6, 11}) {
+    const auto c = seq->colour(n);
+    ASSERT_TRUE(c) << n;
+    ASSERT_EQ(c->width, k.width);
+    EXPECT_EQ(c->pixels[static_cast<std::size_t>(123 * k.width + 456)], pattern(456, 123, n));
+  }
+  EXPECT_FALSE(seq->colour(3));
+  const std::string map = dir + "/map.ot", out = dir + "/ov.png";
+  const std::string log = " > " + dir + "/log 2>&1";
+  ASSERT_EQ(std::system((std::string(MOBMAP_EXE) + " build " + dir + " --intrinsics " + intrinsics + " --out " + map + " --quiet" + log).c_str()), 0);
+  ASSERT_EQ(std::system((std::string(MOBMAP_EXE) + " overlay " + map + " --frame " + dir + ":6 --intrinsics " + intrinsics +
+                         " --out " + out + log).c_str()), 0);
+  const app::ImageRgb ov = app::readPngRgb(out);
+  ASSERT_EQ(ov.width, k.width);
+  ASSERT_EQ(ov.height, k.height);
+  // Every pixel is the colour image's, or 2:3 blended with a mobility colour: recover
+  // that colour (to within rounding) and count the pixels of the floor and of the
+  // surfaces no robot stands on.
+  const auto r = scene.render(6);
+  int floor = 0, floor_painted = 0, floor_green = 0, blocked_painted = 0, blocked_red = 0, neither = 0;
+  for (int v = 0; v < k.height; ++v) {
+    for (int u = 0; u < k.width; ++u) {
+      const std::size_t i = static_cast<std::size_t>(v) * k.width + u;
+      const auto base = pattern(u, v, 6);
+      const auto o = ov.pixels[i];
+      const bool painted = o != base;
+      std::array<int, 3> paint{};
+      for (std::size_t ch = 0; ch < 3; ++ch) paint[ch] = (5 * o[ch] - 2 * base[ch]) / 3;
+      // A blend of this base with a colour in [0, 255] (integer division: within 2).
+      const bool blend = std::all_of(paint.begin(), paint.end(), [](int x) { return x >= -2 && x <= 257; });
+      neither += painted && !blend;
+      const int id = r.labels[i];
+      const float z = r.exact_depth.depth_m[i];
+      // Within the 3 m mapping range, and not at its edge.
+      if (id == 0 || perception::backProject(k, u, v, z).norm() > 2.8) continue;
+      const sim::SurfaceKind kind = scene.surface(id).kind;
+      if (kind == sim::SurfaceKind::kFloor) {
+        ++floor;
+        floor_painted += painted;
+        floor_green += painted && paint[1] > paint[0] + 100;
+      } else if (scene.surface(id).expected_mobility == 0.0 && painted) {  // box and ramp sides here
+        ++blocked_painted;
+        blocked_red += paint[0] > paint[1] + 100;
+      }
+    }
+  }
+  EXPECT_EQ(neither, 0);
+  ASSERT_GT(floor, 20000);  // the floor fills most of the view
+  EXPECT_GT(floor_painted, 0.95 * floor) << floor_painted << " of " << floor;
+  EXPECT_GT(floor_green, 0.97 * floor_painted) << floor_green << " of " << floor_painted;
+  ASSERT_GT(blocked_painted, 5000);
+  EXPECT_GT(blocked_red, 0.9 * blocked_painted) << blocked_red << " of " << blocked_painted;
+  // Frame 3 has no colour to pair: the base is the shaded depth, so no pixel is the pattern's.
+  ASSERT_EQ(std::system((std::string(MOBMAP_EXE) + " overlay " + map + " --frame " + dir + ":3 --intrinsics " + intrinsics +
+                         " --out " + out + log).c_str()), 0);
+  const app::ImageRgb grey = app::readPngRgb(out);
+  int pattern_pixels = 0;
+  for (int v = 0; v < k.height; v += 7) {
+    for (int u = 0; u < k.width; u += 7) pattern_pixels += grey.pixels[static_cast<std::size_t>(v) * k.width + u] == pattern(u, v, 3);
+  }
+  EXPECT_EQ(pattern_pixels, 0);
+  // A frame the sequence does not have: exit 1, naming the input and the frames it has.
+  ASSERT_NE(std::system((std::string(MOBMAP_EXE) + " overlay " + map + " --frame " + dir + ":12 --out " + out + log).c_str()), 0);
+  std::ifstream log_file(dir + "/log");
+  const std::string text((std::istreambuf_iterator<char>(log_file)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("has no posed frame 12 (frames 0..11, 12 of them)"), std::string::npos) << text;
+  fs::remove_all(dir);
+}
+
 TEST(TumSequence, BadGroundTruthNamesTheFileAndPose) {
   const fs::path dir = fs::temp_directory_path() / ("mobmap-tum-bad-" + std::to_string(::getpid()));
   fs::create_directories(dir);
@@ -179,13 +286,13 @@ TEST(TumSequence, BadGroundTruthNamesTheFileAndPose) {
 }
 
 // Writes frame `f` of the noise-free corridor as an organized binary PCD (x y z, NaN
-// where there is no depth), as a Kinect grabber would.
+// where there is no depth, and the rendered colour packed in rgb), as a Kinect grabber would.
 void writeOrganizedPcd(const sim::CorridorScene& scene, int f, const std::string& path, float x_scale = 1.f) {
   const auto r = scene.render(f);
   const auto& k = scene.params().intrinsics;
   std::ofstream out(path, std::ios::binary);
-  out << "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH " << k.width << "\nHEIGHT "
-      << k.height << "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << k.width * k.height << "\nDATA binary\n";
+  out << "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH " << k.width
+      << "\nHEIGHT " << k.height << "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << k.width * k.height << "\nDATA binary\n";
   const float nan = std::numeric_limits<float>::quiet_NaN();
   for (int v = 0; v < k.height; ++v) {
     for (int u = 0; u < k.width; ++u) {
@@ -196,6 +303,9 @@ void writeOrganizedPcd(const sim::CorridorScene& scene, int f, const std::string
         xyz[0] = p.x() * x_scale, xyz[1] = p.y(), xyz[2] = p.z();
       }
       out.write(reinterpret_cast<const char*>(xyz), sizeof xyz);
+      const auto& c = r.colour[static_cast<std::size_t>(v) * k.width + u];
+      const std::uint32_t packed = (std::uint32_t{c[0]} << 16) | (std::uint32_t{c[1]} << 8) | c[2];
+      out.write(reinterpret_cast<const char*>(&packed), sizeof packed);
     }
   }
 }
@@ -253,6 +363,11 @@ TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
       for (std::size_t i = 0; i < r.exact_depth.depth_m.size(); i += 101) {
         ASSERT_NEAR(f.depth.depth_m[i], r.exact_depth.depth_m[i], 1e-6) << i;
       }
+      // The cloud's rgb is the frame's colour image (for overlay).
+      const auto colour = seq->colour(n);
+      ASSERT_TRUE(colour);
+      ASSERT_EQ(colour->pixels.size(), r.colour.size());
+      for (std::size_t i = 0; i < r.colour.size(); i += 101) ASSERT_EQ(colour->pixels[i], r.colour[i]) << i;
     }
   }
   // Too few poses for frames without usable time stamps: a clear error naming the file.
@@ -306,6 +421,19 @@ TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
   EXPECT_NEAR(floor->centre.z(), 0.0, map.tree().getResolution());
   ASSERT_TRUE(floor->has_mobility);
   EXPECT_GT(floor->mobility, 0.75);
+  // overlay reads the same frames with the same --poses: the map over the cloud's colours.
+  const std::string ov = (dir / "ov.png").string();
+  const std::string ov_cmd = std::string(MOBMAP_EXE) + " overlay " + out + " --frame " + (dir / "frames").string() +
+                             ":1 --poses " + (dir / "in_order.txt").string() + " --out " + ov + " > " + (dir / "log").string() + " 2>&1";
+  ASSERT_EQ(std::system(ov_cmd.c_str()), 0) << ov_cmd;
+  const app::ImageRgb picture = app::readPngRgb(ov);
+  const auto r10 = scene.render(10);
+  ASSERT_EQ(picture.pixels.size(), r10.colour.size());
+  std::size_t as_is = 0;
+  for (std::size_t i = 0; i < r10.colour.size(); ++i) as_is += picture.pixels[i] == r10.colour[i];
+  // The colour image shows where no voxel is, and the map covers most of it.
+  EXPECT_GT(as_is, 0u);
+  EXPECT_LT(as_is, r10.colour.size() / 2) << as_is;
   fs::remove_all(dir);
 }
 

@@ -2,16 +2,17 @@
 // of the input (`overlay`, paper eq. 13 and Figs. 4 and 6).
 #include "canvas.hpp"
 #include "commands.hpp"
-#include "dataset.hpp"
 #include "frame_source.hpp"
 #include "io_error.hpp"
 #include "map_files.hpp"
+#include "sequence.hpp"
 #include "top_view.hpp"
 
 #include <cmath>
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <limits>
 #include <memory>
 
@@ -83,26 +84,58 @@ Command addExportCommand(CLI::App& app) {
 Command addOverlayCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand("overlay", "Project a map's surface voxels into a frame of its input, coloured by mobility");
   struct Options {
-    std::string map, frame, out;
+    std::string map, frame, out, poses, intrinsics;
+    double max_pose_gap = 0.05;
   };
   auto o = std::make_shared<Options>();
   cmd->add_option("MAP", o->map, "A .ot map")->required();
-  cmd->add_option("--frame", o->frame, "INPUT:N, a 7-Scenes layout directory and a frame number")->required();
+  cmd->add_option("--frame", o->frame,
+                  "INPUT:N: frame N of a posed input as `build` reads it and numbers it with --frames (a 7-Scenes / "
+                  "3DMatch directory, a TUM RGB-D directory, .pcd frames with --poses)")
+      ->required();
   cmd->add_option("--out", o->out, "PNG to write")->required();
+  cmd->add_option("--poses", o->poses, "For .pcd frames: the trajectory the map was built with (as for build)");
+  cmd->add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy or a camera-intrinsics.txt file, if the map was built with them");
+  cmd->add_option("--max-pose-gap", o->max_pose_gap, "TUM / timestamped --poses: as for build (frame numbers depend on it)")
+      ->capture_default_str();
   return [o]() {
     const auto colon = o->frame.rfind(':');
     if (colon == std::string::npos) throw UsageError("--frame must be INPUT:N, got '" + o->frame + "'");
     int n = -1;
     try {
-      n = std::stoi(o->frame.substr(colon + 1));
+      std::size_t used = 0;
+      n = std::stoi(o->frame.substr(colon + 1), &used);
+      if (used != o->frame.size() - colon - 1) throw std::invalid_argument("trailing characters");
     } catch (const std::exception&) {
       throw UsageError("--frame must end in :N (a frame number), got '" + o->frame + "'");
     }
-    const LoadedFrame f = loadSingleFrame(o->frame.substr(0, colon), n, "");
-    if (!f.depth || !f.T_world_camera) throw UsageError("--frame needs a directory frame with a pose");
+    const std::string input = o->frame.substr(0, colon);
+    std::error_code ec;
+    if (!std::filesystem::exists(input, ec)) throw IoError(input, "no such file or directory");
+    if (!std::filesystem::is_directory(input, ec) && std::filesystem::path(input).extension() != ".pcd") {
+      throw UsageError("--frame: overlay reads frames of a 7-Scenes / 3DMatch or TUM directory or of posed .pcd frames; " +
+                       input + " is none of these (for one frame on its own: mobmap analyze FILE --overlay OUT.png)");
+    }
+    const auto seq = openSequence(input, o->intrinsics, o->max_pose_gap, o->poses);
+    const auto& numbers = seq->frames();
+    if (std::find(numbers.begin(), numbers.end(), n) == numbers.end()) {
+      throw IoError(input, "has no posed frame " + std::to_string(n) + " (frames " + std::to_string(numbers.front()) + ".." +
+                               std::to_string(numbers.back()) + ", " + std::to_string(numbers.size()) + " of them)");
+    }
+    if (!seq->hasDepth()) {
+      throw IoError(input, "its frames are unorganized clouds, not images: there is no picture to draw the map into");
+    }
+    LoadedFrame f;
+    {
+      SequenceFrame sf = seq->load(n);
+      f.depth = std::move(sf.depth);
+      f.T_world_camera = sf.T_world_camera.matrix();
+      f.intrinsics = seq->intrinsics();
+      f.colour = seq->colour(n);
+    }
     const mapping::MobilityMap map = mapping::openMap(o->map);
     const auto& k = f.intrinsics;
-    // Base image: the colour frame if it is a PNG of the same size, else shaded depth.
+    // Base image: the frame's colour image when the input has one, else shaded depth.
     Canvas c(k.width, k.height, {0, 0, 0});
     for (int v = 0; v < k.height; ++v) {
       for (int u = 0; u < k.width; ++u) {

@@ -41,6 +41,14 @@ class SevenScenesSequence : public Sequence {
     f.T_world_camera = *pose(n);
     return f;
   }
+  std::optional<ImageRgb> colour(int n) const override {
+    std::error_code ec;
+    const fs::path path = fs::path(dir_.dir()) / (frameStem(n) + ".color.png");  // .color.jpg is not read
+    if (!fs::exists(path, ec)) return std::nullopt;
+    ImageRgb c = readPngRgb(path.string());
+    if (c.width != dir_.intrinsics().width || c.height != dir_.intrinsics().height) return std::nullopt;
+    return c;
+  }
   std::optional<Eigen::Isometry3d> pose(int n) const override {
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.matrix() = dir_.readPose(n);
@@ -189,6 +197,12 @@ class PcdSequence : public Sequence {
     }
     return f;
   }
+  std::optional<ImageRgb> colour(int n) const override {
+    if (!depth_) return std::nullopt;  // unorganized: no image to colour
+    LoadedFrame lf = loadPcd(entries_.at(static_cast<std::size_t>(n)).path);
+    if (!lf.colour || lf.colour->width != k_.width || lf.colour->height != k_.height) return std::nullopt;
+    return std::move(lf.colour);
+  }
   std::string skipped() const override { return skipped_; }
   std::optional<Eigen::Isometry3d> pose(int n) const override { return entries_.at(static_cast<std::size_t>(n)).pose; }
 
@@ -231,6 +245,11 @@ class TumSequence : public Sequence {
                  " depth frames have no ground-truth pose within " + std::to_string(max_gap) + " s and were skipped";
     }
     if (entries_.empty()) throw IoError(dir, "no depth frame of depth.txt has a ground-truth pose");
+    const fs::path rgb_txt = fs::path(dir) / "rgb.txt";
+    if (fs::exists(rgb_txt, ec)) {
+      for (const auto& [t, v] : readTimestamped(rgb_txt.string(), 1)) rgb_.emplace_back(t, (fs::path(dir) / v[0]).string());
+      std::sort(rgb_.begin(), rgb_.end());
+    }
     const Image16 first = readPng16(entries_.front().path);
     k_ = intrinsics_spec.empty() ? perception::PinholeIntrinsics{first.width, first.height, 525.0, 525.0, 319.5, 239.5}
                                  : parseIntrinsics(intrinsics_spec, first.width, first.height);
@@ -257,6 +276,16 @@ class TumSequence : public Sequence {
     f.T_world_camera = e.pose;
     return f;
   }
+  std::optional<ImageRgb> colour(int n) const override {
+    if (rgb_.empty()) return std::nullopt;
+    const double t = entries_.at(static_cast<std::size_t>(n)).t;
+    auto it = std::lower_bound(rgb_.begin(), rgb_.end(), t, [](const auto& e, double v) { return e.first < v; });
+    if (it == rgb_.end() || (it != rgb_.begin() && t - std::prev(it)->first < it->first - t)) --it;
+    if (std::abs(it->first - t) > 0.02) return std::nullopt;  // TUM's associate.py pairs within 0.02 s
+    ImageRgb c = readPngRgb(it->second);
+    if (c.width != k_.width || c.height != k_.height) return std::nullopt;
+    return c;
+  }
   std::string skipped() const override { return skipped_; }
   std::optional<Eigen::Isometry3d> pose(int n) const override { return entries_.at(static_cast<std::size_t>(n)).pose; }
 
@@ -269,6 +298,7 @@ class TumSequence : public Sequence {
   std::string dir_;
   mapping::Trajectory trajectory_;
   std::vector<Entry> entries_;
+  std::vector<std::pair<double, std::string>> rgb_;  ///< rgb.txt: time stamp, image path
   std::vector<int> frames_;
   std::string skipped_;
   perception::PinholeIntrinsics k_;

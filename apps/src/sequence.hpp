@@ -1,6 +1,8 @@
 #pragma once
 // Posed depth sequences for `mobmap build`: the 7-Scenes / 3DMatch layout and TUM RGB-D.
 
+#include "png_io.hpp"
+
 #include "mobmap/perception/camera.hpp"
 
 #include <Eigen/Geometry>
@@ -45,6 +47,11 @@ class Sequence {
   /// sequences that know their poses before the run; nullopt for streams (OpenNI2),
   /// whose poses arrive with their frames.
   [[nodiscard]] virtual std::optional<Eigen::Isometry3d> pose(int /*n*/) const { return std::nullopt; }
+  /// Frame `n`'s colour image, pixel for pixel with its depth, when the input has one:
+  /// a 7-Scenes / 3DMatch `.color.png` of the depth's size, the TUM `rgb.txt` image
+  /// within 0.02 s of the depth (TUM registers colour to depth), an organized .pcd's
+  /// rgb. For pictures; load() does not read it. IoError if the file is unreadable.
+  [[nodiscard]] virtual std::optional<ImageRgb> colour(int /*n*/) const { return std::nullopt; }
   /// Frames left out and why ("12 depth frames without a pose within 0.05 s"), or "".
   [[nodiscard]] virtual std::string skipped() const { return {}; }
 };
