@@ -198,8 +198,8 @@ TEST(TumSequence, OverlayPaintsTheMapOverTheFramesRegisteredColourImage) {
   const std::string map = dir + "/map.ot", out = dir + "/ov.png";
   const std::string log = " > " + dir + "/log 2>&1";
   ASSERT_EQ(std::system((std::string(MOBMAP_EXE) + " build " + dir + " --intrinsics " + intrinsics + " --out " + map + " --quiet" + log).c_str()), 0);
-  ASSERT_EQ(std::system((std::string(MOBMAP_EXE) + " overlay " + map + " --frame " + dir + ":6 --intrinsics " + intrinsics +
-                         " --out " + out + log).c_str()), 0);
+  // The intrinsics the map was built with come from MAP.json.
+  ASSERT_EQ(std::system((std::string(MOBMAP_EXE) + " overlay " + map + " --frame " + dir + "/:6 --out " + out + log).c_str()), 0);
   const app::ImageRgb ov = app::readPngRgb(out);
   ASSERT_EQ(ov.width, k.width);
   ASSERT_EQ(ov.height, k.height);
@@ -240,9 +240,9 @@ TEST(TumSequence, OverlayPaintsTheMapOverTheFramesRegisteredColourImage) {
   EXPECT_GT(floor_green, 0.97 * floor_painted) << floor_green << " of " << floor_painted;
   ASSERT_GT(blocked_painted, 5000);
   EXPECT_GT(blocked_red, 0.9 * blocked_painted) << blocked_red << " of " << blocked_painted;
-  // Frame 3 has no colour to pair: the base is the shaded depth, so no pixel is the pattern's.
-  ASSERT_EQ(std::system((std::string(MOBMAP_EXE) + " overlay " + map + " --frame " + dir + ":3 --intrinsics " + intrinsics +
-                         " --out " + out + log).c_str()), 0);
+  // Frame 3 (of the map's own input: N alone) has no colour to pair: the base is the
+  // shaded depth, so no pixel is the pattern's.
+  ASSERT_EQ(std::system((std::string(MOBMAP_EXE) + " overlay " + map + " --frame 3 --out " + out + log).c_str()), 0);
   const app::ImageRgb grey = app::readPngRgb(out);
   int pattern_pixels = 0;
   for (int v = 0; v < k.height; v += 7) {
@@ -421,10 +421,11 @@ TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
   EXPECT_NEAR(floor->centre.z(), 0.0, map.tree().getResolution());
   ASSERT_TRUE(floor->has_mobility);
   EXPECT_GT(floor->mobility, 0.75);
-  // overlay reads the same frames with the same --poses: the map over the cloud's colours.
+  // overlay reads the same frames with the same poses: the map over the cloud's colours.
   const std::string ov = (dir / "ov.png").string();
+  // (--poses defaults to the trajectory MAP.json names.)
   const std::string ov_cmd = std::string(MOBMAP_EXE) + " overlay " + out + " --frame " + (dir / "frames").string() +
-                             ":1 --poses " + (dir / "in_order.txt").string() + " --out " + ov + " > " + (dir / "log").string() + " 2>&1";
+                             ":1 --out " + ov + " > " + (dir / "log").string() + " 2>&1";
   ASSERT_EQ(std::system(ov_cmd.c_str()), 0) << ov_cmd;
   const app::ImageRgb picture = app::readPngRgb(ov);
   const auto r10 = scene.render(10);

@@ -512,6 +512,15 @@ Command addBuildCommand(CLI::App& app) {
                              {"frames_considered", keyframes_considered}};
       }
       if (is_dir && !dir->skipped().empty()) meta["skipped"] = dir->skipped();
+      // How this run read its frames, so `overlay` can read them again the same way.
+      const perception::PinholeIntrinsics* k =
+          is_dir ? (dir->hasDepth() ? &dir->intrinsics() : nullptr) : (single.depth ? &single.intrinsics : nullptr);
+      if (k) {
+        meta["depth_intrinsics"] = {{"fx", k->fx}, {"fy", k->fy}, {"cx", k->cx}, {"cy", k->cy},
+                                    {"width", k->width}, {"height", k->height}};
+      }
+      if (!o->poses.empty()) meta["poses"] = fs::absolute(o->poses, ec).lexically_normal().string();
+      meta["max_pose_gap_s"] = o->max_pose_gap;
       if (no_pose > 0) meta["frames_without_pose"] = no_pose;
       meta["frame_numbers"] = {frames.front(), last_fused};
       meta["interrupted"] = g_interrupted.load();

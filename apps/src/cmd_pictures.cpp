@@ -81,6 +81,36 @@ Command addExportCommand(CLI::App& app) {
   };
 }
 
+namespace {
+
+// An input path as build records it in MAP.json ("input"), without a trailing '/'.
+std::string normalInput(const std::string& path) {
+  std::error_code ec;
+  std::filesystem::path p = std::filesystem::absolute(path, ec).lexically_normal();
+  if (p.filename().empty()) p = p.parent_path();
+  return p.string();
+}
+
+// The record in MAP.json of the latest run that read `input` (the run itself, or one of
+// its earlier_runs after build --extend), or null.
+const nlohmann::json* runOfInput(const nlohmann::json& meta, const std::string& input) {
+  const std::string wanted = normalInput(input);
+  auto reads = [&](const nlohmann::json& run) {
+    return run.is_object() && run.contains("input") && run["input"].is_string() &&
+           normalInput(run["input"].get<std::string>()) == wanted;
+  };
+  if (reads(meta)) return &meta;
+  if (meta.contains("earlier_runs") && meta["earlier_runs"].is_array()) {
+    const auto& runs = meta["earlier_runs"];
+    for (auto it = runs.rbegin(); it != runs.rend(); ++it) {
+      if (reads(*it)) return &*it;
+    }
+  }
+  return nullptr;
+}
+
+}  // namespace
+
 Command addOverlayCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand("overlay", "Project a map's surface voxels into a frame of its input, coloured by mobility");
   struct Options {
@@ -91,32 +121,65 @@ Command addOverlayCommand(CLI::App& app) {
   cmd->add_option("MAP", o->map, "A .ot map")->required();
   cmd->add_option("--frame", o->frame,
                   "INPUT:N: frame N of a posed input as `build` reads it and numbers it with --frames (a 7-Scenes / "
-                  "3DMatch directory, a TUM RGB-D directory, .pcd frames with --poses)")
+                  "3DMatch directory, a TUM RGB-D directory, .pcd frames with --poses); N alone: of the input the "
+                  "map was built from")
       ->required();
   cmd->add_option("--out", o->out, "PNG to write")->required();
-  cmd->add_option("--poses", o->poses, "For .pcd frames: the trajectory the map was built with (as for build)");
-  cmd->add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy or a camera-intrinsics.txt file, if the map was built with them");
-  cmd->add_option("--max-pose-gap", o->max_pose_gap, "TUM / timestamped --poses: as for build (frame numbers depend on it)")
-      ->capture_default_str();
-  return [o]() {
+  cmd->add_option("--poses", o->poses, "For .pcd frames: their trajectory (default: the one the map was built with)");
+  cmd->add_option("--intrinsics", o->intrinsics,
+                  "fx,fy,cx,cy or a camera-intrinsics.txt file (default: those the map was built with, else the input's own)");
+  auto* gap = cmd->add_option("--max-pose-gap", o->max_pose_gap,
+                              "TUM / timestamped --poses: as for build, which numbers the frames by it (default: the "
+                              "map's, else 0.05)");
+  return [o, gap]() {
+    // MAP.json says how the map's runs read their frames: overlay reads them the same
+    // way unless told otherwise (wrong intrinsics would shift the picture silently).
+    const mapping::MapMetadata metadata = mapping::readMapMetadata(o->map);
+    const nlohmann::json meta = metadataJson(metadata);
     const auto colon = o->frame.rfind(':');
-    if (colon == std::string::npos) throw UsageError("--frame must be INPUT:N, got '" + o->frame + "'");
+    std::string input;
+    if (colon == std::string::npos) {
+      if (!meta.contains("input") || !meta["input"].is_string() || meta["input"].get<std::string>().rfind("OpenNI2 device", 0) == 0) {
+        throw UsageError("--frame " + o->frame + ": give INPUT:N (" +
+                         (metadata.found ? "MAP.json names no input to read frames from" : "there is no MAP.json to name the input") + ")");
+      }
+      input = meta["input"].get<std::string>();
+    } else {
+      input = o->frame.substr(0, colon);
+    }
+    const std::string number = colon == std::string::npos ? o->frame : o->frame.substr(colon + 1);
     int n = -1;
     try {
       std::size_t used = 0;
-      n = std::stoi(o->frame.substr(colon + 1), &used);
-      if (used != o->frame.size() - colon - 1) throw std::invalid_argument("trailing characters");
+      n = std::stoi(number, &used);
+      if (used != number.size()) throw std::invalid_argument("trailing characters");
     } catch (const std::exception&) {
-      throw UsageError("--frame must end in :N (a frame number), got '" + o->frame + "'");
+      throw UsageError("--frame must be INPUT:N or N (a frame number), got '" + o->frame + "'");
     }
-    const std::string input = o->frame.substr(0, colon);
     std::error_code ec;
     if (!std::filesystem::exists(input, ec)) throw IoError(input, "no such file or directory");
     if (!std::filesystem::is_directory(input, ec) && std::filesystem::path(input).extension() != ".pcd") {
       throw UsageError("--frame: overlay reads frames of a 7-Scenes / 3DMatch or TUM directory or of posed .pcd frames; " +
                        input + " is none of these (for one frame on its own: mobmap analyze FILE --overlay OUT.png)");
     }
-    const auto seq = openSequence(input, o->intrinsics, o->max_pose_gap, o->poses);
+    std::string intrinsics = o->intrinsics, poses = o->poses;
+    double max_pose_gap = o->max_pose_gap;
+    if (const nlohmann::json* run = runOfInput(meta, input)) {
+      try {
+        if (intrinsics.empty() && run->contains("depth_intrinsics")) {
+          const auto& k = (*run)["depth_intrinsics"];
+          char spec[160];
+          std::snprintf(spec, sizeof spec, "%.17g,%.17g,%.17g,%.17g", k.at("fx").get<double>(), k.at("fy").get<double>(),
+                        k.at("cx").get<double>(), k.at("cy").get<double>());
+          intrinsics = spec;
+        }
+        if (poses.empty() && run->contains("poses")) poses = (*run)["poses"].get<std::string>();
+        if (gap->count() == 0 && run->contains("max_pose_gap_s")) max_pose_gap = (*run)["max_pose_gap_s"].get<double>();
+      } catch (const nlohmann::json::exception& e) {
+        throw IoError(metadata.path, std::string("depth_intrinsics, poses or max_pose_gap_s is malformed (") + e.what() + ")");
+      }
+    }
+    const auto seq = openSequence(input, intrinsics, max_pose_gap, poses);
     const auto& numbers = seq->frames();
     if (std::find(numbers.begin(), numbers.end(), n) == numbers.end()) {
       throw IoError(input, "has no posed frame " + std::to_string(n) + " (frames " + std::to_string(numbers.front()) + ".." +
@@ -133,7 +196,7 @@ Command addOverlayCommand(CLI::App& app) {
       f.intrinsics = seq->intrinsics();
       f.colour = seq->colour(n);
     }
-    const mapping::MobilityMap map = mapping::openMap(o->map);
+    const mapping::MobilityMap map = mapping::openMap(mapping::loadMobilityMap(o->map), metadata);
     const auto& k = f.intrinsics;
     // Base image: the frame's colour image when the input has one, else shaded depth.
     Canvas c(k.width, k.height, {0, 0, 0});
