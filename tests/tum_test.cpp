@@ -13,6 +13,7 @@
 #include "mobmap/sim/tum_pose.hpp"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <unistd.h>
 
@@ -156,7 +157,8 @@ TEST(TumSequence, AssociatesDepthWithInterpolatedPosesAndSkipsFramesInAGap) {
 // `overlay` reads a TUM frame as `build` numbers it, over its registered colour image
 // (rgb.txt, paired within 0.02 s), and paints the map where the frame sees it: the
 // floor's pixels in green, the box and ramp sides' in red.
-TEST(TumSequence, OverlayPaintsTheMapOverTheFramesRegisteredColourImage) {
+// `analyze` reads a TUM directory's frames too, numbered the same way.
+TEST(TumSequence, OverlayPaintsTheMapOverTheRegisteredColourAndAnalyzeReadsTheSameFrame) {
   sim::CorridorParams p;
   p.frames = 240;       // the moving box moves from frame 40 on: it stands still in frames 0-11
   p.noise = sim::NoiseModel::kNone;
@@ -249,6 +251,15 @@ TEST(TumSequence, OverlayPaintsTheMapOverTheFramesRegisteredColourImage) {
     for (int u = 0; u < k.width; u += 7) pattern_pixels += grey.pixels[static_cast<std::size_t>(v) * k.width + u] == pattern(u, v, 3);
   }
   EXPECT_EQ(pattern_pixels, 0);
+  // analyze reads the same frame, numbered the same way: its ground plane lies the
+  // camera's height below it.
+  const std::string json = dir + "/frame6.json";
+  ASSERT_EQ(std::system((std::string(MOBMAP_EXE) + " analyze " + dir + " --frame 6 --intrinsics " + intrinsics + " --json > " +
+                         json + " 2> " + dir + "/log").c_str()), 0);
+  std::ifstream json_file(json);
+  const auto analyzed = nlohmann::json::parse(json_file);
+  ASSERT_TRUE(analyzed.contains("ground_plane")) << analyzed.dump();
+  EXPECT_NEAR(analyzed["ground_plane"][3].get<double>(), scene.cameraPose(6).translation().z(), 0.01);
   // A frame the sequence does not have: exit 1, naming the input and the frames it has.
   ASSERT_NE(std::system((std::string(MOBMAP_EXE) + " overlay " + map + " --frame " + dir + ":12 --out " + out + log).c_str()), 0);
   std::ifstream log_file(dir + "/log");

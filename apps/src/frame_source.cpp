@@ -3,6 +3,7 @@
 #include "dataset.hpp"
 #include "files.hpp"
 #include "io_error.hpp"
+#include "sequence.hpp"
 
 #include <pcl/console/print.h>
 #include <pcl/io/pcd_io.h>
@@ -101,6 +102,24 @@ LoadedFrame loadPcd(const std::string& path) {
 LoadedFrame loadSingleFrame(const std::string& input, int frame, const std::string& intrinsics_spec) {
   namespace fs = std::filesystem;
   std::error_code ec;
+  if (fs::is_directory(input, ec) && fs::exists(fs::path(input) / "depth.txt", ec)) {
+    // TUM RGB-D: frames numbered as build numbers them (the depth frames with a pose).
+    const auto seq = openSequence(input, intrinsics_spec, 0.05);
+    const auto& numbers = seq->frames();
+    const int n = frame < 0 ? numbers.front() : frame;
+    if (std::find(numbers.begin(), numbers.end(), n) == numbers.end()) {
+      throw IoError(input, "has no posed frame " + std::to_string(n) + " (frames " + std::to_string(numbers.front()) + ".." +
+                               std::to_string(numbers.back()) + ")");
+    }
+    SequenceFrame sf = seq->load(n);
+    LoadedFrame f;
+    f.description = "frame " + std::to_string(n) + " of " + input + " (TUM RGB-D)";
+    f.intrinsics = seq->intrinsics();
+    f.depth = std::move(sf.depth);
+    f.colour = seq->colour(n);
+    f.T_world_camera = sf.T_world_camera.matrix();
+    return f;
+  }
   if (fs::is_directory(input, ec)) {
     const SevenScenesDirectory dir(input);
     const int n = frame < 0 ? dir.frameNumbers().front() : frame;
@@ -135,7 +154,7 @@ LoadedFrame loadSingleFrame(const std::string& input, int frame, const std::stri
     return f;
   }
   if (!fs::exists(input, ec)) throw IoError(input, "no such file or directory");
-  throw IoError(input, "unknown input type (expected a .pcd, a 16-bit depth .png or a 7-Scenes directory)");
+  throw IoError(input, "unknown input type (expected a .pcd, a 16-bit depth .png, a 7-Scenes or a TUM RGB-D directory)");
 }
 
 perception::FrameResult perceiveFrame(const perception::FramePipeline& pipeline, const LoadedFrame& f,

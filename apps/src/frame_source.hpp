@@ -1,6 +1,6 @@
 #pragma once
 // Loading one frame for `mobmap analyze`: a PCD file, a 16-bit depth PNG with
-// intrinsics, or one frame of a 7-Scenes layout directory.
+// intrinsics, or one frame of a 7-Scenes layout or TUM RGB-D directory.
 
 #include "png_io.hpp"
 
@@ -53,7 +53,8 @@ std::string groundChoiceNote(const perception::FrameResult& r, double upright_pr
 Eigen::Vector3f parseVector3(const std::string& spec, const std::string& what);
 
 /// Loads INPUT as `mobmap analyze` describes it. `frame` picks the frame of a
-/// directory (-1: the first one). `intrinsics_spec` is required for a PNG.
+/// directory (-1: the first one), numbered as `build` numbers them. `intrinsics_spec`
+/// is required for a PNG.
 LoadedFrame loadSingleFrame(const std::string& input, int frame, const std::string& intrinsics_spec);
 
 }  // namespace mobmap::app

@@ -228,7 +228,7 @@ class TumSequence : public Sequence {
   TumSequence(const std::string& dir, const std::string& intrinsics_spec, double max_gap) : dir_(dir) {
     const std::string gt_path = (fs::path(dir) / "groundtruth.txt").string();
     std::error_code ec;
-    if (!fs::exists(gt_path, ec)) throw IoError(gt_path, "missing: a TUM sequence needs ground-truth poses to build a map");
+    if (!fs::exists(gt_path, ec)) throw IoError(gt_path, "missing: mobmap reads a TUM sequence with its ground-truth poses (they number its frames)");
     for (const auto& [t, T] : readTumPoses(gt_path)) trajectory_.insert(t, T);
     const auto depth_list = readTimestamped((fs::path(dir) / "depth.txt").string(), 1);
     int skipped = 0;
