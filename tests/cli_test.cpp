@@ -444,6 +444,11 @@ TEST(Cli, CoarserVoxelsReduceTheCloudAndKeepTheFloor) {
   EXPECT_DOUBLE_EQ(meta["perception"]["voxel_size_m"].get<double>(), 0.02);
   EXPECT_EQ(meta["perception"]["min_segment_points"].get<int>(), 13);  // rescaled from 50
   EXPECT_GT(meta["frames_per_second"].get<double>(), 0.0);
+  // A lone frame mapped in its camera frame is no sequence to overlay: say what draws it.
+  const Result ov = run("overlay " + dir + "/m.ot --frame 0 --out " + dir + "/ov.png");
+  EXPECT_EQ(ov.code, 2) << ov.out;
+  EXPECT_NE(ov.out.find("mobmap analyze FILE --overlay OUT.png"), std::string::npos) << ov.out;
+  EXPECT_FALSE(fs::exists(dir + "/ov.png"));
   fs::remove_all(dir);
 }
 

@@ -158,10 +158,6 @@ Command addOverlayCommand(CLI::App& app) {
     }
     std::error_code ec;
     if (!std::filesystem::exists(input, ec)) throw IoError(input, "no such file or directory");
-    if (!std::filesystem::is_directory(input, ec) && std::filesystem::path(input).extension() != ".pcd") {
-      throw UsageError("--frame: overlay reads frames of a 7-Scenes / 3DMatch or TUM directory or of posed .pcd frames; " +
-                       input + " is none of these (for one frame on its own: mobmap analyze FILE --overlay OUT.png)");
-    }
     std::string intrinsics = o->intrinsics, poses = o->poses;
     double max_pose_gap = o->max_pose_gap;
     if (const nlohmann::json* run = runOfInput(meta, input)) {
@@ -178,6 +174,12 @@ Command addOverlayCommand(CLI::App& app) {
       } catch (const nlohmann::json::exception& e) {
         throw IoError(metadata.path, std::string("depth_intrinsics, poses or max_pose_gap_s is malformed (") + e.what() + ")");
       }
+    }
+    // One .pcd or .png frame mapped in its own camera frame has no pose to read it by.
+    const bool lone_pcd = std::filesystem::path(input).extension() == ".pcd" && poses.empty();
+    if (!std::filesystem::is_directory(input, ec) && (std::filesystem::path(input).extension() != ".pcd" || lone_pcd)) {
+      throw UsageError("--frame: overlay reads frames of a 7-Scenes / 3DMatch or TUM directory or of .pcd frames with "
+                       "--poses; " + input + " is none of these (for one frame on its own: mobmap analyze FILE --overlay OUT.png)");
     }
     const auto seq = openSequence(input, intrinsics, max_pose_gap, poses);
     const auto& numbers = seq->frames();
