@@ -93,7 +93,9 @@ Command addDemoCommand(CLI::App& app) {
               << "      " << exe << " query " << map_path
               << " --foot 4.8 0.8 0.5 0 0.25 0.12 --reach   (the box top: flat, but 0.5 m up and out of reach)\n"
               << "      " << exe << " evaluate " << map_path << " --truth " << seq << "/ground_truth.json\n"
-              << "      " << exe << " export " << map_path << " --png " << o->out << "/top.png\n";
+              << "      " << exe << " export " << map_path << " --png " << o->out << "/top.png\n"
+              << "      " << exe << " overlay " << map_path << " --frame " << p.frames / 2 << " --out " << o->out
+              << "/overlay.png   (the map drawn into a frame, as in the paper's figures)\n";
     return 0;
   };
 }
