@@ -182,22 +182,10 @@ Command addOverlayCommand(CLI::App& app) {
                        "--poses; " + input + " is none of these (for one frame on its own: mobmap analyze FILE --overlay OUT.png)");
     }
     const auto seq = openSequence(input, intrinsics, max_pose_gap, poses);
-    const auto& numbers = seq->frames();
-    if (std::find(numbers.begin(), numbers.end(), n) == numbers.end()) {
-      throw IoError(input, "has no posed frame " + std::to_string(n) + " (frames " + std::to_string(numbers.front()) + ".." +
-                               std::to_string(numbers.back()) + ", " + std::to_string(numbers.size()) + " of them)");
-    }
     if (!seq->hasDepth()) {
       throw IoError(input, "its frames are unorganized clouds, not images: there is no picture to draw the map into");
     }
-    LoadedFrame f;
-    {
-      SequenceFrame sf = seq->load(n);
-      f.depth = std::move(sf.depth);
-      f.T_world_camera = sf.T_world_camera.matrix();
-      f.intrinsics = seq->intrinsics();
-      f.colour = seq->colour(n);
-    }
+    const LoadedFrame f = loadSequenceFrame(*seq, input, n);
     const mapping::MobilityMap map = mapping::openMap(mapping::loadMobilityMap(o->map), metadata);
     const auto& k = f.intrinsics;
     // Base image: the frame's colour image when the input has one, else shaded depth.

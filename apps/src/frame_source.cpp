@@ -99,25 +99,30 @@ LoadedFrame loadPcd(const std::string& path) {
   return f;
 }
 
+LoadedFrame loadSequenceFrame(const Sequence& seq, const std::string& input, int frame) {
+  const auto& numbers = seq.frames();
+  if (std::find(numbers.begin(), numbers.end(), frame) == numbers.end()) {
+    throw IoError(input, "has no posed frame " + std::to_string(frame) + " (frames " + std::to_string(numbers.front()) + ".." +
+                             std::to_string(numbers.back()) + ", " + std::to_string(numbers.size()) + " of them)");
+  }
+  SequenceFrame sf = seq.load(frame);
+  LoadedFrame f;
+  f.description = "frame " + std::to_string(frame) + " of " + input;
+  f.intrinsics = seq.intrinsics();
+  f.depth = std::move(sf.depth);
+  f.colour = seq.colour(frame);
+  f.T_world_camera = sf.T_world_camera.matrix();
+  return f;
+}
+
 LoadedFrame loadSingleFrame(const std::string& input, int frame, const std::string& intrinsics_spec) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (fs::is_directory(input, ec) && fs::exists(fs::path(input) / "depth.txt", ec)) {
     // TUM RGB-D: frames numbered as build numbers them (the depth frames with a pose).
     const auto seq = openSequence(input, intrinsics_spec, 0.05);
-    const auto& numbers = seq->frames();
-    const int n = frame < 0 ? numbers.front() : frame;
-    if (std::find(numbers.begin(), numbers.end(), n) == numbers.end()) {
-      throw IoError(input, "has no posed frame " + std::to_string(n) + " (frames " + std::to_string(numbers.front()) + ".." +
-                               std::to_string(numbers.back()) + ")");
-    }
-    SequenceFrame sf = seq->load(n);
-    LoadedFrame f;
-    f.description = "frame " + std::to_string(n) + " of " + input + " (TUM RGB-D)";
-    f.intrinsics = seq->intrinsics();
-    f.depth = std::move(sf.depth);
-    f.colour = seq->colour(n);
-    f.T_world_camera = sf.T_world_camera.matrix();
+    LoadedFrame f = loadSequenceFrame(*seq, input, frame < 0 ? seq->frames().front() : frame);
+    f.description += " (TUM RGB-D)";
     return f;
   }
   if (fs::is_directory(input, ec)) {

@@ -15,6 +15,8 @@
 
 namespace mobmap::app {
 
+class Sequence;
+
 struct LoadedFrame {
   std::string description;  ///< "frame 12 of DIR", "FILE.pcd (organized 640x480)"
   /// Either a depth image with intrinsics ...
@@ -51,6 +53,11 @@ std::string groundChoiceNote(const perception::FrameResult& r, double upright_pr
 /// Parses "X,Y,Z" (non-zero, finite), a direction: returned as a unit vector. Throws
 /// UsageError.
 Eigen::Vector3f parseVector3(const std::string& spec, const std::string& what);
+
+/// Frame `frame` of `seq` (opened from `input`, which errors name): its depth, pose,
+/// intrinsics and colour image. IoError naming the frames there are if `seq` has no
+/// frame with that number.
+LoadedFrame loadSequenceFrame(const Sequence& seq, const std::string& input, int frame);
 
 /// Loads INPUT as `mobmap analyze` describes it. `frame` picks the frame of a
 /// directory (-1: the first one), numbered as `build` numbers them. `intrinsics_spec`

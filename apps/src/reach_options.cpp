@@ -56,9 +56,8 @@ void resolveReachOptions(ReachOptions& o) {
   }
 }
 
-ReachRun runReach(ReachOptions& o, const mapping::MobilityMap& map, const std::string& map_path, bool from_in_world,
+ReachRun runReach(const ReachOptions& o, const mapping::MobilityMap& map, const std::string& map_path, bool from_in_world,
                   const CameraPath& camera) {
-  resolveReachOptions(o);
   ReachRun run;
   if (!o.from.empty()) {
     run.from = Eigen::Vector3d(o.from[0], o.from[1], o.from[2]);

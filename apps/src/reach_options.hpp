@@ -31,7 +31,7 @@ void addReachOptions(CLI::App& cmd, ReachOptions& o, const std::string& from_fra
 
 /// Resolves the defaults (start rule and radius by whether --from was given) and checks
 /// the parameters and --from: UsageError. Commands call it before loading the map, so a
-/// usage error is reported as one; runReach calls it again (it changes nothing then).
+/// usage error is reported as one, and before runReach.
 void resolveReachOptions(ReachOptions& o);
 
 /// A reachability run: the point it started from (map frame) and its result.
@@ -40,11 +40,11 @@ struct ReachRun {
   mapping::Reachability result;
 };
 
-/// resolveReachOptions(o), then finds the start point (--from, in the world frame when
-/// `from_in_world`, else the first position of `camera`; UsageError if neither) and
-/// runs computeReachability. No place to start on: std::runtime_error naming `map_path`,
-/// the radius and the rule.
-ReachRun runReach(ReachOptions& o, const mapping::MobilityMap& map, const std::string& map_path, bool from_in_world,
+/// For options resolveReachOptions() has resolved: finds the start point (--from, in the
+/// world frame when `from_in_world`, else the first position of `camera`; UsageError if
+/// neither) and runs computeReachability. No place to start on: std::runtime_error naming
+/// `map_path`, the radius and the rule.
+ReachRun runReach(const ReachOptions& o, const mapping::MobilityMap& map, const std::string& map_path, bool from_in_world,
                   const CameraPath& camera);
 
 }  // namespace mobmap::app
