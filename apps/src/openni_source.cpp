@@ -62,39 +62,37 @@ void openDevice(openni::Device& device, const std::string& uri, bool is_file, co
   if (!device.hasSensor(openni::SENSOR_DEPTH)) throw IoError(name, "has no depth sensor");
 }
 
-// The device and depth stream of a sequence. OpenNI2's file player (libOniFile) has a
-// playback thread that walks the device's stream list without a lock
-// (PlayerDevice::MainLoop) while destroying a stream deletes it from that list, and
-// closing the device deletes its streams before it stops the thread: `build` on an
-// .oni crashed in that thread about once in 30 runs on a busy machine. So a recording's
-// stream is stopped but neither destroyed nor closed; it is parked until the process
-// exits (a process opens one recording; OpenNI2 is never shut down either, see
-// initialiseOpenNi). Live devices are closed as usual.
+// A device and its depth stream, stopped but never destroyed or closed: both are parked
+// until the process exits (OpenNI2 is never shut down either, see initialiseOpenNi).
+// Two of Debian's OpenNI2 drivers have threads that outlive the objects they read:
+// - the file player (libOniFile): its playback thread walks the device's stream list
+//   without a lock (PlayerDevice::MainLoop), while destroying a stream deletes it from
+//   that list, and closing the device deletes its streams before it stops the thread.
+//   `build` on an .oni crashed in that thread about once in 30 runs on a busy machine.
+// - the Dummy device (libDummyDevice): stopping its stream only clears a flag that its
+//   frame thread reads after each 33 ms sleep, and nothing joins that thread, so
+//   destroying the stream frees memory the thread still uses. `build --device Dummy`
+//   crashed in that thread about once in 300 runs on a busy machine.
+// Real sensors are released by the operating system when the process ends.
 struct OpenNiHandles {
-  explicit OpenNiHandles(bool playback) : is_file(playback) {}
+  OpenNiHandles() = default;
   OpenNiHandles(const OpenNiHandles&) = delete;
   OpenNiHandles& operator=(const OpenNiHandles&) = delete;
   ~OpenNiHandles() {
     depth->stop();
-    if (!is_file) {
-      depth->destroy();
-      device->close();
-      return;
-    }
     static std::mutex m;
     // Reachable until exit and never freed (so not a leak to LeakSanitizer).
     static auto* parked = new std::vector<std::pair<openni::Device*, openni::VideoStream*>>();
     std::lock_guard<std::mutex> lock(m);
     parked->emplace_back(device.release(), depth.release());
   }
-  bool is_file;
   std::unique_ptr<openni::Device> device = std::make_unique<openni::Device>();
   std::unique_ptr<openni::VideoStream> depth = std::make_unique<openni::VideoStream>();
 };
 
 class OpenNiSequence : public Sequence {
  public:
-  explicit OpenNiSequence(const OpenNiOptions& o) : o_(o), handles_(o.is_file) {
+  explicit OpenNiSequence(const OpenNiOptions& o) : o_(o) {
     name_ = o.is_file ? o.uri : (o.uri.empty() ? std::string("the first OpenNI2 device") : o.uri);
     openDevice(device_, o.uri, o.is_file, name_);
     if (!o.is_file && device_.hasSensor(openni::SENSOR_COLOR) &&
@@ -139,7 +137,7 @@ class OpenNiSequence : public Sequence {
     }
     if (depth_.start() != openni::STATUS_OK) throw IoError(name_, "cannot start its depth stream: " + extendedError());
   }
-  ~OpenNiSequence() override = default;  // handles_ stops the stream (and closes a live device)
+  ~OpenNiSequence() override = default;  // handles_ stops the stream and parks it
 
   std::string describe() const override {
     std::ostringstream s;
@@ -273,9 +271,10 @@ std::unique_ptr<Sequence> openOpenNi(const OpenNiOptions& options) { return std:
 int recordOni(const std::string& device_uri, const std::string& out_path, int frames, double frame_timeout_s,
               bool (*interrupted)()) {
   const std::string name = device_uri.empty() ? std::string("the first OpenNI2 device") : device_uri;
-  openni::Device device;
+  OpenNiHandles handles;  // parks the stream when done, whatever happens
+  openni::Device& device = *handles.device;
+  openni::VideoStream& depth = *handles.depth;
   openDevice(device, device_uri, false, name);
-  openni::VideoStream depth;
   if (depth.create(device, openni::SENSOR_DEPTH) != openni::STATUS_OK) {
     throw IoError(name, "cannot create its depth stream: " + extendedError());
   }
@@ -306,9 +305,6 @@ int recordOni(const std::string& device_uri, const std::string& out_path, int fr
   }
   recorder.stop();
   recorder.destroy();
-  depth.stop();
-  depth.destroy();
-  device.close();
   std::error_code ec;
   if (!failure.empty() || got == 0) {
     fs::remove(tmp, ec);
