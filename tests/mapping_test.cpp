@@ -27,10 +27,19 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// This process's scratch folder, removed when the process ends (ctest runs each test
+// in its own process, and folders left behind used to pile up in /tmp).
 std::string tempPath(const std::string& name) {
-  const auto dir = fs::temp_directory_path() / ("mobmap-mapping-" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  return (dir / name).string();
+  struct Scratch {
+    fs::path dir = fs::temp_directory_path() / ("mobmap-mapping-" + std::to_string(::getpid()));
+    ~Scratch() {
+      std::error_code ec;
+      fs::remove_all(dir, ec);
+    }
+  };
+  static const Scratch scratch;
+  fs::create_directories(scratch.dir);
+  return (scratch.dir / name).string();
 }
 
 TEST(MobilityOcTreeNode, IsNoLargerThanAnOcTreeNode) {

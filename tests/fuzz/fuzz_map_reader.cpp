@@ -10,7 +10,13 @@
 #include <string>
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  static const std::string path = "/tmp/mobmap-fuzz-" + std::to_string(::getpid()) + ".ot";
+  // One scratch file per process, removed when the fuzzer exits.
+  struct Scratch {
+    std::string path = "/tmp/mobmap-fuzz-" + std::to_string(::getpid()) + ".ot";
+    ~Scratch() { std::remove(path.c_str()); }
+  };
+  static const Scratch scratch;
+  const std::string& path = scratch.path;
   {
     std::ofstream out(path, std::ios::binary | std::ios::trunc);
     out.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));

@@ -28,7 +28,13 @@ bool rotationIsSound(const Eigen::Matrix3d& r) {
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  static const std::string path = "/tmp/mobmap-fuzz-poses-" + std::to_string(::getpid()) + ".txt";
+  // One scratch file per process, removed when the fuzzer exits.
+  struct Scratch {
+    std::string path = "/tmp/mobmap-fuzz-poses-" + std::to_string(::getpid()) + ".txt";
+    ~Scratch() { std::remove(path.c_str()); }
+  };
+  static const Scratch scratch;
+  const std::string& path = scratch.path;
   {
     std::ofstream out(path, std::ios::binary | std::ios::trunc);
     out.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
