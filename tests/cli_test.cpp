@@ -482,6 +482,16 @@ TEST(Cli, BuildMapsASingleDepthPngWithItsIntrinsics) {
   EXPECT_EQ(j["state"], "surface") << q.out;
   EXPECT_NEAR(j["voxel_centre"][2].get<double>(), -1.35, 0.02) << q.out;
   EXPECT_GT(j["mobility"].get<double>(), 0.9) << q.out;
+  // info says which camera model read the frame (the simulator's intrinsics file).
+  std::ifstream k_file(dir + "/seq/camera-intrinsics.txt");
+  double fx, skip, cx, fy, cy;
+  ASSERT_TRUE(k_file >> fx >> skip >> cx >> skip >> fy >> cy);
+  const Result info = run("info " + dir + "/m.ot");
+  ASSERT_EQ(info.code, 0) << info.out;
+  char camera[160];
+  std::snprintf(camera, sizeof camera, "depth camera: 640x480, fx %.2f fy %.2f cx %.2f cy %.2f\n", fx, fy, cx, cy);
+  EXPECT_NE(info.out.find(camera), std::string::npos) << info.out;
+  EXPECT_EQ(info.out.find("poses:"), std::string::npos) << info.out;
   // A directory of depth PNGs that is not in the 7-Scenes layout: the error says what to do.
   fs::create_directories(dir + "/loose");
   fs::copy_file(png, dir + "/loose/depth_image_1.png");

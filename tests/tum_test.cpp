@@ -446,6 +446,12 @@ TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
   // The colour image shows where no voxel is, and the map covers most of it.
   EXPECT_GT(as_is, 0u);
   EXPECT_LT(as_is, r10.colour.size() / 2) << as_is;
+  // info says which trajectory the map was built with.
+  const std::string info_cmd = std::string(MOBMAP_EXE) + " info " + out + " > " + (dir / "info").string() + " 2>&1";
+  ASSERT_EQ(std::system(info_cmd.c_str()), 0) << info_cmd;
+  std::ifstream info_file(dir / "info");
+  const std::string info((std::istreambuf_iterator<char>(info_file)), std::istreambuf_iterator<char>());
+  EXPECT_NE(info.find("poses: " + fs::absolute(dir / "in_order.txt").lexically_normal().string() + " ("), std::string::npos) << info;
   fs::remove_all(dir);
 }
 

@@ -328,6 +328,19 @@ void printMetadataSummary(const nlohmann::json& meta, const std::string& json_pa
     std::printf("\n");
   }
   if (!text("config").empty()) std::printf("configuration: %s\n", text("config").c_str());
+  // How this run read its frames (what `overlay` reads them with again).
+  const auto& k = meta.contains("depth_intrinsics") ? meta["depth_intrinsics"] : nlohmann::json();
+  const double fx = number(k, "fx"), fy = number(k, "fy"), cx = number(k, "cx"), cy = number(k, "cy");
+  const double w = number(k, "width"), h = number(k, "height");
+  if (std::isfinite(fx) && std::isfinite(fy) && std::isfinite(cx) && std::isfinite(cy) && std::isfinite(w) && std::isfinite(h)) {
+    std::printf("depth camera: %.0fx%.0f, fx %.2f fy %.2f cx %.2f cy %.2f\n", w, h, fx, fy, cx, cy);
+  }
+  if (!text("poses").empty()) {
+    const double gap = number(meta, "max_pose_gap_s");
+    std::printf("poses: %s", text("poses").c_str());
+    if (std::isfinite(gap)) std::printf(" (frames whose neighbouring poses are over %.3g s apart are skipped)", gap);
+    std::printf("\n");
+  }
   if (meta.contains("trajectory_map")) {
     const auto& traj = meta["trajectory_map"];
     double length = 0.0;
