@@ -616,6 +616,7 @@ Command addBuildCommand(CLI::App& app) {
       std::printf("%d frames skipped: no pose within %g s of their time stamp in %s\n", no_pose, o->max_pose_gap,
                   o->poses.c_str());
     }
+    if (live && !dir->skipped().empty()) std::printf("%s\n", dir->skipped().c_str());
     std::printf("time per frame (ms): read %.1f", used ? read_ms / used : 0.0);
     for (const auto& [name, ms] : stage_ms) std::printf(", %s %.1f", name.c_str(), ms / std::max(1, used));
     std::printf(", fusion %.1f\n", used ? fuse_ms / used : 0.0);

@@ -156,6 +156,20 @@ class OpenNiSequence : public Sequence {
   const std::vector<int>& frames() const override { return frames_; }
   void check(int /*n*/) const override {}
 
+  // A live sensor keeps sending while perception is busy, and OpenNI2 hands out the
+  // newest frame: the gaps in the driver's frame indices are the frames never read.
+  std::string skipped() const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (o_.is_file || read_ < 0 || last_index_ < first_index_) return {};
+    const long long sent = static_cast<long long>(last_index_) - first_index_ + 1;
+    const long long dropped = sent - (read_ + 1);
+    if (dropped <= 0) return {};
+    std::ostringstream s;
+    s << name_ << " sent " << sent << " depth frames while " << (read_ + 1) << " were read: " << dropped
+      << " arrived while perception was busy and were dropped (--voxel 0.02 perceives about 3 times faster)";
+    return s.str();
+  }
+
   SequenceFrame load(int n) const override {
     std::unique_lock<std::mutex> lock(mutex_);
     turn_.wait(lock, [&] { return failed_ || (cursor_ < frames_.size() && frames_[cursor_] == n); });
@@ -164,6 +178,8 @@ class OpenNiSequence : public Sequence {
       openni::VideoFrameRef f;
       while (read_ < n) {
         next(f);
+        if (read_ < 0) first_index_ = f.getFrameIndex();
+        last_index_ = f.getFrameIndex();
         ++read_;
       }
       SequenceFrame out = convert(f, n);
@@ -262,6 +278,8 @@ class OpenNiSequence : public Sequence {
   mutable std::size_t cursor_ = 0;  // index into frames_ of the next load()
   mutable int read_ = -1;           // number of the last frame read from the stream
   mutable bool failed_ = false;
+  mutable int first_index_ = 0;  // the driver's index of the first frame read
+  mutable int last_index_ = -1;  // and of the last
 };
 
 }  // namespace
