@@ -4,7 +4,9 @@
 // recordings OpenNI2's player plays back. The driver is loaded from a private folder
 // (build/openni-sim) by pointing LD_LIBRARY_PATH at it.
 #include "map_files.hpp"
+#include "png_io.hpp"
 
+#include "mobmap/perception/camera.hpp"
 #include "mobmap/sim/corridor_scene.hpp"
 #include "mobmap/sim/tum_pose.hpp"
 
@@ -13,7 +15,10 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
+#include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -198,6 +203,60 @@ TEST_F(OpenNi, RecordedCorridorPlaysBackEveryFrameAndMapsTheKnownFloor) {
   EXPECT_GE(meta["frames"].get<int>(), n - 2);  // the recorder may miss the first frame or two
   EXPECT_FALSE(meta.contains("frames_without_pose")) << meta.dump();
   expectFloorAhead(path("m.ot"), scene);
+  // overlay reads recording frame 5 as build did (poses and intrinsics from MAP.json)
+  // and draws the map over its shaded depth: the floor in view is painted green.
+  const Outcome ov = mobmap("", "overlay " + path("m.ot") + " --frame 5 --out " + path("ov.png"));
+  ASSERT_EQ(ov.code, 0) << ov.output;
+  const app::ImageRgb picture = app::readPngRgb(path("ov.png"));
+  const auto& kj = meta["depth_intrinsics"];
+  perception::PinholeIntrinsics k;
+  k.fx = kj["fx"], k.fy = kj["fy"], k.cx = kj["cx"], k.cy = kj["cy"], k.width = kj["width"], k.height = kj["height"];
+  ASSERT_EQ(picture.width, k.width);
+  ASSERT_EQ(picture.height, k.height);
+  // Which corridor frame recording frame 5 is: the one whose pose the map's sixth camera
+  // position is (the recorder may have missed the first frames).
+  const auto& c5 = meta["trajectory_map"][5];
+  const Eigen::Vector3d at(c5[0].get<double>(), c5[1].get<double>(), c5[2].get<double>());
+  int frame = 0;
+  for (int i = 1; i < n; ++i) {
+    if ((scene.cameraPose(i).translation() - at).norm() < (scene.cameraPose(frame).translation() - at).norm()) frame = i;
+  }
+  ASSERT_LT((scene.cameraPose(frame).translation() - at).norm(), 1e-4);
+  const auto view = scene.render(frame);
+  int floor = 0, floor_green = 0;
+  for (int v = 0; v < k.height; ++v) {
+    for (int u = 0; u < k.width; ++u) {
+      const std::size_t i = static_cast<std::size_t>(v) * k.width + u;
+      const float z = view.exact_depth.depth_m[i];
+      if (view.labels[i] == 0 || scene.surface(view.labels[i]).kind != sim::SurfaceKind::kFloor ||
+          perception::backProject(k, u, v, z).norm() > 2.8) {
+        continue;
+      }
+      // The base is the shaded depth of the recorded millimetres; recover the paint.
+      const double z_mm = std::lround(z * 1000.0) / 1000.0;
+      const int grey = static_cast<std::uint8_t>(std::clamp(250.0 - 40.0 * z_mm, 40.0, 240.0));
+      const auto o = picture.pixels[i];
+      const int red = (5 * o[0] - 2 * grey) / 3, green = (5 * o[1] - 2 * grey) / 3;
+      ++floor;
+      floor_green += green > red + 100;
+    }
+  }
+  ASSERT_GT(floor, 20000);
+  EXPECT_GT(floor_green, 0.9 * floor) << floor_green << " of " << floor;
+  // A frame the recording does not hold, and one with no pose near its time stamp.
+  const Outcome past = mobmap("", "overlay " + path("m.ot") + " --frame " + path("c.oni") + ":" + std::to_string(n + 5) +
+                                      " --out " + path("no.png"));
+  EXPECT_EQ(past.code, 1) << past.output;
+  EXPECT_NE(past.output.find("c.oni: holds "), std::string::npos) << past.output;
+  const std::string few = path("few.txt");
+  {
+    std::ofstream out(few);
+    for (int i = 0; i < 3; ++i) sim::writeTumPoseLine(out, i / 30.0, scene.cameraPose(i));
+  }
+  const Outcome unposed = mobmap("", "overlay " + path("m.ot") + " --frame 12 --poses " + few + " --out " + path("no.png"));
+  EXPECT_EQ(unposed.code, 1) << unposed.output;
+  EXPECT_NE(unposed.output.find("frame 12: no pose within --max-pose-gap"), std::string::npos) << unposed.output;
+  EXPECT_FALSE(fs::exists(path("no.png")));
 }
 
 }  // namespace

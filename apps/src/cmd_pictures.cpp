@@ -5,6 +5,7 @@
 #include "frame_source.hpp"
 #include "io_error.hpp"
 #include "map_files.hpp"
+#include "openni_source.hpp"
 #include "sequence.hpp"
 #include "top_view.hpp"
 
@@ -121,11 +122,11 @@ Command addOverlayCommand(CLI::App& app) {
   cmd->add_option("MAP", o->map, "A .ot map")->required();
   cmd->add_option("--frame", o->frame,
                   "INPUT:N: frame N of a posed input as `build` reads it and numbers it with --frames (a 7-Scenes / "
-                  "3DMatch directory, a TUM RGB-D directory, .pcd frames with --poses); N alone: of the input the "
-                  "map was built from")
+                  "3DMatch directory, a TUM RGB-D directory, .pcd frames with --poses, an .oni recording); N alone: "
+                  "of the input the map was built from")
       ->required();
   cmd->add_option("--out", o->out, "PNG to write")->required();
-  cmd->add_option("--poses", o->poses, "For .pcd frames: their trajectory (default: the one the map was built with)");
+  cmd->add_option("--poses", o->poses, "For .pcd frames and .oni recordings: their trajectory (default: the one the map was built with)");
   cmd->add_option("--intrinsics", o->intrinsics,
                   "fx,fy,cx,cy or a camera-intrinsics.txt file (default: those the map was built with, else the input's own)");
   auto* gap = cmd->add_option("--max-pose-gap", o->max_pose_gap,
@@ -176,12 +177,28 @@ Command addOverlayCommand(CLI::App& app) {
       }
     }
     // One .pcd or .png frame mapped in its own camera frame has no pose to read it by.
-    const bool lone_pcd = std::filesystem::path(input).extension() == ".pcd" && poses.empty();
-    if (!std::filesystem::is_directory(input, ec) && (std::filesystem::path(input).extension() != ".pcd" || lone_pcd)) {
-      throw UsageError("--frame: overlay reads frames of a 7-Scenes / 3DMatch or TUM directory or of .pcd frames with "
-                       "--poses; " + input + " is none of these (for one frame on its own: mobmap analyze FILE --overlay OUT.png)");
+    const std::string ext = std::filesystem::path(input).extension().string();
+    const bool lone_pcd = ext == ".pcd" && poses.empty();
+    if (!std::filesystem::is_directory(input, ec) && ext != ".oni" && (ext != ".pcd" || lone_pcd)) {
+      throw UsageError("--frame: overlay reads frames of a 7-Scenes / 3DMatch or TUM directory, of .pcd frames with "
+                       "--poses or of an .oni recording; " + input +
+                       " is none of these (for one frame on its own: mobmap analyze FILE --overlay OUT.png)");
     }
-    const auto seq = openSequence(input, intrinsics, max_pose_gap, poses);
+    std::unique_ptr<Sequence> seq;
+    if (ext == ".oni") {
+      // Frame n as `build` numbers a recording's depth frames; without poses the camera
+      // is static and the map is in its frame, as build made it.
+      OpenNiOptions on;
+      on.uri = input;
+      on.is_file = true;
+      on.intrinsics_spec = intrinsics;
+      on.poses_path = poses;
+      on.max_pose_gap_s = max_pose_gap;
+      on.first = on.last = n;
+      seq = openOpenNi(on);
+    } else {
+      seq = openSequence(input, intrinsics, max_pose_gap, poses);
+    }
     if (!seq->hasDepth()) {
       throw IoError(input, "its frames are unorganized clouds, not images: there is no picture to draw the map into");
     }

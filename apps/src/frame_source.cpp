@@ -106,6 +106,7 @@ LoadedFrame loadSequenceFrame(const Sequence& seq, const std::string& input, int
                              std::to_string(numbers.back()) + ", " + std::to_string(numbers.size()) + " of them)");
   }
   SequenceFrame sf = seq.load(frame);
+  if (!sf.has_pose) throw IoError(input, "frame " + std::to_string(frame) + ": no pose within --max-pose-gap of its time stamp");
   LoadedFrame f;
   f.description = "frame " + std::to_string(frame) + " of " + input;
   f.intrinsics = seq.intrinsics();

@@ -130,7 +130,10 @@ class OpenNiSequence : public Sequence {
     if (o.is_file) last = last < 0 ? recorded_ - 1 : std::min(last, recorded_ - 1);
     if (!o.is_file && last < 0) last = o.first + 299;
     for (int n = o.first; n <= last; n += o.step) frames_.push_back(n);
-    if (frames_.empty()) throw IoError(name_, "--frames selects none of its " + std::to_string(recorded_) + " frames");
+    if (frames_.empty()) {
+      throw IoError(name_, "holds " + std::to_string(recorded_) + " depth frames (0.." + std::to_string(recorded_ - 1) +
+                               "), none of those asked for (from " + std::to_string(o.first) + ")");
+    }
     if (!o.poses_path.empty()) {
       for (const auto& [t, T] : readTumPoses(o.poses_path)) trajectory_.insert(t, T);
       if (trajectory_.size() == 0) throw IoError(o.poses_path, "no poses in this file");
