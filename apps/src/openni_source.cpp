@@ -72,7 +72,7 @@ void openDevice(openni::Device& device, const std::string& uri, bool is_file, co
 // - the Dummy device (libDummyDevice): stopping its stream only clears a flag that its
 //   frame thread reads after each 33 ms sleep, and nothing joins that thread, so
 //   destroying the stream frees memory the thread still uses. `build --device Dummy`
-//   crashed in that thread about once in 300 runs on a busy machine.
+//   crashed in that thread 3 times in 1500 runs on a busy machine.
 // Real sensors are released by the operating system when the process ends.
 struct OpenNiHandles {
   OpenNiHandles() = default;
