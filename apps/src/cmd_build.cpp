@@ -481,6 +481,10 @@ Command addBuildCommand(CLI::App& app) {
       return s;
     };
 
+    // The camera of the depth images (free space is cleared along their rays), if the
+    // input has depth images rather than unorganized clouds.
+    const perception::PinholeIntrinsics* depth_k =
+        is_dir ? (dir->hasDepth() ? &dir->intrinsics() : nullptr) : (single.depth ? &single.intrinsics : nullptr);
     std::signal(SIGINT, onSigint);
     Progress progress("build", static_cast<int>(frames.size()), o->quiet, run_start);
     std::vector<std::pair<std::string, double>> stage_ms;  // in pipeline order
@@ -513,11 +517,9 @@ Command addBuildCommand(CLI::App& app) {
       }
       if (is_dir && !dir->skipped().empty()) meta["skipped"] = dir->skipped();
       // How this run read its frames, so `overlay` can read them again the same way.
-      const perception::PinholeIntrinsics* k =
-          is_dir ? (dir->hasDepth() ? &dir->intrinsics() : nullptr) : (single.depth ? &single.intrinsics : nullptr);
-      if (k) {
-        meta["depth_intrinsics"] = {{"fx", k->fx}, {"fy", k->fy}, {"cx", k->cx}, {"cy", k->cy},
-                                    {"width", k->width}, {"height", k->height}};
+      if (depth_k) {
+        meta["depth_intrinsics"] = {{"fx", depth_k->fx}, {"fy", depth_k->fy}, {"cx", depth_k->cx}, {"cy", depth_k->cy},
+                                    {"width", depth_k->width}, {"height", depth_k->height}};
       }
       if (!o->poses.empty()) meta["poses"] = fs::absolute(o->poses, ec).lexically_normal().string();
       meta["max_pose_gap_s"] = o->max_pose_gap;
@@ -570,9 +572,7 @@ Command addBuildCommand(CLI::App& app) {
         continue;
       }
       const auto t0 = std::chrono::steady_clock::now();
-      const perception::PinholeIntrinsics* intrinsics =
-          is_dir ? (dir->hasDepth() ? &dir->intrinsics() : nullptr) : (single.depth ? &single.intrinsics : nullptr);
-      map.integrate(s.result, s.T_world_camera, intrinsics ? &s.depth : nullptr, intrinsics);
+      map.integrate(s.result, s.T_world_camera, depth_k ? &s.depth : nullptr, depth_k);
       fuse_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       for (const auto& st : s.result.stages) {
         auto it = std::find_if(stage_ms.begin(), stage_ms.end(), [&](const auto& e) { return e.first == st.name; });

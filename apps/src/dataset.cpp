@@ -177,6 +177,14 @@ std::string SevenScenesDirectory::depthPath(int frame) const {
 std::string SevenScenesDirectory::posePath(int frame) const {
   return (std::filesystem::path(dir_) / (frameStem(frame) + ".pose.txt")).string();
 }
+std::optional<ImageRgb> SevenScenesDirectory::readColour(int frame) const {
+  const std::filesystem::path path = std::filesystem::path(dir_) / (frameStem(frame) + ".color.png");
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return std::nullopt;
+  ImageRgb c = readPngRgb(path.string());
+  if (c.width != intrinsics_.width || c.height != intrinsics_.height) return std::nullopt;
+  return c;
+}
 std::string SevenScenesDirectory::labelsPath(int frame) const {
   return (std::filesystem::path(dir_) / (frameStem(frame) + ".labels.png")).string();
 }

@@ -6,6 +6,8 @@
 // mobmap's simulator adds frame-NNNNNN.labels.png (surface id per pixel) and
 // ground_truth.json.
 
+#include "png_io.hpp"
+
 #include "mobmap/perception/camera.hpp"
 
 #include <Eigen/Core>
@@ -58,6 +60,9 @@ class SevenScenesDirectory {
   /// Depth of a frame; IoError if its size differs from the intrinsics'.
   [[nodiscard]] perception::DepthImage readDepth(int frame) const;
   [[nodiscard]] Eigen::Matrix4d readPose(int frame) const;
+  /// The frame's .color.png when it has the depth's size (pixel for pixel with it), else
+  /// nullopt; `.color.jpg` is not read. IoError if the PNG is unreadable.
+  [[nodiscard]] std::optional<ImageRgb> readColour(int frame) const;
 
  private:
   std::string dir_;

@@ -138,8 +138,7 @@ LoadedFrame loadSingleFrame(const std::string& input, int frame, const std::stri
     f.intrinsics = intrinsics_spec.empty() ? dir.intrinsics()
                                            : parseIntrinsics(intrinsics_spec, dir.intrinsics().width, dir.intrinsics().height);
     f.depth = dir.readDepth(n);
-    const std::string colour = (fs::path(input) / (frameStem(n) + ".color.png")).string();
-    if (fs::exists(colour, ec)) f.colour = readPngRgb(colour);
+    f.colour = dir.readColour(n);
     if (fs::exists(dir.posePath(n), ec)) {
       f.T_world_camera = dir.readPose(n);
       if (dir.gravityDown()) {

@@ -41,14 +41,7 @@ class SevenScenesSequence : public Sequence {
     f.T_world_camera = *pose(n);
     return f;
   }
-  std::optional<ImageRgb> colour(int n) const override {
-    std::error_code ec;
-    const fs::path path = fs::path(dir_.dir()) / (frameStem(n) + ".color.png");  // .color.jpg is not read
-    if (!fs::exists(path, ec)) return std::nullopt;
-    ImageRgb c = readPngRgb(path.string());
-    if (c.width != dir_.intrinsics().width || c.height != dir_.intrinsics().height) return std::nullopt;
-    return c;
-  }
+  std::optional<ImageRgb> colour(int n) const override { return dir_.readColour(n); }
   std::optional<Eigen::Isometry3d> pose(int n) const override {
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.matrix() = dir_.readPose(n);
