@@ -1,6 +1,7 @@
 // Posed sequences other than 7-Scenes: TUM RGB-D (timestamp association with MRPT pose
 // interpolation, the 5000-per-metre depth scale, skipped frames) and .pcd frames with a
 // --poses trajectory (in order or by time stamps in the file names), built into maps.
+#include "canvas.hpp"
 #include "dataset.hpp"
 #include "io_error.hpp"
 #include "png_io.hpp"
@@ -21,6 +22,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -209,39 +211,51 @@ TEST(TumSequence, OverlayPaintsTheMapOverTheRegisteredColourAndAnalyzeReadsTheSa
   // that colour (to within rounding) and count the pixels of the floor and of the
   // surfaces no robot stands on.
   const auto r = scene.render(6);
-  int floor = 0, floor_painted = 0, floor_green = 0, blocked_painted = 0, blocked_red = 0, neither = 0;
-  for (int v = 0; v < k.height; ++v) {
-    for (int u = 0; u < k.width; ++u) {
-      const std::size_t i = static_cast<std::size_t>(v) * k.width + u;
-      const auto base = pattern(u, v, 6);
-      const auto o = ov.pixels[i];
-      const bool painted = o != base;
-      std::array<int, 3> paint{};
-      for (std::size_t ch = 0; ch < 3; ++ch) paint[ch] = (5 * o[ch] - 2 * base[ch]) / 3;
-      // A blend of this base with a colour in [0, 255] (integer division: within 2).
-      const bool blend = std::all_of(paint.begin(), paint.end(), [](int x) { return x >= -2 && x <= 257; });
-      neither += painted && !blend;
-      const int id = r.labels[i];
-      const float z = r.exact_depth.depth_m[i];
-      // Within the 3 m mapping range, and not at its edge.
-      if (id == 0 || perception::backProject(k, u, v, z).norm() > 2.8) continue;
-      const sim::SurfaceKind kind = scene.surface(id).kind;
-      if (kind == sim::SurfaceKind::kFloor) {
-        ++floor;
-        floor_painted += painted;
-        floor_green += painted && paint[1] > paint[0] + 100;
-      } else if (scene.surface(id).expected_mobility == 0.0 && painted) {  // box and ramp sides here
-        ++blocked_painted;
-        blocked_red += paint[0] > paint[1] + 100;
+  struct Paint {
+    int floor = 0, floor_painted = 0, floor_green = 0, blocked_painted = 0, blocked_red = 0, neither = 0;
+    int beyond_range_painted = 0;  // farther than the 3 m range: nothing measured there
+  };
+  const auto judge = [&](const app::ImageRgb& picture) {
+    Paint n;
+    for (int v = 0; v < k.height; ++v) {
+      for (int u = 0; u < k.width; ++u) {
+        const std::size_t i = static_cast<std::size_t>(v) * k.width + u;
+        const auto base = pattern(u, v, 6);
+        const auto o = picture.pixels[i];
+        const bool painted = o != base;
+        std::array<int, 3> paint{};
+        for (std::size_t ch = 0; ch < 3; ++ch) paint[ch] = (5 * o[ch] - 2 * base[ch]) / 3;
+        // A blend of this base with a colour in [0, 255] (integer division: within 2).
+        const bool blend = std::all_of(paint.begin(), paint.end(), [](int x) { return x >= -2 && x <= 257; });
+        n.neither += painted && !blend;
+        const int id = r.labels[i];
+        const float z = r.exact_depth.depth_m[i];
+        const double range = perception::backProject(k, u, v, z).norm();
+        n.beyond_range_painted += painted && (id == 0 || range > 3.05);
+        // Within the 3 m mapping range, and not at its edge.
+        if (id == 0 || range > 2.8) continue;
+        const sim::SurfaceKind kind = scene.surface(id).kind;
+        if (kind == sim::SurfaceKind::kFloor) {
+          ++n.floor;
+          n.floor_painted += painted;
+          n.floor_green += painted && paint[1] > paint[0] + 100;
+        } else if (scene.surface(id).expected_mobility == 0.0 && painted) {  // box and ramp sides here
+          ++n.blocked_painted;
+          n.blocked_red += paint[0] > paint[1] + 100;
+        }
       }
     }
+    return n;
+  };
+  {
+    const Paint n = judge(ov);
+    EXPECT_EQ(n.neither, 0);
+    ASSERT_GT(n.floor, 20000);  // the floor fills most of the view
+    EXPECT_GT(n.floor_painted, 0.95 * n.floor) << n.floor_painted << " of " << n.floor;
+    EXPECT_GT(n.floor_green, 0.97 * n.floor_painted) << n.floor_green << " of " << n.floor_painted;
+    ASSERT_GT(n.blocked_painted, 5000);
+    EXPECT_GT(n.blocked_red, 0.9 * n.blocked_painted) << n.blocked_red << " of " << n.blocked_painted;
   }
-  EXPECT_EQ(neither, 0);
-  ASSERT_GT(floor, 20000);  // the floor fills most of the view
-  EXPECT_GT(floor_painted, 0.95 * floor) << floor_painted << " of " << floor;
-  EXPECT_GT(floor_green, 0.97 * floor_painted) << floor_green << " of " << floor_painted;
-  ASSERT_GT(blocked_painted, 5000);
-  EXPECT_GT(blocked_red, 0.9 * blocked_painted) << blocked_red << " of " << blocked_painted;
   // Frame 3 (of the map's own input: N alone) has no colour to pair: the base is the
   // shaded depth, so no pixel is the pattern's.
   ASSERT_EQ(std::system((std::string(MOBMAP_EXE) + " overlay " + map + " --frame 3 --out " + out + log).c_str()), 0);
@@ -253,13 +267,73 @@ TEST(TumSequence, OverlayPaintsTheMapOverTheRegisteredColourAndAnalyzeReadsTheSa
   EXPECT_EQ(pattern_pixels, 0);
   // analyze reads the same frame, numbered the same way: its ground plane lies the
   // camera's height below it.
-  const std::string json = dir + "/frame6.json";
-  ASSERT_EQ(std::system((std::string(MOBMAP_EXE) + " analyze " + dir + " --frame 6 --intrinsics " + intrinsics + " --json > " +
-                         json + " 2> " + dir + "/log").c_str()), 0);
+  const std::string json = dir + "/frame6.json", analyze_ov = dir + "/analyze.png", segments = dir + "/segments.pcd";
+  ASSERT_EQ(std::system((std::string(MOBMAP_EXE) + " analyze " + dir + " --frame 6 --intrinsics " + intrinsics + " --json --overlay " +
+                         analyze_ov + " --segments " + segments + " > " + json + " 2> " + dir + "/log").c_str()), 0);
   std::ifstream json_file(json);
   const auto analyzed = nlohmann::json::parse(json_file);
   ASSERT_TRUE(analyzed.contains("ground_plane")) << analyzed.dump();
-  EXPECT_NEAR(analyzed["ground_plane"][3].get<double>(), scene.cameraPose(6).translation().z(), 0.01);
+  const auto& plane = analyzed["ground_plane"];
+  EXPECT_NEAR(plane[3].get<double>(), scene.cameraPose(6).translation().z(), 0.01);
+  // analyze --overlay: the frame's own segments over the same colour image, the same way.
+  {
+    const Paint n = judge(app::readPngRgb(analyze_ov));
+    EXPECT_EQ(n.neither, 0);
+    EXPECT_EQ(n.beyond_range_painted, 0);
+    ASSERT_GT(n.floor, 20000);
+    EXPECT_GT(n.floor_painted, 0.95 * n.floor) << n.floor_painted << " of " << n.floor;
+    EXPECT_GT(n.floor_green, 0.97 * n.floor_painted) << n.floor_green << " of " << n.floor_painted;
+    ASSERT_GT(n.blocked_painted, 5000);
+    EXPECT_GT(n.blocked_red, 0.9 * n.blocked_painted) << n.blocked_red << " of " << n.blocked_painted;
+  }
+  // analyze --segments: an ASCII PCD of the segmented points in the camera frame, each
+  // with its segment's id, mobility and the mobility's colour as PCL's packed rgb.
+  {
+    const auto& segs = analyzed["segments"];
+    ASSERT_GE(segs.size(), 3u) << analyzed.dump();
+    std::size_t total = 0;
+    for (const auto& s : segs) total += s["points"].get<std::size_t>();
+    std::ifstream pcd(segments);
+    std::string line;
+    std::vector<std::string> header;
+    while (std::getline(pcd, line) && line != "DATA ascii") header.push_back(line);
+    ASSERT_EQ(line, "DATA ascii");
+    EXPECT_NE(std::find(header.begin(), header.end(), "FIELDS x y z rgb segment mobility"), header.end());
+    EXPECT_NE(std::find(header.begin(), header.end(), "POINTS " + std::to_string(total)), header.end());
+    std::vector<std::size_t> rows(segs.size(), 0);
+    std::size_t on_surface = 0, on_ground_plane = 0, bad = 0;
+    float x, y, z, rgb, m;
+    int s;
+    while (pcd >> x >> y >> z >> rgb >> s >> m) {
+      if (s < 0 || static_cast<std::size_t>(s) >= segs.size()) {
+        ++bad;
+        continue;
+      }
+      ++rows[static_cast<std::size_t>(s)];
+      const auto& seg = segs[static_cast<std::size_t>(s)];
+      std::uint32_t packed = 0;
+      std::memcpy(&packed, &rgb, sizeof(packed));
+      const double mobility = seg["mobility"].get<double>();
+      const app::Rgb c = app::mobilityColour(mobility);
+      bad += seg["id"].get<int>() != s || std::abs(m - mobility) > 6e-5 ||
+             packed != ((static_cast<std::uint32_t>(c[0]) << 16) | (static_cast<std::uint32_t>(c[1]) << 8) | c[2]);
+      // The point lies on the surface the camera sees through its pixel (a voxel's
+      // centroid: within 1 cm of the exact depth there, away from edges).
+      const int u = static_cast<int>(std::lround(k.fx * x / z + k.cx)), v = static_cast<int>(std::lround(k.fy * y / z + k.cy));
+      if (u >= 0 && v >= 0 && u < k.width && v < k.height) {
+        on_surface += std::abs(r.exact_depth.depth_m[static_cast<std::size_t>(v) * k.width + u] - z) < 0.01;
+      }
+      if (seg["is_ground"].get<bool>()) {
+        on_ground_plane += std::abs(plane[0].get<double>() * x + plane[1].get<double>() * y + plane[2].get<double>() * z +
+                                    plane[3].get<double>()) < 0.02;
+      }
+    }
+    EXPECT_EQ(bad, 0u);
+    for (std::size_t i = 0; i < segs.size(); ++i) EXPECT_EQ(rows[i], segs[i]["points"].get<std::size_t>()) << "segment " << i;
+    EXPECT_GT(on_surface, 0.95 * total) << on_surface << " of " << total;
+    ASSERT_TRUE(segs[0]["is_ground"].get<bool>());
+    EXPECT_EQ(on_ground_plane, segs[0]["points"].get<std::size_t>());
+  }
   // A frame the sequence does not have: exit 1, naming the input and the frames it has.
   ASSERT_NE(std::system((std::string(MOBMAP_EXE) + " overlay " + map + " --frame " + dir + ":12 --out " + out + log).c_str()), 0);
   std::ifstream log_file(dir + "/log");

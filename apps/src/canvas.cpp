@@ -62,6 +62,32 @@ Rgb mobilityColour(double m) {
   return mapping::mobilityRgb(m);
 }
 
+Canvas framePicture(int width, int height, const ImageRgb* colour, const std::vector<float>& depth_m) {
+  Canvas c(width, height, {0, 0, 0});
+  if (colour && colour->width == width && colour->height == height) {
+    for (int v = 0; v < height; ++v) {
+      for (int u = 0; u < width; ++u) c.set(u, v, colour->pixels[static_cast<std::size_t>(v) * width + u]);
+    }
+    return c;
+  }
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u) {
+      const std::size_t i = static_cast<std::size_t>(v) * width + u;
+      if (i >= depth_m.size() || !(depth_m[i] > 0)) continue;
+      const auto g = static_cast<std::uint8_t>(std::clamp(250.0 - 40.0 * depth_m[i], 40.0, 240.0));
+      c.set(u, v, {g, g, g});
+    }
+  }
+  return c;
+}
+
+void paintOver(Canvas& c, int x, int y, Rgb paint) {
+  const Rgb base = c.get(x, y);
+  Rgb out;
+  for (std::size_t ch = 0; ch < 3; ++ch) out[ch] = static_cast<std::uint8_t>((base[ch] * 2 + paint[ch] * 3) / 5);
+  c.set(x, y, out);
+}
+
 Canvas::Canvas(int width, int height, Rgb background) {
   image_.width = width;
   image_.height = height;

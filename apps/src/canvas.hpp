@@ -7,6 +7,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace mobmap::app {
 
@@ -38,5 +39,14 @@ class Canvas {
  private:
   ImageRgb image_;
 };
+
+/// A frame as the background of a picture drawn over it: its colour image when it has
+/// one of width x height, else its depth (metres, row-major, 0 = nothing measured)
+/// shaded grey, nearer lighter (250 - 40 z, kept within 40..240), black where 0.
+[[nodiscard]] Canvas framePicture(int width, int height, const ImageRgb* colour, const std::vector<float>& depth_m);
+
+/// Lays a mobility colour over pixel (x, y): 2 parts picture to 3 parts paint, so the
+/// picture shows through.
+void paintOver(Canvas& c, int x, int y, Rgb paint);
 
 }  // namespace mobmap::app

@@ -74,32 +74,20 @@ void writeSegmentsPcd(const std::string& path, const perception::FrameResult& r)
 }
 
 Canvas overlay(const LoadedFrame& f, const perception::FrameResult& r, int width, int height) {
-  Canvas c(width, height, {0, 0, 0});
   const std::size_t pixels = static_cast<std::size_t>(width) * height;
-  // Base: the colour image, else shaded depth.
   std::vector<float> z(pixels, 0.f);
   if (f.depth) {
     z = f.depth->depth_m;
   } else {
     for (std::size_t i = 0; i < pixels && i < f.points.size(); ++i) z[i] = std::isfinite(f.points[i].z()) ? f.points[i].z() : 0.f;
   }
+  Canvas c = framePicture(width, height, f.colour ? &*f.colour : nullptr, z);
+  if (r.point_of_pixel.empty()) return c;
   for (int v = 0; v < height; ++v) {
     for (int u = 0; u < width; ++u) {
-      const std::size_t i = static_cast<std::size_t>(v) * width + u;
-      Rgb base{0, 0, 0};
-      if (f.colour && f.colour->width == width && f.colour->height == height) {
-        base = f.colour->pixels[i];
-      } else if (z[i] > 0) {
-        const auto g = static_cast<std::uint8_t>(std::clamp(255.0 - 45.0 * z[i], 40.0, 230.0));
-        base = {g, g, g};
-      }
-      const int p = r.point_of_pixel.empty() ? -1 : r.point_of_pixel[i];
+      const int p = r.point_of_pixel[static_cast<std::size_t>(v) * width + u];
       const int s = p >= 0 ? r.segment_of_point[static_cast<std::size_t>(p)] : -1;
-      if (s >= 0) {
-        const Rgb m = mobilityColour(r.segments[static_cast<std::size_t>(s)].mobility);
-        for (std::size_t ch = 0; ch < 3; ++ch) base[ch] = static_cast<std::uint8_t>((base[ch] * 2 + m[ch] * 3) / 5);
-      }
-      c.set(u, v, base);
+      if (s >= 0) paintOver(c, u, v, mobilityColour(r.segments[static_cast<std::size_t>(s)].mobility));
     }
   }
   return c;

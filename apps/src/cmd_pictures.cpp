@@ -206,18 +206,7 @@ Command addOverlayCommand(CLI::App& app) {
     const mapping::MobilityMap map = mapping::openMap(mapping::loadMobilityMap(o->map), metadata);
     const auto& k = f.intrinsics;
     // Base image: the frame's colour image when the input has one, else shaded depth.
-    Canvas c(k.width, k.height, {0, 0, 0});
-    for (int v = 0; v < k.height; ++v) {
-      for (int u = 0; u < k.width; ++u) {
-        const std::size_t i = static_cast<std::size_t>(v) * k.width + u;
-        if (f.colour && f.colour->width == k.width && f.colour->height == k.height) {
-          c.set(u, v, f.colour->pixels[i]);
-        } else if (f.depth->depth_m[i] > 0) {
-          const auto g = static_cast<std::uint8_t>(std::clamp(250.0 - 40.0 * f.depth->depth_m[i], 40.0, 240.0));
-          c.set(u, v, {g, g, g});
-        }
-      }
-    }
+    Canvas c = framePicture(k.width, k.height, f.colour ? &*f.colour : nullptr, f.depth->depth_m);
     // Project voxels (eq. 13) with a z-buffer; a voxel covers ~fx * size / z pixels.
     Eigen::Isometry3d T_world_camera(f.T_world_camera->matrix());
     const Eigen::Isometry3d T_camera_world = T_world_camera.inverse();
@@ -249,11 +238,7 @@ Command addOverlayCommand(CLI::App& app) {
     for (int v = 0; v < k.height; ++v) {
       for (int u = 0; u < k.width; ++u) {
         const std::size_t i = static_cast<std::size_t>(v) * k.width + u;
-        if (!std::isfinite(zbuf[i])) continue;
-        const Rgb base = c.get(u, v);
-        Rgb out;
-        for (std::size_t ch = 0; ch < 3; ++ch) out[ch] = static_cast<std::uint8_t>((base[ch] * 2 + paint[i][ch] * 3) / 5);
-        c.set(u, v, out);
+        if (std::isfinite(zbuf[i])) paintOver(c, u, v, paint[i]);
       }
     }
     c.save(o->out);
