@@ -452,6 +452,86 @@ TEST(Cli, CoarserVoxelsReduceTheCloudAndKeepTheFloor) {
   fs::remove_all(dir);
 }
 
+// --max-range: analyze keeps no point farther than it from the camera, and build no
+// surface voxel farther than it (plus a voxel) from every camera position of the run;
+// a range that leaves nothing to map is an error. --no-free-space: the box that moves
+// across the corridor stays in the map where it was first seen.
+TEST(Cli, MaxRangeBoundsWhatIsKeptAndNoFreeSpaceKeepsWhatMoved) {
+  const std::string dir = tempDir("range");
+  // 24 frames: the box 3.2 m ahead moves 1 m sideways in frames 4-8.
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 24 --noise none --quiet").code, 0);
+  const auto farthest = [](const std::string& pcd_path, const std::vector<std::array<double, 3>>& from) {
+    std::ifstream pcd(pcd_path);
+    std::string line;
+    while (std::getline(pcd, line) && line != "DATA ascii") {
+    }
+    double worst = 0;
+    std::size_t n = 0;
+    while (std::getline(pcd, line)) {
+      std::istringstream in(line);
+      std::array<double, 3> p{};
+      in >> p[0] >> p[1] >> p[2];
+      double nearest = 1e9;
+      for (const auto& c : from) nearest = std::min(nearest, std::hypot(p[0] - c[0], p[1] - c[1], p[2] - c[2]));
+      worst = std::max(worst, nearest);
+      ++n;
+    }
+    return std::make_pair(worst, n);
+  };
+  const std::vector<std::array<double, 3>> camera{{0, 0, 0}};
+  ASSERT_EQ(run("analyze " + dir + "/seq --frame 0 --segments " + dir + "/all.pcd").code, 0);
+  const Result near = run("analyze " + dir + "/seq --frame 0 --max-range 2.0 --segments " + dir + "/near.pcd");
+  ASSERT_EQ(near.code, 0) << near.out;
+  const auto [all_far, all_n] = farthest(dir + "/all.pcd", camera);
+  const auto [near_far, near_n] = farthest(dir + "/near.pcd", camera);
+  EXPECT_GT(all_far, 2.5);  // the default 3 m sees the corridor farther on
+  EXPECT_LE(near_far, 2.0);
+  EXPECT_GT(near_n, 5000u);
+  EXPECT_LT(near_n, all_n);
+  const Result bad = run("analyze " + dir + "/seq --max-range 0.1");
+  EXPECT_EQ(bad.code, 2) << bad.out;
+  EXPECT_NE(bad.out.find("max_range_m"), std::string::npos) << bad.out;
+  // build: voxel centres within 2 m of a camera position, give or take a map voxel's
+  // half diagonal (0.02 * sqrt(3) / 2) and the perception voxel's centroid (0.01).
+  const Result b = run("build " + dir + "/seq --frames 0:23:4 --out " + dir + "/m.ot --max-range 2.0 --quiet");
+  ASSERT_EQ(b.code, 0) << b.out;
+  std::ifstream meta_file(dir + "/m.json");
+  const auto meta = nlohmann::json::parse(meta_file);
+  EXPECT_DOUBLE_EQ(meta["perception"]["max_range_m"].get<double>(), 2.0);
+  std::vector<std::array<double, 3>> path;
+  for (const auto& p : meta["trajectory_map"]) path.push_back({p[0].get<double>(), p[1].get<double>(), p[2].get<double>()});
+  ASSERT_EQ(path.size(), 6u);
+  ASSERT_EQ(run("export " + dir + "/m.ot --pcd " + dir + "/voxels.pcd").code, 0);
+  const auto [map_far, map_n] = farthest(dir + "/voxels.pcd", path);
+  EXPECT_GT(map_n, 1000u);
+  EXPECT_LE(map_far, 2.0 + 0.0174 + 0.01);
+  EXPECT_GT(map_far, 1.9);
+  // The camera is 1.35 m up and sees the floor from 1.6 m on: within 1.5 m there is
+  // nothing, and an empty map is an error, not a file.
+  const Result empty = run("build " + dir + "/seq --out " + dir + "/e.ot --max-range 1.5 --quiet");
+  EXPECT_EQ(empty.code, 1) << empty.out;
+  EXPECT_NE(empty.out.find(dir + "/seq: none of the 24 frames fused has a measured point between 0.3 and 1.5 m of the camera"),
+            std::string::npos) << empty.out;
+  EXPECT_NE(empty.out.find("no map written"), std::string::npos) << empty.out;
+  for (const char* f : {"/e.ot", "/e.bt", "/e.octovis.ot", "/e.json"}) EXPECT_FALSE(fs::exists(dir + f)) << f;
+  // Frames 2-12 see the box before, while and after it moves. Clearing what later
+  // frames see through turns the box's first place free; --no-free-space keeps it as
+  // surface: the same voxels, none free.
+  const auto leaves = [&](const std::string& map) {
+    const auto j = nlohmann::json::parse(run("info " + map + " --json").out);
+    return std::array<std::size_t, 3>{j["leaves"].get<std::size_t>(), j["surface_leaves"].get<std::size_t>(),
+                                      j["free_leaves"].get<std::size_t>()};
+  };
+  ASSERT_EQ(run("build " + dir + "/seq --frames 2:12:1 --out " + dir + "/cleared.ot --quiet").code, 0);
+  ASSERT_EQ(run("build " + dir + "/seq --frames 2:12:1 --out " + dir + "/kept.ot --no-free-space --quiet").code, 0);
+  const auto cleared = leaves(dir + "/cleared.ot"), kept = leaves(dir + "/kept.ot");
+  EXPECT_GT(cleared[2], 100u);
+  EXPECT_EQ(kept[2], 0u);
+  EXPECT_EQ(kept[0], cleared[0]);
+  EXPECT_GT(kept[1], cleared[1] + 100);
+  fs::remove_all(dir);
+}
+
 // A lone 16-bit depth PNG is mapped like a lone PCD: in its camera frame, "down" from
 // the ground plane. The simulator's first frame looks at the floor from 1.35 m.
 TEST(Cli, BuildMapsASingleDepthPngWithItsIntrinsics) {

@@ -15,8 +15,10 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <iterator>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <random>
 #include <set>
 #include <thread>
@@ -594,6 +596,33 @@ TEST(MapFiles, OtRoundTripIsExact) {
     ASSERT_EQ(a->payload(), b->payload());
   }
   EXPECT_EQ(b, back->end_tree());
+}
+
+// A run where nothing was in range leaves an empty tree: every format still writes it,
+// and what OctoMap reads back is empty too (ColorOcTree used to crash on it).
+TEST(MapFiles, AnEmptyMapIsWrittenInEveryFormat) {
+  MobilityMap map;
+  map.finalize();
+  ASSERT_EQ(map.tree().size(), 0u);
+  const std::string ot = tempPath("empty.ot"), bt = tempPath("empty.bt"), colour = tempPath("empty.octovis.ot"),
+                    pcd = tempPath("empty.pcd");
+  saveMobilityMap(map.tree(), ot);
+  EXPECT_EQ(loadMobilityMap(ot)->size(), 0u);
+  saveOccupancyBt(map.tree(), bt);
+  octomap::OcTree occupancy(0.1);
+  ASSERT_TRUE(occupancy.readBinary(bt));
+  EXPECT_EQ(occupancy.size(), 0u);
+  EXPECT_DOUBLE_EQ(occupancy.getResolution(), map.tree().getResolution());
+  saveOctovisColorTree(map.tree(), colour);
+  std::unique_ptr<octomap::AbstractOcTree> read(octomap::AbstractOcTree::read(colour));
+  const auto* colour_tree = dynamic_cast<const octomap::ColorOcTree*>(read.get());
+  ASSERT_NE(colour_tree, nullptr);
+  EXPECT_EQ(colour_tree->size(), 0u);
+  saveSurfacePcd(map.tree(), pcd);
+  std::ifstream in(pcd);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("\nPOINTS 0\nDATA ascii\n"), std::string::npos) << text;
+  EXPECT_EQ(text.substr(text.size() - 11), "DATA ascii\n");
 }
 
 std::string loadError(const std::string& path) {

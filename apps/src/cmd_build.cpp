@@ -281,7 +281,7 @@ Command addBuildCommand(CLI::App& app) {
                                     "(7-Scenes, TUM, .pcd frames with --poses)")
                         ->delimiter(',')
                         ->expected(2);
-  cmd->add_flag("--no-free-space", o->no_free_space, "Skip free-space updates (faster; moved obstacles stay)");
+  cmd->add_flag("--no-free-space", o->no_free_space, "Skip free-space updates: neither clear voxels a frame sees through nor cast free-space rays (faster; obstacles that moved stay in the map)");
   cmd->add_flag("--quiet,-q", o->quiet, "No progress output");
   return [o, max_range, resolution, device, voxel, keyframes]() {
     namespace fs = std::filesystem;
@@ -572,7 +572,10 @@ Command addBuildCommand(CLI::App& app) {
         continue;
       }
       const auto t0 = std::chrono::steady_clock::now();
-      map.integrate(s.result, s.T_world_camera, depth_k ? &s.depth : nullptr, depth_k);
+      // Without the depth image, integrate() neither clears what the frame sees
+      // through nor casts free-space rays.
+      const perception::PinholeIntrinsics* clear_k = o->no_free_space ? nullptr : depth_k;
+      map.integrate(s.result, s.T_world_camera, clear_k ? &s.depth : nullptr, clear_k);
       fuse_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       for (const auto& st : s.result.stages) {
         auto it = std::find_if(stage_ms.begin(), stage_ms.end(), [&](const auto& e) { return e.first == st.name; });
@@ -601,6 +604,27 @@ Command addBuildCommand(CLI::App& app) {
       msg << "none of the " << no_pose << " frames read has a pose within " << o->max_pose_gap
           << " s of its time stamp (are the poses on the sensor's clock, in seconds?); no map written";
       throw IoError(o->poses, msg.str());
+    }
+    if (map.tree().size() == 0 && used > 0 && !g_interrupted.load()) {
+      // Nothing in range anywhere (a range shorter than the scene, depth in the wrong
+      // unit, a sensor facing the sky): an empty map would only hide the mistake.
+      std::ostringstream msg;
+      msg << "none of the " << used << " frames fused ";
+      if (points == 0) {
+        msg << "has a measured point between " << pp.min_range_m << " and " << pp.max_range_m
+            << " m of the camera (--max-range)";
+      } else {
+        msg << "has a surface segment (" << points << " points in range, none in a segment of at least "
+            << pp.min_segment_points << ")";
+      }
+      msg << ", so the map would be empty";
+      if (o->checkpoint > 0 && used >= o->checkpoint) {
+        msg << " (the checkpoint at " << o->out << " is)";
+      } else {
+        msg << "; no map written";
+      }
+      msg << ". Check the range, the depth unit and the intrinsics";
+      throw IoError(live ? "OpenNI2 device " + o->device : o->input, msg.str());
     }
     const nlohmann::json meta = writeMap(false, run_s);
 

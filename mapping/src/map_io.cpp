@@ -164,7 +164,9 @@ void saveOctovisColorTree(const MobilityOcTree& tree, const std::string& path,
       }
     }
   });
-  out.updateInnerOccupancy();
+  // ColorOcTree::updateInnerOccupancy() follows the root without checking it: an empty
+  // tree (nothing in range in any frame) has none.
+  if (out.size() > 0) out.updateInnerOccupancy();
   writeAtomically(path, [&](std::ostream& s) { return out.write(s); });
 }
 
