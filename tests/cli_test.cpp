@@ -266,28 +266,38 @@ TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   EXPECT_NE(reach_text.out.find("start: the surface at (2.01, 0.01, 0.02) m"), std::string::npos) << reach_text.out;
   EXPECT_NE(reach_text.out.find("reachable:"), std::string::npos) << reach_text.out;
   EXPECT_TRUE(fs::exists(dir + "/reach.png"));
-  // --pcd: every place with its flags; as many reachable as the summary says, each standable.
-  ASSERT_EQ(run("reach " + map + " --pcd " + dir + "/reach.pcd").code, 0);
-  std::ifstream pcd(dir + "/reach.pcd");
-  std::string line;
-  std::size_t points = 0, reachable = 0, declared = 0;
-  while (std::getline(pcd, line) && line != "DATA ascii") {
-    if (line.rfind("POINTS ", 0) == 0) declared = std::stoul(line.substr(7));
-  }
-  while (std::getline(pcd, line)) {
-    std::istringstream in(line);
-    std::vector<std::string> f{std::istream_iterator<std::string>(in), std::istream_iterator<std::string>()};
-    ASSERT_EQ(f.size(), 6u) << line;
-    const double m = std::stod(f[3]);  // "nan" when unknown, which >> would not read
-    const int standable = std::stoi(f[4]), reached = std::stoi(f[5]);
-    ++points;
-    if (!reached) continue;
-    ++reachable;
-    EXPECT_EQ(standable, 1) << line;
-    EXPECT_GE(m, 0.5) << line;
-  }
-  EXPECT_EQ(points, declared);
+  // --pcd: every place with its flags; as many reachable as the summary says, each
+  // standable, on a mobility of at least --min-mobility (default 0.5).
+  const auto reachedPlaces = [&](const std::string& options, double min_mobility) {
+    const std::string pcd_path = dir + "/reach.pcd";
+    EXPECT_EQ(run("reach " + map + " --pcd " + pcd_path + options).code, 0);
+    std::ifstream pcd(pcd_path);
+    std::string line;
+    std::size_t points = 0, reachable = 0, declared = 0;
+    while (std::getline(pcd, line) && line != "DATA ascii") {
+      if (line.rfind("POINTS ", 0) == 0) declared = std::stoul(line.substr(7));
+    }
+    while (std::getline(pcd, line)) {
+      std::istringstream in(line);
+      std::vector<std::string> f{std::istream_iterator<std::string>(in), std::istream_iterator<std::string>()};
+      EXPECT_EQ(f.size(), 6u) << line;
+      if (f.size() != 6u) break;
+      const double m = std::stod(f[3]);  // "nan" when unknown, which >> would not read
+      const int standable = std::stoi(f[4]), reached = std::stoi(f[5]);
+      ++points;
+      if (!reached) continue;
+      ++reachable;
+      EXPECT_EQ(standable, 1) << line;
+      EXPECT_GE(m, min_mobility) << line;
+    }
+    EXPECT_EQ(points, declared);
+    return reachable;
+  };
+  const std::size_t reachable = reachedPlaces("", 0.5);
   EXPECT_EQ(reachable, rj["reachable"]["places"].get<std::size_t>());
+  const std::size_t fussy = reachedPlaces(" --min-mobility 0.99", 0.99);
+  EXPECT_GT(fussy, 0u);
+  EXPECT_LT(fussy, reachable);
   // --octovis: stock OctoMap reads it; as many purple voxels as standable places out of
   // reach, and the start place in its mobility colour (green on the floor).
   ASSERT_EQ(run("reach " + map + " --octovis " + dir + "/reach.octovis.ot").code, 0);
