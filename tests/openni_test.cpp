@@ -118,6 +118,19 @@ TEST_F(OpenNi, DummyDeviceFeedsTheLivePath) {
   EXPECT_NE(r.output.find("5 of 5 frames fused"), std::string::npos) << r.output;
 }
 
+// The corridor camera is 1.35 m above the floor: with a 1 m range a live run has
+// nothing to map, which is an error naming the device, and no file is written.
+TEST_F(OpenNi, LiveSensorWithNothingInRangeIsAnErrorAndWritesNothing) {
+  const Outcome r = mobmap(simEnv(30), "build --device mobmap-sim://corridor --frames 0:2 --max-range 1.0 --quiet --out " +
+                                           path("m.ot"));
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("OpenNI2 device mobmap-sim://corridor: none of the 3 frames fused has a measured point between "
+                          "0.3 and 1 m of the camera"),
+            std::string::npos)
+      << r.output;
+  for (const char* f : {"m.ot", "m.bt", "m.octovis.ot", "m.json"}) EXPECT_FALSE(fs::exists(path(f))) << f;
+}
+
 TEST_F(OpenNi, RecordingsWithoutCroppingAreRejectedWithTheReason) {
   // The Dummy device reports no cropping property, so its recordings lack it, and
   // OpenNI2's player then drops every frame: refuse them instead of waiting forever.

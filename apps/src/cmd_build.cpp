@@ -497,6 +497,7 @@ Command addBuildCommand(CLI::App& app) {
     // (--checkpoint) writes the same files in the middle of the run; fusion then goes on
     // in the finalized (pruned) tree, which gives the same map as without (docs/MAPPING.md).
     const std::string stem = mapping::mapFileStem(o->out);
+    const std::string device_label = "OpenNI2 device " + (o->device.empty() ? std::string("(first attached)") : o->device);
     auto writeMap = [&](bool checkpoint, double run_s) {
       map.finalize();
       mapping::saveMobilityMap(map.tree(), o->out);
@@ -506,8 +507,7 @@ Command addBuildCommand(CLI::App& app) {
       meta["format"] = "mobmap-map-metadata";
       meta["tool"] = std::string("mobmap ") + MOBMAP_VERSION_STRING;
       meta["tree_type"] = mapping::MobilityOcTree::kTreeType;
-      meta["input"] = live ? "OpenNI2 device " + (o->device.empty() ? std::string("(first attached)") : o->device)
-                           : fs::absolute(o->input, ec).lexically_normal().string();
+      meta["input"] = live ? device_label : fs::absolute(o->input, ec).lexically_normal().string();
       meta["frames"] = used;
       meta["frames_in_run"] = used;
       meta["frames_selected"] = frames.size();
@@ -624,7 +624,7 @@ Command addBuildCommand(CLI::App& app) {
         msg << "; no map written";
       }
       msg << ". Check the range, the depth unit and the intrinsics";
-      throw IoError(live ? "OpenNI2 device " + o->device : o->input, msg.str());
+      throw IoError(live ? device_label : o->input, msg.str());
     }
     const nlohmann::json meta = writeMap(false, run_s);
 
