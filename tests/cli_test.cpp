@@ -539,6 +539,10 @@ TEST(Cli, MaxRangeBoundsWhatIsKeptAndNoFreeSpaceKeepsWhatMoved) {
   EXPECT_EQ(kept[2], 0u);
   EXPECT_EQ(kept[0], cleared[0]);
   EXPECT_GT(kept[1], cleared[1] + 100);
+  for (const auto& [name, clears] : {std::pair<const char*, bool>{"/cleared.json", true}, {"/kept.json", false}}) {
+    std::ifstream in(dir + name);
+    EXPECT_EQ(nlohmann::json::parse(in)["mapping"]["clear_seen_through"].get<bool>(), clears) << name;
+  }
   fs::remove_all(dir);
 }
 

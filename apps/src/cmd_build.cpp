@@ -543,7 +543,8 @@ Command addBuildCommand(CLI::App& app) {
                             {"rough_fragment_max_points", pp.rough_fragment_max_points}, {"rough_min_points", pp.rough_min_points},
                             {"rough_smoothing_k", pp.rough_smoothing_k}};
       meta["mapping"] = {{"resolution_m", mp.resolution_m}, {"max_range_m", mp.max_range_m},
-                         {"free_space_ray_stride_px", mp.free_space_ray_stride_px}, {"max_weight", mp.max_weight}};
+                         {"free_space_ray_stride_px", mp.free_space_ray_stride_px}, {"max_weight", mp.max_weight},
+                         {"clear_seen_through", !o->no_free_space}};
       meta["model"] = {{"kind", config.model.model == gp::ModelKind::kGaussianProcess ? "gp" : "rule"},
                        {"table", config.table_path.empty() ? "paper" : config.table_path},
                        {"signal_std", config.model.signal_std}, {"length_scale", config.model.length_scale},
