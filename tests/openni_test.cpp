@@ -13,17 +13,29 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <memory>
+#include <sstream>
 #include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+extern char** environ;
 
 namespace mobmap {
 namespace {
@@ -129,6 +141,65 @@ TEST_F(OpenNi, LiveSensorWithNothingInRangeIsAnErrorAndWritesNothing) {
             std::string::npos)
       << r.output;
   for (const char* f : {"m.ot", "m.bt", "m.octovis.ot", "m.json"}) EXPECT_FALSE(fs::exists(path(f))) << f;
+}
+
+// A sensor that opens but never sends a frame: build gives up after 5 s naming it;
+// Ctrl-C while waiting stops build and record at once, and neither writes a file.
+TEST_F(OpenNi, ASilentSensorTimesOutAndCtrlCStopsTheWaitAtOnce) {
+  const auto started = std::chrono::steady_clock::now();
+  const Outcome silent = mobmap(simEnv(0), "build --device mobmap-sim://corridor --quiet --out " + path("s.ot"));
+  EXPECT_EQ(silent.code, 1) << silent.output;
+  EXPECT_NE(silent.output.find("mobmap-sim://corridor: no depth frame within 5 s of starting its depth stream"),
+            std::string::npos)
+      << silent.output;
+  EXPECT_GE(std::chrono::steady_clock::now() - started, std::chrono::seconds(5));
+  // SIGINT 1.5 s in: the wait is in 100 ms slices, so the process ends well before
+  // the 5 s timeout would have ended it.
+  const auto interrupt = [&](const std::string& args) {
+    const std::string log = path("log");
+    std::vector<std::string> env_strings = {"LD_LIBRARY_PATH=" + std::string(MOBMAP_OPENNI_SIM_DIR), "MOBMAP_SIM_FRAMES=0"};
+    std::vector<char*> envp;
+    for (auto& e : env_strings) envp.push_back(e.data());
+    for (char** e = environ; *e != nullptr; ++e) envp.push_back(*e);
+    envp.push_back(nullptr);
+    std::istringstream words(args);
+    std::vector<std::string> arg_strings{MOBMAP_EXE};
+    for (std::string w; words >> w;) arg_strings.push_back(w);
+    std::vector<char*> argv;
+    for (auto& a : arg_strings) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_adddup2(&actions, 1, 2);
+    pid_t pid = 0;
+    const int spawned = ::posix_spawn(&pid, MOBMAP_EXE, &actions, nullptr, argv.data(), envp.data());
+    posix_spawn_file_actions_destroy(&actions);
+    Outcome r;
+    if (spawned != 0) return std::make_pair(r, 0.0);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+    ::kill(pid, SIGINT);
+    const auto t0 = std::chrono::steady_clock::now();
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    const double after_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    std::ifstream in(log);
+    r.output.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    return std::make_pair(r, after_s);
+  };
+  const auto [build, build_s] = interrupt("build --device mobmap-sim://corridor --quiet --out " + path("m.ot"));
+  EXPECT_EQ(build.code, 130) << build.output;
+  EXPECT_NE(build.output.find("interrupted before any frame was fused: no map written"), std::string::npos) << build.output;
+  EXPECT_LT(build_s, 2.0);
+  for (const char* f : {"m.ot", "m.bt", "m.octovis.ot", "m.json"}) EXPECT_FALSE(fs::exists(path(f))) << f;
+  const auto [record, record_s] = interrupt("record --device mobmap-sim://corridor --out " + path("r.oni"));
+  EXPECT_EQ(record.code, 1) << record.output;
+  EXPECT_NE(record.output.find("mobmap-sim://corridor: stopped by Ctrl-C before the first depth frame arrived; nothing recorded"),
+            std::string::npos)
+      << record.output;
+  EXPECT_LT(record_s, 2.0);
+  EXPECT_FALSE(fs::exists(path("r.oni")));
 }
 
 TEST_F(OpenNi, RecordingsWithoutCroppingAreRejectedWithTheReason) {

@@ -341,6 +341,7 @@ Command addBuildCommand(CLI::App& app) {
       on.poses_path = o->poses;
       on.max_pose_gap_s = o->max_pose_gap;
       on.first = range.first, on.last = range.last, on.step = range.step;
+      on.interrupted = [] { return g_interrupted.load(); };
       dir = openOpenNi(on);
     }
     if (is_dir) {
@@ -564,7 +565,13 @@ Command addBuildCommand(CLI::App& app) {
     launch();
     launch();
     while (!in_flight.empty() && !g_interrupted.load()) {
-      Scored s = in_flight.front().get();
+      Scored s;
+      try {
+        s = in_flight.front().get();
+      } catch (const StreamInterrupted&) {  // Ctrl-C while a live sensor was silent
+        in_flight.pop_front();
+        continue;
+      }
       in_flight.pop_front();
       launch();
       if (s.no_pose) {
@@ -605,6 +612,13 @@ Command addBuildCommand(CLI::App& app) {
       msg << "none of the " << no_pose << " frames read has a pose within " << o->max_pose_gap
           << " s of its time stamp (are the poses on the sensor's clock, in seconds?); no map written";
       throw IoError(o->poses, msg.str());
+    }
+    if (g_interrupted.load() && used == 0) {
+      // Stopped before the first frame was fused: there is nothing to save, and a map
+      // being extended stays exactly as it was.
+      std::fprintf(stderr, "interrupted before any frame was fused: %s\n",
+                   existing ? ("the map at " + o->out + " is unchanged").c_str() : "no map written");
+      return 130;
     }
     if (map.tree().size() == 0 && used > 0 && !g_interrupted.load()) {
       // Nothing in range anywhere (a range shorter than the scene, depth in the wrong

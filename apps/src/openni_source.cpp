@@ -9,6 +9,8 @@
 
 #include <OpenNI.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <condition_variable>
 #include <filesystem>
@@ -23,6 +25,23 @@ namespace mobmap::app {
 namespace {
 
 namespace fs = std::filesystem;
+
+enum class Wait { kReady, kTimedOut, kInterrupted };
+
+// Waits up to timeout_s for a frame of `stream`, in slices of 100 ms so that
+// `interrupted` (if given) is noticed promptly.
+Wait waitForFrame(openni::VideoStream& stream, double timeout_s, bool (*interrupted)()) {
+  openni::VideoStream* streams[] = {&stream};
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  for (;;) {
+    if (interrupted && interrupted()) return Wait::kInterrupted;
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) return Wait::kTimedOut;
+    int ready = -1;
+    const int slice = static_cast<int>(std::min<long long>(100, left.count()));
+    if (openni::OpenNI::waitForAnyStream(streams, 1, &ready, slice) == openni::STATUS_OK) return Wait::kReady;
+  }
+}
 
 // OpenNI2 is initialised once per process and never shut down: Debian's DummyDevice
 // driver keeps a thread running past OpenNI::shutdown() that then crashes.
@@ -222,12 +241,16 @@ class OpenNiSequence : public Sequence {
 
   void next(openni::VideoFrameRef& f) const {
     if (!o_.is_file) {
-      openni::VideoStream* streams[] = {&depth_};
-      int ready = -1;
-      const int ms = static_cast<int>(o_.frame_timeout_s * 1000);
-      if (openni::OpenNI::waitForAnyStream(streams, 1, &ready, ms) != openni::STATUS_OK) {
+      const Wait w = waitForFrame(depth_, o_.frame_timeout_s, o_.interrupted);
+      if (w == Wait::kInterrupted) throw StreamInterrupted(name_ + ": stopped while waiting for a depth frame");
+      if (w == Wait::kTimedOut) {
         std::ostringstream msg;
-        msg << "no depth frame within " << o_.frame_timeout_s << " s after frame " << read_;
+        msg << "no depth frame within " << o_.frame_timeout_s << " s ";
+        if (read_ < 0) {
+          msg << "of starting its depth stream (is the sensor streaming?)";
+        } else {
+          msg << "after frame " << read_;
+        }
         throw IoError(name_, msg.str());
       }
     }
@@ -312,10 +335,14 @@ int recordOni(const std::string& device_uri, const std::string& out_path, int fr
   }
   int got = 0;
   std::string failure;
-  while (got < frames && !(interrupted && interrupted())) {
-    openni::VideoStream* streams[] = {&depth};
-    int ready = -1;
-    if (openni::OpenNI::waitForAnyStream(streams, 1, &ready, static_cast<int>(frame_timeout_s * 1000)) != openni::STATUS_OK) {
+  bool stopped = false;
+  while (got < frames && !stopped) {
+    const Wait w = waitForFrame(depth, frame_timeout_s, interrupted);
+    if (w == Wait::kInterrupted) {
+      stopped = true;
+      break;
+    }
+    if (w == Wait::kTimedOut) {
       std::ostringstream msg;
       msg << "no depth frame within " << frame_timeout_s << " s after " << got << " frames";
       failure = msg.str();
@@ -329,7 +356,9 @@ int recordOni(const std::string& device_uri, const std::string& out_path, int fr
   std::error_code ec;
   if (!failure.empty() || got == 0) {
     fs::remove(tmp, ec);
-    throw IoError(name, failure.empty() ? "recorded no frames" : failure);
+    throw IoError(name, !failure.empty() ? failure
+                        : stopped       ? "stopped by Ctrl-C before the first depth frame arrived; nothing recorded"
+                                        : "recorded no frames");
   }
   fs::rename(tmp, out_path, ec);
   if (ec) {

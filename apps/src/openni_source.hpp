@@ -6,6 +6,7 @@
 
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 
 namespace mobmap::app {
@@ -24,6 +25,15 @@ struct OpenNiOptions {
   int last = -1;  ///< -1: to the end of a recording; a live sensor then stops after 300
   int step = 1;
   double frame_timeout_s = 5.0;  ///< a live sensor that sends nothing this long is an error
+  /// Live sensors: asked every 100 ms while waiting for a frame; once it returns true,
+  /// load() throws StreamInterrupted instead of waiting on (Ctrl-C on a silent sensor).
+  bool (*interrupted)() = nullptr;
+};
+
+/// Thrown by a live sensor's load() when OpenNiOptions::interrupted said stop.
+class StreamInterrupted : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
 };
 
 /// Opens the sensor or recording; IoError naming it when there is no device, it cannot
