@@ -486,6 +486,9 @@ Command addBuildCommand(CLI::App& app) {
     // input has depth images rather than unorganized clouds.
     const perception::PinholeIntrinsics* depth_k =
         is_dir ? (dir->hasDepth() ? &dir->intrinsics() : nullptr) : (single.depth ? &single.intrinsics : nullptr);
+    // Fusion gets the depth images only to clear what a frame sees through (and cast
+    // free-space rays): --no-free-space withholds them.
+    const perception::PinholeIntrinsics* clear_k = o->no_free_space ? nullptr : depth_k;
     std::signal(SIGINT, onSigint);
     Progress progress("build", static_cast<int>(frames.size()), o->quiet, run_start);
     std::vector<std::pair<std::string, double>> stage_ms;  // in pipeline order
@@ -580,9 +583,6 @@ Command addBuildCommand(CLI::App& app) {
         continue;
       }
       const auto t0 = std::chrono::steady_clock::now();
-      // Without the depth image, integrate() neither clears what the frame sees
-      // through nor casts free-space rays.
-      const perception::PinholeIntrinsics* clear_k = o->no_free_space ? nullptr : depth_k;
       map.integrate(s.result, s.T_world_camera, clear_k ? &s.depth : nullptr, clear_k);
       fuse_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       for (const auto& st : s.result.stages) {
