@@ -74,14 +74,16 @@ void writeSegmentsPcd(const std::string& path, const perception::FrameResult& r)
 }
 
 Canvas overlay(const LoadedFrame& f, const perception::FrameResult& r, int width, int height) {
-  const std::size_t pixels = static_cast<std::size_t>(width) * height;
-  std::vector<float> z(pixels, 0.f);
-  if (f.depth) {
-    z = f.depth->depth_m;
-  } else {
-    for (std::size_t i = 0; i < pixels && i < f.points.size(); ++i) z[i] = std::isfinite(f.points[i].z()) ? f.points[i].z() : 0.f;
+  // Depth for the shaded background: the depth image, or an organized cloud's z.
+  std::vector<float> cloud_z;
+  if (!f.depth) {
+    const std::size_t pixels = static_cast<std::size_t>(width) * height;
+    cloud_z.assign(pixels, 0.f);
+    for (std::size_t i = 0; i < pixels && i < f.points.size(); ++i) {
+      cloud_z[i] = std::isfinite(f.points[i].z()) ? f.points[i].z() : 0.f;
+    }
   }
-  Canvas c = framePicture(width, height, f.colour ? &*f.colour : nullptr, z);
+  Canvas c = framePicture(width, height, f.colour ? &*f.colour : nullptr, f.depth ? f.depth->depth_m : cloud_z);
   if (r.point_of_pixel.empty()) return c;
   for (int v = 0; v < height; ++v) {
     for (int u = 0; u < width; ++u) {
