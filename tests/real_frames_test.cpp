@@ -8,9 +8,11 @@
 
 #include "mobmap/perception/pipeline.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -165,6 +167,101 @@ TEST(RealFrames, RedkitchenFloorIsWalkableTableTopFlatAndFrontsUntraversable) {
   EXPECT_GT(static_cast<double>(table_good) / table, 0.75);
   ASSERT_GT(middle, 500);
   EXPECT_GT(static_cast<double>(middle_bad) / middle, 0.95);  // upright: fronts, legs, chair backs
+}
+
+// The RealSense frames (a person standing on a large floor, no pose, a different
+// camera from the Kinect: fx 393). The floor fills the image's bottom rows in both; the
+// reference is a least-squares plane through those pixels' back-projected depth,
+// computed here without the pipeline. Above the floor there are only the person and
+// upright walls, so nothing higher than 30 cm may be called walkable.
+TEST(RealFrames, RealSensePersonStandsOnAWalkableFloorAndIsNotTraversable) {
+  for (const char* name : {"depth_image_1.png", "depth_image_2.png"}) {
+    SCOPED_TRACE(name);
+    const std::string path = dataFile(std::string("realsense-person/") + name);
+    SKIP_WITHOUT(path);
+    const app::LoadedFrame f =
+        app::loadSingleFrame(path, -1, dataFile("realsense-person/camera-intrinsics.txt"));
+    ASSERT_TRUE(f.depth);
+    const perception::PinholeIntrinsics& k = f.intrinsics;
+    ASSERT_NEAR(k.fx, 393.02, 0.01);
+
+    // Reference floor: rows 420-479, columns 100-599, within 3 m.
+    std::vector<std::size_t> floor_pixels;
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (int v = 420; v < 480; ++v)
+      for (int u = 100; u < 600; ++u) {
+        const float z = f.depth->at(u, v);
+        if (!(z > 0.f && z < 3.f)) continue;
+        floor_pixels.push_back(static_cast<std::size_t>(v) * f.depth->width + u);
+        mean += perception::backProject(k, u, v, z);
+      }
+    ASSERT_GT(floor_pixels.size(), 20000u);
+    mean /= static_cast<double>(floor_pixels.size());
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (std::size_t px : floor_pixels) {
+      const int u = static_cast<int>(px % f.depth->width), v = static_cast<int>(px / f.depth->width);
+      const Eigen::Vector3d d = perception::backProject(k, u, v, f.depth->at(u, v)) - mean;
+      cov += d * d.transpose();
+    }
+    Eigen::Vector3d n_ref = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
+    if (n_ref.dot(mean) > 0) n_ref = -n_ref;  // towards the camera
+    const double d_ref = -n_ref.dot(mean);
+
+    const auto r = app::perceiveFrame(perception::FramePipeline(), f, std::nullopt);
+    ASSERT_TRUE(r.ground_plane);
+    const Eigen::Vector3d n = r.ground_plane->head<3>().cast<double>();
+    EXPECT_GT(n.dot(n_ref), std::cos(2.0 * M_PI / 180)) << "ground normal " << n.transpose() << ", reference "
+                                                         << n_ref.transpose();
+    EXPECT_NEAR((*r.ground_plane)(3), d_ref, 0.02);
+    const perception::Segment& ground = r.segments.front();
+    ASSERT_TRUE(ground.is_ground);
+    EXPECT_GE(ground.mobility, 0.9);
+    EXPECT_LT(ground.roughness, 1.05);
+
+    // The reference floor pixels are the ground segment's.
+    ASSERT_EQ(r.point_of_pixel.size(), f.depth->depth_m.size());
+    std::size_t kept = 0, on_ground = 0;
+    for (std::size_t px : floor_pixels) {
+      const int i = r.point_of_pixel[px];
+      if (i < 0) continue;
+      ++kept;
+      on_ground += r.segment_of_point[static_cast<std::size_t>(i)] == 0;
+    }
+    ASSERT_GT(kept, floor_pixels.size() * 9 / 10);
+    EXPECT_GT(static_cast<double>(on_ground) / kept, 0.95);
+
+    // Everything more than 30 cm above the floor (the person, the walls) scores < 0.5.
+    std::size_t high = 0, high_walkable = 0;
+    for (std::size_t i = 0; i < r.points.size(); ++i) {
+      if (heightAbove(*r.ground_plane, r.points[i]) < 0.3f) continue;
+      ++high;
+      const int s = r.segment_of_point[i];
+      high_walkable += s >= 0 && r.segments[static_cast<std::size_t>(s)].mobility >= 0.5;
+    }
+    ASSERT_GT(high, 5000u);
+    EXPECT_LT(static_cast<double>(high_walkable) / high, 0.01) << high_walkable << " of " << high;
+    // The wall beside the person: the largest other segment, upright. Off its plane, the
+    // person: over a metre tall, its points are part of the count above.
+    const perception::Segment* wall = nullptr;
+    for (const auto& s : r.segments)
+      if (!s.is_ground && (!wall || s.points.size() > wall->points.size())) wall = &s;
+    ASSERT_NE(wall, nullptr);
+    EXPECT_LT(std::abs(wall->normal.dot(r.ground_plane->head<3>())), 0.1f);
+    EXPECT_LT(wall->mobility, 0.5);
+    std::size_t person = 0;
+    float person_top = 0.f;
+    for (std::size_t i = 0; i < r.points.size(); ++i) {
+      const float h = heightAbove(*r.ground_plane, r.points[i]);
+      if (h < 0.3f || std::abs(wall->normal.dot(r.points[i] - wall->centroid)) < 0.1f) continue;
+      ++person;
+      person_top = std::max(person_top, h);
+    }
+    std::printf("[ info ] %s: floor %.3f m below, %zu of %zu reference floor points on the ground; %zu of %zu points "
+                "above 30 cm walkable; person %zu points, %.2f m tall\n",
+                name, (*r.ground_plane)(3), on_ground, kept, high_walkable, high, person, person_top);
+    EXPECT_GT(person, 2000u);
+    EXPECT_GT(person_top, 1.4f);
+  }
 }
 
 TEST(RealFrames, CorruptAndMissingPcdFilesGiveErrorsNamingTheFile) {
