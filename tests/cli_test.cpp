@@ -956,6 +956,167 @@ TEST(Cli, ExtendingAMapGivesTheMapOfOneRunByteForByte) {
   fs::remove_all(dir);
 }
 
+// Width and height of a PNG, from its IHDR chunk (bytes 16-23, big-endian).
+std::pair<int, int> pngSize(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  unsigned char b[24] = {};
+  in.read(reinterpret_cast<char*>(b), sizeof b);
+  if (!in) return {0, 0};
+  const auto be = [&](int i) { return (b[i] << 24) | (b[i + 1] << 16) | (b[i + 2] << 8) | b[i + 3]; };
+  return {be(16), be(20)};
+}
+
+// The first line of `out` that is a JSON object (query --reach also writes a note on
+// standard error, which run() mixes in).
+nlohmann::json jsonLine(const std::string& out) {
+  std::istringstream lines(out);
+  std::string line;
+  while (std::getline(lines, line))
+    if (!line.empty() && line.front() == '{') return nlohmann::json::parse(line);
+  ADD_FAILURE() << "no JSON line in: " << out;
+  return nlohmann::json::object();
+}
+
+// The places `reach --pcd` writes, keyed by their "x y z" text: mobility, standable, reachable.
+struct PlaceFlags {
+  double mobility = 0;
+  bool standable = false, reachable = false;
+};
+std::map<std::array<double, 3>, PlaceFlags> readPlaces(const std::string& pcd_path) {
+  std::ifstream pcd(pcd_path);
+  std::string line;
+  while (std::getline(pcd, line) && line != "DATA ascii") {
+  }
+  std::map<std::array<double, 3>, PlaceFlags> out;
+  while (std::getline(pcd, line)) {
+    std::istringstream in(line);
+    std::string x, y, z, m;
+    int s = 0, r = 0;
+    in >> x >> y >> z >> m >> s >> r;
+    out[{std::stod(x), std::stod(y), std::stod(z)}] = {std::stod(m), s == 1, r == 1};
+  }
+  return out;
+}
+
+// The robot options of `reach` and `query --reach` that change which places count
+// (--clearance, --max-gap, --min-mobility), the picture size (--max-pixels), the
+// evaluation tolerance and the demo's frame step, each checked against what it must do.
+TEST(Cli, RobotLimitsPictureSizesEvaluateToleranceAndDemoStep) {
+  const std::string dir = tempDir("limits");
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 24 --quiet").code, 0);  // Kinect noise
+  const std::string map = dir + "/m.ot";
+  ASSERT_EQ(run("build " + dir + "/seq --frames 0:23:2 --out " + map + " --quiet").code, 0);
+  const auto places = [&](const std::string& options) {
+    const Result r = run("reach " + map + " --pcd " + dir + "/p.pcd" + options);
+    EXPECT_EQ(r.code, 0) << r.out;
+    return readPlaces(dir + "/p.pcd");
+  };
+  const auto base = places(""), tall = places(" --clearance 1.9"), no_gap = places(" --max-gap 0");
+  ASSERT_GT(base.size(), 5000u);
+  ASSERT_EQ(tall.size(), base.size());
+  ASSERT_EQ(no_gap.size(), base.size());
+  // --clearance: a place stays standable only if no run above it in its column starts
+  // within 1.9 m (a run's top place is at least one 2 cm voxel above its bottom); the
+  // places it rules out all have something above them.
+  std::map<std::pair<double, double>, std::vector<double>> columns;
+  for (const auto& [p, f] : base) columns[{p[0], p[1]}].push_back(p[2]);
+  std::vector<std::array<double, 3>> lost;
+  for (const auto& [p, f] : base) {
+    const PlaceFlags& t = tall.at(p);
+    EXPECT_TRUE(!t.standable || f.standable);
+    EXPECT_TRUE(!t.reachable || f.reachable);
+    double lowest_above = 1e9;
+    for (double z : columns[{p[0], p[1]}])
+      if (z > p[2]) lowest_above = std::min(lowest_above, z);
+    if (t.standable) {
+      EXPECT_GE(lowest_above - 0.02 - p[2], 1.9 - 1e-6) << p[0] << " " << p[1] << " " << p[2];
+    }
+    if (f.standable && !t.standable) {
+      lost.push_back(p);
+      EXPECT_LT(lowest_above, 1e9) << p[0] << " " << p[1] << " " << p[2];
+    }
+  }
+  ASSERT_FALSE(lost.empty());
+  // --max-gap 0: the same places standable, reachable ones a subset.
+  for (const auto& [p, f] : base) {
+    EXPECT_EQ(no_gap.at(p).standable, f.standable);
+    EXPECT_TRUE(!no_gap.at(p).reachable || f.reachable);
+  }
+  // query --reach passes the same limits on, and says which one a place fails.
+  const auto& q = lost.front();
+  const std::string at = std::to_string(q[0]) + " " + std::to_string(q[1]) + " " + std::to_string(q[2] + 0.01);
+  const Result fits = run("query " + map + " " + at + " --reach --json");
+  ASSERT_EQ(fits.code, 0) << fits.out;
+  const auto fj = jsonLine(fits.out);
+  EXPECT_TRUE(fj["reach"]["standable"].get<bool>()) << fits.out;
+  const Result low = run("query " + map + " " + at + " --reach --clearance 1.9 --json");
+  ASSERT_EQ(low.code, 0) << low.out;
+  const auto lj = jsonLine(low.out);
+  EXPECT_FALSE(lj["reach"]["standable"].get<bool>()) << low.out;
+  EXPECT_LT(lj["reach"]["headroom_m"].get<double>(), 1.9) << low.out;
+  EXPECT_NE(run("query " + map + " " + at + " --reach --clearance 1.9").out.find("free above it, under --clearance 1.9"),
+            std::string::npos);
+  // A standable place of mobility under 0.9 (a ramp) is not, with --min-mobility 0.9.
+  const auto middling = std::find_if(base.begin(), base.end(),
+                                     [](const auto& e) { return e.second.standable && e.second.mobility < 0.9; });
+  ASSERT_NE(middling, base.end());
+  const auto& m = middling->first;
+  const std::string on = std::to_string(m[0]) + " " + std::to_string(m[1]) + " " + std::to_string(m[2] + 0.01);
+  EXPECT_NE(run("query " + map + " " + on + " --reach --min-mobility 0.9").out.find("under --min-mobility 0.9"),
+            std::string::npos);
+  for (const auto& [options, field] : {std::pair<const char*, const char*>{" --clearance -1", "clearance_m"},
+                                       {" --max-gap 2", "max_gap_m"},
+                                       {" --min-mobility 1.5", "min_mobility"}}) {
+    for (const std::string& cmd : {"reach " + map, "query " + map + " 1 0 0 --reach"}) {
+      const Result bad = run(cmd + options);
+      EXPECT_EQ(bad.code, 2) << cmd << options << ": " << bad.out;
+      EXPECT_NE(bad.out.find(field), std::string::npos) << bad.out;
+    }
+  }
+  // --max-pixels: the default draws one 2 cm voxel as several pixels; 64 draws cells of
+  // k x k voxels, k = ceil(columns / 64); the sizes printed are the files'.
+  const Result big = run("export " + map + " --png " + dir + "/big.png");
+  const Result small = run("export " + map + " --png " + dir + "/small.png --max-pixels 64");
+  ASSERT_EQ(big.code, 0) << big.out;
+  ASSERT_EQ(small.code, 0) << small.out;
+  int bw = 0, bh = 0, ppv = 0, sw = 0, sh = 0, k = 0;
+  ASSERT_EQ(std::sscanf(big.out.substr(big.out.find('(')).c_str(), "(%dx%d px, %d px per 2 cm voxel", &bw, &bh, &ppv), 3) << big.out;
+  ASSERT_EQ(std::sscanf(small.out.substr(small.out.find('(')).c_str(), "(%dx%d px, 1 px per %*d cm cell: the highest of %dx", &sw,
+                        &sh, &k),
+            3)
+      << small.out;
+  EXPECT_EQ(pngSize(dir + "/big.png"), std::make_pair(bw, bh));
+  EXPECT_EQ(pngSize(dir + "/small.png"), std::make_pair(sw, sh));
+  const int columns_max = 1400 / ppv;  // the map's longer side in voxels, to within ppv
+  EXPECT_GE(k, (1400 / (ppv + 1) + 63) / 64);
+  EXPECT_LE(k, (columns_max + 63) / 64 + 1);
+  EXPECT_LT(sw, bw);
+  EXPECT_LT(sh, bh);
+  ASSERT_EQ(run("reach " + map + " --png " + dir + "/reach_small.png --max-pixels 64").code, 0);
+  EXPECT_LT(pngSize(dir + "/reach_small.png").first, bw);
+  // evaluate --tolerance: floor voxel centres are 1 cm above the floor, so 5 mm counts
+  // none of them and the default 4 cm all those --tolerance 0.1 does.
+  const auto floorVoxels = [&](const std::string& options) {
+    const Result ev = run("evaluate " + map + " --truth " + dir + "/seq/ground_truth.json --json" + options);
+    EXPECT_EQ(ev.code, 0) << ev.out;
+    return nlohmann::json::parse(ev.out)["surfaces"][0]["voxels"].get<int>();
+  };
+  EXPECT_EQ(floorVoxels(" --tolerance 0.005"), 0);
+  const int floor4 = floorVoxels(""), floor10 = floorVoxels(" --tolerance 0.1");
+  EXPECT_GT(floor4, 1000);
+  EXPECT_GE(floor10, floor4);
+  EXPECT_LT(floor10, floor4 * 11 / 10);
+  // demo --step 4 over 12 frames fuses frames 0, 4 and 8.
+  const Result demo = run("demo --out " + dir + "/demo --frames 12 --step 4 --quiet");
+  ASSERT_EQ(demo.code, 0) << demo.out;
+  EXPECT_NE(demo.out.find("--frames 0:11:4"), std::string::npos) << demo.out;
+  std::ifstream meta(dir + "/demo/corridor.json");
+  const auto dj = nlohmann::json::parse(meta);
+  EXPECT_EQ(dj["frames"].get<int>(), 3);
+  EXPECT_EQ(dj["trajectory_map"].size(), 3u);
+  fs::remove_all(dir);
+}
+
 // `build --keyframes M,DEG` fuses the frames whose camera moved >= M or turned >= DEG
 // since the last frame fused: checked against the rule applied to the pose files.
 TEST(Cli, KeyframesAreTheFramesThatMovedOrTurnedEnoughSinceTheLastOneFused) {

@@ -62,23 +62,36 @@ nlohmann::json pointJson(const mapping::PointQuery& q) {
   return j;
 }
 
+// A place's own facts for JSON: its mobility (null if unknown) and the free or unseen
+// height above it (null: nothing above it in the map).
 nlohmann::json placeJson(const mapping::Place* p) {
   if (!p) return {{"place", nullptr}, {"standable", false}, {"reachable", false}};
-  return {{"place", {p->x, p->y, p->top_z}}, {"standable", p->standable}, {"reachable", p->reachable}};
+  return {{"place", {p->x, p->y, p->top_z}},
+          {"standable", p->standable},
+          {"reachable", p->reachable},
+          {"mobility", p->has_mobility ? nlohmann::json(p->mobility) : nlohmann::json(nullptr)},
+          {"headroom_m", std::isfinite(p->headroom_m) ? nlohmann::json(p->headroom_m) : nlohmann::json(nullptr)}};
 }
 
-// The reach line of a point's answer (text).
-void printPlace(const mapping::Place* p, double drop) {
+// The reach line of a point's answer (text). A place that cannot be stood on says which
+// of the robot's limits it fails: unknown mobility, too low a mobility, or too little
+// headroom for --clearance.
+void printPlace(const mapping::Place* p, double drop, const mapping::ReachParams& robot) {
   if (!p) {
     std::printf("  reach: no surface within %.3f m below\n", drop);
   } else if (p->reachable) {
     std::printf("  reach: surface top at z = %.3f m, reachable\n", p->top_z);
   } else if (p->standable) {
     std::printf("  reach: surface top at z = %.3f m, can be stood on but not reached\n", p->top_z);
-  } else if (p->has_mobility) {
-    std::printf("  reach: surface top at z = %.3f m, cannot be stood on (mobility %.3f)\n", p->top_z, p->mobility);
-  } else {
+  } else if (!p->has_mobility) {
     std::printf("  reach: surface top at z = %.3f m, cannot be stood on (mobility unknown)\n", p->top_z);
+  } else if (p->mobility < robot.min_mobility) {
+    std::printf("  reach: surface top at z = %.3f m, cannot be stood on (mobility %.3f, under --min-mobility %g)\n",
+                p->top_z, p->mobility, robot.min_mobility);
+  } else {
+    std::printf("  reach: surface top at z = %.3f m, cannot be stood on (mobility %.3f, but %.3f m free above it, under "
+                "--clearance %g)\n",
+                p->top_z, p->mobility, p->headroom_m, robot.clearance_m);
   }
 }
 
@@ -233,7 +246,7 @@ Command addQueryCommand(CLI::App& app) {
         } else {
           std::printf("no surface within %.3f m below (%.3f, %.3f, %.3f)\n", o->snap, p.x(), p.y(), p.z());
         }
-        if (run) printPlace(place, drop);
+        if (run) printPlace(place, drop, o->robot.params);
       }
     };
     if (!o->xyz.empty()) {
