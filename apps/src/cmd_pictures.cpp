@@ -41,9 +41,9 @@ Command addExportCommand(CLI::App& app) {
     if (o->png.empty() && o->pcd.empty()) throw UsageError("export needs --png OUT.png and/or --pcd OUT.pcd");
     if (max_z->count() > 0 && o->png.empty()) throw UsageError("--max-z cuts the top view: it needs --png");
     if (!std::isfinite(o->max_z) && max_z->count() > 0) throw UsageError("--max-z must be a finite height in metres");
-    auto tree = mapping::loadMobilityMap(o->map);  // its errors before MAP.json's, as openMap(path)
-    const mapping::MapMetadata metadata = mapping::readMapMetadata(o->map);
-    const mapping::MobilityMap map = mapping::openMap(std::move(tree), metadata);
+    const OpenedMap opened = openMapFiles(o->map);
+    const mapping::MapMetadata& metadata = opened.metadata;
+    const mapping::MobilityMap& map = opened.map;
     const auto& t = map.tree();
     if (!o->pcd.empty()) mapping::saveSurfacePcd(t, o->pcd);
     if (o->png.empty()) return 0;

@@ -141,9 +141,9 @@ Command addQueryCommand(CLI::App& app) {
   for (CLI::Option* opt : o->robot.options) opt->needs(reach);
   return [o]() {
     if (o->reach) resolveReachOptions(o->robot);
-    auto tree = mapping::loadMobilityMap(o->map);
-    const mapping::MapMetadata metadata = mapping::readMapMetadata(o->map);
-    const mapping::MobilityMap map = mapping::openMap(std::move(tree), metadata);
+    const OpenedMap opened = openMapFiles(o->map);
+    const mapping::MapMetadata& metadata = opened.metadata;
+    const mapping::MobilityMap& map = opened.map;
     auto toMap = [&](Eigen::Vector3d p) { return o->frame == "world" ? map.worldToMap(p) : p; };
     // With --reach: which places the robot can get to, worked out once for every answer.
     std::optional<ReachRun> run;
@@ -391,9 +391,9 @@ Command addInfoCommand(CLI::App& app) {
   cmd->add_option("MAP", o->map, "A .ot map")->required();
   cmd->add_flag("--json", o->json, "One JSON object: the figures above and the whole metadata file (camera path included)");
   return [o]() {
-    auto tree = mapping::loadMobilityMap(o->map);  // its errors before MAP.json's, as openMap(path)
-    const mapping::MapMetadata metadata = mapping::readMapMetadata(o->map);
-    const mapping::MobilityMap map = mapping::openMap(std::move(tree), metadata);
+    const OpenedMap opened = openMapFiles(o->map);
+    const mapping::MapMetadata& metadata = opened.metadata;
+    const mapping::MobilityMap& map = opened.map;
     const auto& t = map.tree();
     double x0, y0, z0, x1, y1, z1;
     t.getMetricMin(x0, y0, z0);

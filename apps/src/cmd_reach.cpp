@@ -70,9 +70,9 @@ Command addReachCommand(CLI::App& app) {
     if (max_z->count() > 0 && o->png.empty()) throw UsageError("--max-z cuts the top view: it needs --png");
     if (!std::isfinite(o->max_z) && max_z->count() > 0) throw UsageError("--max-z must be a finite height in metres");
     resolveReachOptions(o->reach);
-    auto tree = mapping::loadMobilityMap(o->map);
-    const mapping::MapMetadata metadata = mapping::readMapMetadata(o->map);
-    const mapping::MobilityMap map = mapping::openMap(std::move(tree), metadata);
+    const OpenedMap opened = openMapFiles(o->map);
+    const mapping::MapMetadata& metadata = opened.metadata;
+    const mapping::MobilityMap& map = opened.map;
     const CameraPath camera = cameraPath(metadataJson(metadata));
     std::vector<Eigen::Vector2d> path = camera.xy();
     const ReachRun run = runReach(o->reach, map, o->map, o->frame == "world", camera);

@@ -24,6 +24,13 @@ std::string formatMapMetadata(const nlohmann::json& meta) {
   return text + "\n" + entry;
 }
 
+OpenedMap openMapFiles(const std::string& ot_path) {
+  auto tree = mapping::loadMobilityMap(ot_path);
+  mapping::MapMetadata metadata = mapping::readMapMetadata(ot_path);
+  mapping::MobilityMap map = mapping::openMap(std::move(tree), metadata);
+  return {std::move(metadata), std::move(map)};
+}
+
 nlohmann::json metadataJson(const mapping::MapMetadata& meta) {
   return meta.found ? nlohmann::json::parse(meta.text) : nlohmann::json::object();
 }

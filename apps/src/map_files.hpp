@@ -12,6 +12,15 @@
 
 namespace mobmap::app {
 
+/// A built map opened for reading, with its MAP.json (its metadata, for the camera path
+/// and what else a command reports). Errors name the file: the .ot's are reported
+/// first, as mapping::openMap(path) reports them.
+struct OpenedMap {
+  mapping::MapMetadata metadata;
+  mapping::MobilityMap map;
+};
+OpenedMap openMapFiles(const std::string& ot_path);
+
 /// MAP.json as read and checked by mapping::readMapMetadata(): an empty object if there
 /// is none.
 nlohmann::json metadataJson(const mapping::MapMetadata& meta);
