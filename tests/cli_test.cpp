@@ -1092,8 +1092,18 @@ TEST(Cli, RobotLimitsPictureSizesEvaluateToleranceAndDemoStep) {
   EXPECT_LE(k, (columns_max + 63) / 64 + 1);
   EXPECT_LT(sw, bw);
   EXPECT_LT(sh, bh);
-  ASSERT_EQ(run("reach " + map + " --png " + dir + "/reach_small.png --max-pixels 64").code, 0);
-  EXPECT_LT(pngSize(dir + "/reach_small.png").first, bw);
+  const Result reach_small = run("reach " + map + " --png " + dir + "/reach_small.png --max-pixels 64");
+  ASSERT_EQ(reach_small.code, 0) << reach_small.out;
+  int rw = 0, rh = 0, rk = 0;
+  const std::size_t wrote = reach_small.out.find("wrote " + dir + "/reach_small.png (");
+  ASSERT_NE(wrote, std::string::npos) << reach_small.out;
+  ASSERT_EQ(std::sscanf(reach_small.out.c_str() + reach_small.out.find('(', wrote),
+                        "(%dx%d px, 1 px per %*d cm cell: the highest of %dx", &rw, &rh, &rk),
+            3)
+      << reach_small.out;
+  EXPECT_EQ(pngSize(dir + "/reach_small.png"), std::make_pair(rw, rh));
+  EXPECT_EQ(rk, k);
+  EXPECT_LT(rw, bw);
   // evaluate --tolerance: floor voxel centres are 1 cm above the floor, so 5 mm counts
   // none of them and the default 4 cm all those --tolerance 0.1 does.
   const auto floorVoxels = [&](const std::string& options) {

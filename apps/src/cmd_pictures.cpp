@@ -69,15 +69,8 @@ Command addExportCommand(CLI::App& app) {
     picture.path = std::move(path);
     picture.run_starts = camera.run_starts;
     const Canvas c = drawTopView(view, picture, o->max_pixels);
-    const double res = view.resolution;
-    const int ppv = std::max(1, o->max_pixels / std::max(view.columns, view.rows));
     c.save(o->png);
-    if (view.columns_per_cell == 1) {
-      std::printf("wrote %s (%dx%d px, %d px per %g cm voxel)\n", o->png.c_str(), c.width(), c.height(), ppv, res * 100);
-    } else {
-      std::printf("wrote %s (%dx%d px, %d px per %g cm cell: the highest of %dx%d voxels; --max-pixels for more)\n",
-                  o->png.c_str(), c.width(), c.height(), ppv, res * 100, view.columns_per_cell, view.columns_per_cell);
-    }
+    std::printf("wrote %s (%s)\n", o->png.c_str(), describeTopView(view, c, o->max_pixels).c_str());
     return 0;
   };
 }

@@ -187,9 +187,9 @@ Command addReachCommand(CLI::App& app) {
     const Canvas c = drawTopView(view, picture, o->max_pixels);
     c.save(o->png);
     if (!o->json) {
-      std::printf("wrote %s (the highest surface per column: reachable in mobility colours, purple where it can be stood on "
-                  "but not reached, pale where it cannot be stood on)\n",
-                  o->png.c_str());
+      std::printf("wrote %s (%s; the highest surface per column: reachable in mobility colours, purple where it can be "
+                  "stood on but not reached, pale where it cannot be stood on)\n",
+                  o->png.c_str(), describeTopView(view, c, o->max_pixels).c_str());
     }
     return 0;
   };

@@ -207,4 +207,18 @@ Canvas drawTopView(const TopView& view, const TopViewPicture& pic, int max_pixel
   return c;
 }
 
+std::string describeTopView(const TopView& view, const Canvas& picture, int max_pixels) {
+  const int ppv = std::max(1, max_pixels / std::max(view.columns, view.rows));  // as drawTopView
+  char text[200];
+  if (view.columns_per_cell == 1) {
+    std::snprintf(text, sizeof text, "%dx%d px, %d px per %g cm voxel", picture.width(), picture.height(), ppv,
+                  view.resolution * 100);
+  } else {
+    std::snprintf(text, sizeof text, "%dx%d px, %d px per %g cm cell: the highest of %dx%d voxels; --max-pixels for more",
+                  picture.width(), picture.height(), ppv, view.resolution * 100, view.columns_per_cell,
+                  view.columns_per_cell);
+  }
+  return text;
+}
+
 }  // namespace mobmap::app

@@ -71,4 +71,9 @@ struct TopViewPicture {
 /// longest side of the map area.
 Canvas drawTopView(const TopView& view, const TopViewPicture& picture, int max_pixels);
 
+/// What a drawn top view holds, for the "wrote" line: "1530x1336 px, 8 px per 2 cm
+/// voxel", or for a cell of k x k voxels "438x300 px, 1 px per 6 cm cell: the highest of
+/// 3x3 voxels; --max-pixels for more".
+std::string describeTopView(const TopView& view, const Canvas& picture, int max_pixels);
+
 }  // namespace mobmap::app
