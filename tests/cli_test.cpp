@@ -552,11 +552,22 @@ TEST(Cli, BuildMapsASingleDepthPngWithItsIntrinsics) {
   const std::string dir = tempDir("png");
   ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 1 --noise none --quiet").code, 0);
   const std::string png = dir + "/seq/frame-000000.depth.png";
-  const Result bare = run("build " + png + " --out " + dir + "/m.ot --quiet");
+  // A PNG with no camera-intrinsics.txt beside it needs --intrinsics.
+  fs::create_directories(dir + "/loose");
+  fs::copy_file(png, dir + "/loose/depth_image_1.png");
+  const Result bare = run("build " + dir + "/loose/depth_image_1.png --out " + dir + "/m.ot --quiet");
   EXPECT_EQ(bare.code, 2);
-  EXPECT_NE(bare.out.find("--intrinsics"), std::string::npos) << bare.out;
+  EXPECT_NE(bare.out.find("a depth PNG needs --intrinsics"), std::string::npos) << bare.out;
   EXPECT_FALSE(fs::exists(dir + "/m.ot"));
-  const Result b = run("build " + png + " --intrinsics " + dir + "/seq/camera-intrinsics.txt --out " + dir + "/m.ot");
+  // One beside it is used, and said so; --intrinsics wins over it.
+  const Result beside = run("analyze " + png + " --json");
+  ASSERT_EQ(beside.code, 0) << beside.out;
+  EXPECT_NE(beside.out.find("note: intrinsics from " + dir + "/seq/camera-intrinsics.txt, beside the PNG"), std::string::npos)
+      << beside.out;
+  const Result given = run("analyze " + png + " --intrinsics 585,585,320,240 --json");
+  ASSERT_EQ(given.code, 0) << given.out;
+  EXPECT_EQ(given.out.find("note: intrinsics"), std::string::npos) << given.out;
+  const Result b = run("build " + png + " --out " + dir + "/m.ot");
   ASSERT_EQ(b.code, 0) << b.out;
   EXPECT_NE(b.out.find("1 of 1 frames fused (0 without a ground plane)"), std::string::npos) << b.out;
   // The progress line's rate counts from the run's start, as the summary's does: the
@@ -586,9 +597,8 @@ TEST(Cli, BuildMapsASingleDepthPngWithItsIntrinsics) {
   std::snprintf(camera, sizeof camera, "depth camera: 640x480, fx %.2f fy %.2f cx %.2f cy %.2f\n", fx, fy, cx, cy);
   EXPECT_NE(info.out.find(camera), std::string::npos) << info.out;
   EXPECT_EQ(info.out.find("poses:"), std::string::npos) << info.out;
+  EXPECT_NE(b.out.find("note: intrinsics from " + dir + "/seq/camera-intrinsics.txt"), std::string::npos) << b.out;
   // A directory of depth PNGs that is not in the 7-Scenes layout: the error says what to do.
-  fs::create_directories(dir + "/loose");
-  fs::copy_file(png, dir + "/loose/depth_image_1.png");
   const Result loose = run("build " + dir + "/loose --out " + dir + "/l.ot --quiet");
   EXPECT_EQ(loose.code, 1);
   EXPECT_NE(loose.out.find("pass the .png itself with --intrinsics"), std::string::npos) << loose.out;

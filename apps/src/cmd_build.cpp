@@ -243,12 +243,12 @@ Command addBuildCommand(CLI::App& app) {
   cmd->add_option("INPUT", o->input,
                   "A 7-Scenes / 3DMatch layout directory (frame-NNNNNN.depth.png + .pose.txt), a TUM RGB-D directory "
                   "(depth.txt + groundtruth.txt), a directory of .pcd frames with --poses, one .pcd frame, one 16-bit "
-                  "depth .png in millimetres (with --intrinsics), or an OpenNI2 .oni recording");
+                  "depth .png in millimetres (with --intrinsics or a camera-intrinsics.txt beside it), or an OpenNI2 .oni recording");
   auto* device = cmd->add_option("--device", o->device,
                                  "Read a live OpenNI2 depth sensor instead of INPUT: the first attached one, or the "
                                  "given device URI. Stops after --frames LAST (default 300 frames) or Ctrl-C")
                      ->expected(0, 1);
-  cmd->add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy or a camera-intrinsics.txt file (TUM default 525,525,319.5,239.5)");
+  cmd->add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy or a camera-intrinsics.txt file (for a PNG: default the camera-intrinsics.txt beside it; TUM default 525,525,319.5,239.5)");
   cmd->add_option("--poses", o->poses,
                   "Trajectory, TUM format 't tx ty tz qx qy qz qw' (camera to world). For .pcd frames: one line per "
                   "frame in file-name order, or timestamped and matched to time stamps in the file names. For .oni "
@@ -386,6 +386,7 @@ Command addBuildCommand(CLI::App& app) {
       }
     } else {
       single = loadSingleFrame(o->input, -1, o->intrinsics);
+      if (!single.note.empty()) std::fprintf(stderr, "note: %s\n", single.note.c_str());
       frames.push_back(0);
       if (!o->frames.empty()) throw UsageError("--frames needs a directory input");
       if (keyframes->count() > 0) throw UsageError("--keyframes needs a sequence of frames");

@@ -151,11 +151,21 @@ LoadedFrame loadSingleFrame(const std::string& input, int frame, const std::stri
   const std::string ext = fs::path(input).extension().string();
   if (ext == ".pcd") return loadPcd(input);
   if (ext == ".png") {
-    if (intrinsics_spec.empty()) throw UsageError("a depth PNG needs --intrinsics fx,fy,cx,cy or FILE");
+    // Without --intrinsics, a camera-intrinsics.txt beside the PNG (as in a 7-Scenes
+    // directory or the RealSense data) describes its camera.
+    std::string spec = intrinsics_spec;
     LoadedFrame f;
+    if (spec.empty()) {
+      const fs::path beside = fs::path(input).parent_path() / "camera-intrinsics.txt";
+      if (!fs::is_regular_file(beside, ec)) {
+        throw UsageError("a depth PNG needs --intrinsics fx,fy,cx,cy or FILE (or a camera-intrinsics.txt beside it)");
+      }
+      spec = beside.string();
+      f.note = "intrinsics from " + spec + ", beside the PNG (--intrinsics gives others)";
+    }
     f.description = input;
     f.depth = readDepthPng(input);
-    f.intrinsics = parseIntrinsics(intrinsics_spec, f.depth->width, f.depth->height);
+    f.intrinsics = parseIntrinsics(spec, f.depth->width, f.depth->height);
     return f;
   }
   if (!fs::exists(input, ec)) throw IoError(input, "no such file or directory");

@@ -29,6 +29,8 @@ struct LoadedFrame {
   std::optional<ImageRgb> colour;                 ///< for overlays, when the input has one
   std::optional<Eigen::Vector3f> gravity_camera;  ///< gravity (down) in the camera frame
   std::optional<Eigen::Matrix4d> T_world_camera;
+  /// For the user, when loading chose something they did not ask for (empty if not).
+  std::string note;
 };
 
 /// Reads a PCD file (x y z, optional rgb/rgba) with PCL. IoError naming the file if it
@@ -61,7 +63,8 @@ LoadedFrame loadSequenceFrame(const Sequence& seq, const std::string& input, int
 
 /// Loads INPUT as `mobmap analyze` describes it. `frame` picks the frame of a
 /// directory (-1: the first one), numbered as `build` numbers them. `intrinsics_spec`
-/// is required for a PNG.
+/// is required for a PNG unless a camera-intrinsics.txt lies beside it (then `note`
+/// says it was used).
 LoadedFrame loadSingleFrame(const std::string& input, int frame, const std::string& intrinsics_spec);
 
 }  // namespace mobmap::app
