@@ -90,6 +90,11 @@ TopView computeTopView(const mapping::MobilityOcTree& t, const std::vector<Eigen
 
 namespace {
 
+// The side of a cell in pixels: the longer side of the map fits in max_pixels.
+int pixelsPerCell(const TopView& view, int max_pixels) {
+  return std::max(1, max_pixels / std::max(view.columns, view.rows));
+}
+
 const Rgb kBlack{0, 0, 0};
 const Rgb kPathBlue{20, 60, 230};
 
@@ -132,7 +137,7 @@ void requireSurfaceBelowCut(const TopView& view, const mapping::MobilityOcTree& 
 Canvas drawTopView(const TopView& view, const TopViewPicture& pic, int max_pixels) {
   const double res = view.resolution, x0 = view.x0, y0 = view.y0;
   const double extent = std::max(view.columns, view.rows) * res;
-  const int ppv = std::max(1, max_pixels / std::max(view.columns, view.rows));  // pixels per cell
+  const int ppv = pixelsPerCell(view, max_pixels);
   const int w = view.columns * ppv, h = view.rows * ppv;
   const int margin = 50;
   // The legend (colour bar, swatches, path and mark) and the title need room even when
@@ -208,7 +213,7 @@ Canvas drawTopView(const TopView& view, const TopViewPicture& pic, int max_pixel
 }
 
 std::string describeTopView(const TopView& view, const Canvas& picture, int max_pixels) {
-  const int ppv = std::max(1, max_pixels / std::max(view.columns, view.rows));  // as drawTopView
+  const int ppv = pixelsPerCell(view, max_pixels);
   char text[200];
   if (view.columns_per_cell == 1) {
     std::snprintf(text, sizeof text, "%dx%d px, %d px per %g cm voxel", picture.width(), picture.height(), ppv,
