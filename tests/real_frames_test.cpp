@@ -241,7 +241,7 @@ TEST(RealFrames, RealSensePersonStandsOnAWalkableFloorAndIsNotTraversable) {
     ASSERT_GT(high, 5000u);
     EXPECT_LT(static_cast<double>(high_walkable) / high, 0.01) << high_walkable << " of " << high;
     // The wall beside the person: the largest other segment, upright. Off its plane, the
-    // person: over a metre tall, its points are part of the count above.
+    // person, over 1.4 m tall (its points are among those counted above).
     const perception::Segment* wall = nullptr;
     for (const auto& s : r.segments)
       if (!s.is_ground && (!wall || s.points.size() > wall->points.size())) wall = &s;
@@ -256,7 +256,7 @@ TEST(RealFrames, RealSensePersonStandsOnAWalkableFloorAndIsNotTraversable) {
       ++person;
       person_top = std::max(person_top, h);
     }
-    std::printf("[ info ] %s: floor %.3f m below, %zu of %zu reference floor points on the ground; %zu of %zu points "
+    std::printf("[ info ] %s: floor %.3f m below, %zu of %zu reference floor pixels on the ground; %zu of %zu points "
                 "above 30 cm walkable; person %zu points, %.2f m tall\n",
                 name, (*r.ground_plane)(3), on_ground, kept, high_walkable, high, person, person_top);
     EXPECT_GT(person, 2000u);
