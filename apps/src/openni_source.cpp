@@ -336,7 +336,7 @@ int recordOni(const std::string& device_uri, const std::string& out_path, int fr
   int got = 0;
   std::string failure;
   bool stopped = false;
-  while (got < frames && !stopped) {
+  while (got < frames) {
     const Wait w = waitForFrame(depth, frame_timeout_s, interrupted);
     if (w == Wait::kInterrupted) {
       stopped = true;
