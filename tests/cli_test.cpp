@@ -138,6 +138,35 @@ TEST(Cli, HelpListsTheSubcommands) {
 }
 
 // simulate -> build -> query/info/evaluate/export/overlay, as a user chains them.
+// The places `reach --pcd` writes (x y z mobility standable reachable, ASCII), keyed by
+// their position. Every row has the six fields, the rows are as many as the header
+// declares, and no two share a position.
+struct PlaceFlags {
+  double mobility = 0;
+  bool standable = false, reachable = false;
+};
+std::map<std::array<double, 3>, PlaceFlags> readPlaces(const std::string& pcd_path) {
+  std::ifstream pcd(pcd_path);
+  std::string line;
+  std::size_t rows = 0, declared = 0;
+  while (std::getline(pcd, line) && line != "DATA ascii") {
+    if (line.rfind("POINTS ", 0) == 0) declared = std::stoul(line.substr(7));
+  }
+  std::map<std::array<double, 3>, PlaceFlags> out;
+  while (std::getline(pcd, line)) {
+    std::istringstream in(line);
+    std::vector<std::string> f{std::istream_iterator<std::string>(in), std::istream_iterator<std::string>()};
+    EXPECT_EQ(f.size(), 6u) << line;
+    if (f.size() != 6u) break;
+    ++rows;
+    // std::stod reads the "nan" of an unknown mobility, which >> would not.
+    out[{std::stod(f[0]), std::stod(f[1]), std::stod(f[2])}] = {std::stod(f[3]), std::stoi(f[4]) == 1, std::stoi(f[5]) == 1};
+  }
+  EXPECT_EQ(rows, declared);
+  EXPECT_EQ(out.size(), rows);
+  return out;
+}
+
 TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   const std::string dir = tempDir("chain");
   ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 4 --noise none --quiet").code, 0);
@@ -271,26 +300,13 @@ TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   const auto reachedPlaces = [&](const std::string& options, double min_mobility) {
     const std::string pcd_path = dir + "/reach.pcd";
     EXPECT_EQ(run("reach " + map + " --pcd " + pcd_path + options).code, 0);
-    std::ifstream pcd(pcd_path);
-    std::string line;
-    std::size_t points = 0, reachable = 0, declared = 0;
-    while (std::getline(pcd, line) && line != "DATA ascii") {
-      if (line.rfind("POINTS ", 0) == 0) declared = std::stoul(line.substr(7));
-    }
-    while (std::getline(pcd, line)) {
-      std::istringstream in(line);
-      std::vector<std::string> f{std::istream_iterator<std::string>(in), std::istream_iterator<std::string>()};
-      EXPECT_EQ(f.size(), 6u) << line;
-      if (f.size() != 6u) break;
-      const double m = std::stod(f[3]);  // "nan" when unknown, which >> would not read
-      const int standable = std::stoi(f[4]), reached = std::stoi(f[5]);
-      ++points;
-      if (!reached) continue;
+    std::size_t reachable = 0;
+    for (const auto& [p, f] : readPlaces(pcd_path)) {
+      if (!f.reachable) continue;
       ++reachable;
-      EXPECT_EQ(standable, 1) << line;
-      EXPECT_GE(m, min_mobility) << line;
+      EXPECT_TRUE(f.standable) << p[0] << " " << p[1] << " " << p[2];
+      EXPECT_GE(f.mobility, min_mobility) << p[0] << " " << p[1] << " " << p[2];
     }
-    EXPECT_EQ(points, declared);
     return reachable;
   };
   const std::size_t reachable = reachedPlaces("", 0.5);
@@ -985,27 +1001,6 @@ nlohmann::json jsonLine(const std::string& out) {
     if (!line.empty() && line.front() == '{') return nlohmann::json::parse(line);
   ADD_FAILURE() << "no JSON line in: " << out;
   return nlohmann::json::object();
-}
-
-// The places `reach --pcd` writes, keyed by their "x y z" text: mobility, standable, reachable.
-struct PlaceFlags {
-  double mobility = 0;
-  bool standable = false, reachable = false;
-};
-std::map<std::array<double, 3>, PlaceFlags> readPlaces(const std::string& pcd_path) {
-  std::ifstream pcd(pcd_path);
-  std::string line;
-  while (std::getline(pcd, line) && line != "DATA ascii") {
-  }
-  std::map<std::array<double, 3>, PlaceFlags> out;
-  while (std::getline(pcd, line)) {
-    std::istringstream in(line);
-    std::string x, y, z, m;
-    int s = 0, r = 0;
-    in >> x >> y >> z >> m >> s >> r;
-    out[{std::stod(x), std::stod(y), std::stod(z)}] = {std::stod(m), s == 1, r == 1};
-  }
-  return out;
 }
 
 // The robot options of `reach` and `query --reach` that change which places count
