@@ -4,15 +4,12 @@
 // IoError; never crash, hang or return a non-rigid pose.
 #include "dataset.hpp"
 #include "io_error.hpp"
+#include "scratch_file.hpp"
 #include "trajectory_files.hpp"
-
-#include <unistd.h>
 
 #include <cmath>
 #include <cstdint>
-#include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <string>
 
 namespace {
@@ -28,17 +25,8 @@ bool rotationIsSound(const Eigen::Matrix3d& r) {
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  // One scratch file per process, removed when the fuzzer exits.
-  struct Scratch {
-    std::string path = "/tmp/mobmap-fuzz-poses-" + std::to_string(::getpid()) + ".txt";
-    ~Scratch() { std::remove(path.c_str()); }
-  };
-  static const Scratch scratch;
-  const std::string& path = scratch.path;
-  {
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
-    out.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
-  }
+  static const mobmap::fuzz::ScratchFile scratch("poses.txt");
+  const std::string& path = scratch.write(data, size);
   using mobmap::app::IoError;
   try {
     for (const auto& [t, T] : mobmap::app::readTumPoses(path)) {
