@@ -137,7 +137,6 @@ TEST(Cli, HelpListsTheSubcommands) {
   }
 }
 
-// simulate -> build -> query/info/evaluate/export/overlay, as a user chains them.
 // The places `reach --pcd` writes (x y z mobility standable reachable, ASCII), keyed by
 // their position. Every row has the six fields, the rows are as many as the header
 // declares, and no two share a position.
@@ -167,6 +166,7 @@ std::map<std::array<double, 3>, PlaceFlags> readPlaces(const std::string& pcd_pa
   return out;
 }
 
+// simulate -> build -> query/info/evaluate/export/overlay, as a user chains them.
 TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   const std::string dir = tempDir("chain");
   ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 4 --noise none --quiet").code, 0);
