@@ -11,6 +11,7 @@
 #include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -27,6 +28,94 @@ std::string dataFile(const std::string& rel) { return std::string(MOBMAP_SHARED_
 
 // Height of a point above the ground plane (n towards the camera, n.x + d = 0).
 float heightAbove(const Eigen::Vector4f& plane, const Eigen::Vector3f& p) { return plane.head<3>().dot(p) + plane(3); }
+
+// A least-squares plane through points (normal towards the camera at the origin) and
+// the RMS distance of the points from it: the reference surfaces of the real frames,
+// fitted here without the pipeline.
+struct PlaneFit {
+  Eigen::Vector3d n = Eigen::Vector3d::Zero();
+  double d = 0;
+  double rms = 0;
+  std::size_t count = 0;
+  [[nodiscard]] double height(const Eigen::Vector3d& p) const { return n.dot(p) + d; }
+};
+
+PlaneFit fitPlane(const std::vector<Eigen::Vector3d>& pts) {
+  PlaneFit fit;
+  fit.count = pts.size();
+  if (pts.size() < 3) return fit;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : pts) mean += p;
+  mean /= static_cast<double>(pts.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const auto& p : pts) cov += (p - mean) * (p - mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  fit.n = eig.eigenvectors().col(0);
+  if (fit.n.dot(mean) > 0) fit.n = -fit.n;
+  fit.d = -fit.n.dot(mean);
+  fit.rms = std::sqrt(std::max(0.0, eig.eigenvalues()(0)) / static_cast<double>(pts.size()));
+  return fit;
+}
+
+// The pixels of an organized frame (depth image or organized cloud) in columns [u0, u1)
+// and rows [v0, v1) that measured a point nearer than max_z, and those points.
+struct PixelPatch {
+  std::vector<std::size_t> pixels;
+  std::vector<Eigen::Vector3d> points;
+};
+
+PixelPatch patch(const app::LoadedFrame& f, int u0, int u1, int v0, int v1, float max_z = 3.f) {
+  PixelPatch out;
+  const int width = f.depth ? f.depth->width : f.width;
+  for (int v = v0; v < v1; ++v)
+    for (int u = u0; u < u1; ++u) {
+      const std::size_t px = static_cast<std::size_t>(v) * width + u;
+      Eigen::Vector3d p;
+      if (f.depth) {
+        const float z = f.depth->at(u, v);
+        if (!(z > 0.f)) continue;
+        p = perception::backProject(f.intrinsics, u, v, z);
+      } else {
+        p = f.points[px].cast<double>();
+        if (!p.allFinite()) continue;
+      }
+      if (!(p.z() < max_z)) continue;
+      out.pixels.push_back(px);
+      out.points.push_back(p);
+    }
+  return out;
+}
+
+// How many of `pixels` the pipeline kept as a point, and how many of those each segment
+// holds (-1: kept but in no segment).
+struct PixelSegments {
+  std::size_t kept = 0;
+  std::map<int, std::size_t> count;
+  // The segment holding the most kept pixels, and its share of them.
+  [[nodiscard]] std::pair<int, double> dominant() const {
+    std::pair<int, std::size_t> best{-1, 0};
+    for (const auto& [s, n] : count)
+      if (s >= 0 && n > best.second) best = {s, n};
+    return {best.first, kept ? static_cast<double>(best.second) / static_cast<double>(kept) : 0.0};
+  }
+};
+
+PixelSegments segmentsOfPixels(const perception::FrameResult& r, const std::vector<std::size_t>& pixels) {
+  PixelSegments out;
+  for (std::size_t px : pixels) {
+    if (px >= r.point_of_pixel.size()) continue;
+    const int i = r.point_of_pixel[px];
+    if (i < 0) continue;
+    ++out.kept;
+    ++out.count[r.segment_of_point[static_cast<std::size_t>(i)]];
+  }
+  return out;
+}
+
+// Both normals oriented towards the camera.
+double degreesBetween(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+}
 
 struct Obstacle {
   Eigen::Vector3f centroid;
@@ -186,33 +275,16 @@ TEST(RealFrames, RealSensePersonStandsOnAWalkableFloorAndIsNotTraversable) {
     ASSERT_NEAR(k.fx, 393.02, 0.01);
 
     // Reference floor: rows 420-479, columns 100-599, within 3 m.
-    std::vector<std::size_t> floor_pixels;
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (int v = 420; v < 480; ++v)
-      for (int u = 100; u < 600; ++u) {
-        const float z = f.depth->at(u, v);
-        if (!(z > 0.f && z < 3.f)) continue;
-        floor_pixels.push_back(static_cast<std::size_t>(v) * f.depth->width + u);
-        mean += perception::backProject(k, u, v, z);
-      }
-    ASSERT_GT(floor_pixels.size(), 20000u);
-    mean /= static_cast<double>(floor_pixels.size());
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (std::size_t px : floor_pixels) {
-      const int u = static_cast<int>(px % f.depth->width), v = static_cast<int>(px / f.depth->width);
-      const Eigen::Vector3d d = perception::backProject(k, u, v, f.depth->at(u, v)) - mean;
-      cov += d * d.transpose();
-    }
-    Eigen::Vector3d n_ref = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
-    if (n_ref.dot(mean) > 0) n_ref = -n_ref;  // towards the camera
-    const double d_ref = -n_ref.dot(mean);
+    const PixelPatch floor = patch(f, 100, 600, 420, 480);
+    ASSERT_GT(floor.pixels.size(), 20000u);
+    const PlaneFit ref = fitPlane(floor.points);
 
     const auto r = app::perceiveFrame(perception::FramePipeline(), f, std::nullopt);
     ASSERT_TRUE(r.ground_plane);
     const Eigen::Vector3d n = r.ground_plane->head<3>().cast<double>();
-    EXPECT_GT(n.dot(n_ref), std::cos(2.0 * M_PI / 180)) << "ground normal " << n.transpose() << ", reference "
-                                                         << n_ref.transpose();
-    EXPECT_NEAR((*r.ground_plane)(3), d_ref, 0.02);
+    EXPECT_LT(degreesBetween(n, ref.n), 2.0) << "ground normal " << n.transpose() << ", reference "
+                                             << ref.n.transpose();
+    EXPECT_NEAR((*r.ground_plane)(3), ref.d, 0.02);
     const perception::Segment& ground = r.segments.front();
     ASSERT_TRUE(ground.is_ground);
     EXPECT_GE(ground.mobility, 0.9);
@@ -220,14 +292,10 @@ TEST(RealFrames, RealSensePersonStandsOnAWalkableFloorAndIsNotTraversable) {
 
     // The reference floor pixels are the ground segment's.
     ASSERT_EQ(r.point_of_pixel.size(), f.depth->depth_m.size());
-    std::size_t kept = 0, on_ground = 0;
-    for (std::size_t px : floor_pixels) {
-      const int i = r.point_of_pixel[px];
-      if (i < 0) continue;
-      ++kept;
-      on_ground += r.segment_of_point[static_cast<std::size_t>(i)] == 0;
-    }
-    ASSERT_GT(kept, floor_pixels.size() * 9 / 10);
+    const PixelSegments on_floor = segmentsOfPixels(r, floor.pixels);
+    ASSERT_GT(on_floor.kept, floor.pixels.size() * 9 / 10);
+    const std::size_t on_ground = on_floor.count.count(0) ? on_floor.count.at(0) : 0;
+    const std::size_t kept = on_floor.kept;
     EXPECT_GT(static_cast<double>(on_ground) / kept, 0.95);
 
     // Everything more than 30 cm above the floor (the person, the walls) scores < 0.5.
@@ -262,6 +330,121 @@ TEST(RealFrames, RealSensePersonStandsOnAWalkableFloorAndIsNotTraversable) {
     EXPECT_GT(person, 2000u);
     EXPECT_GT(person_top, 1.4f);
   }
+}
+
+// PCL's three grabber frames (0.25 s apart): a laptop, its lid seen from behind, and a
+// box on a table the camera looks down on from 0.71 m at about 45 degrees. No gravity:
+// the table is the largest plane. References fitted here on pixel patches picked from
+// the image: the table's bottom rows, the middle of the box's top and of the lid's back.
+TEST(RealFrames, GrabberTableIsTheGroundBoxTopIsARaisedFlatAndTheLaptopLidIsNotWalkable) {
+  const std::string dir = dataFile("pcl-kinect/grabber_sequences");
+  SKIP_WITHOUT(dir);
+  std::vector<std::string> frames;
+  for (const auto& e : std::filesystem::directory_iterator(dir))
+    if (e.path().extension() == ".pcd") frames.push_back(e.path().string());
+  std::sort(frames.begin(), frames.end());
+  ASSERT_EQ(frames.size(), 3u);
+  for (const std::string& path : frames) {
+    SCOPED_TRACE(path);
+    const app::LoadedFrame f = app::loadPcd(path);
+    ASSERT_EQ(f.width, 640);
+    const PixelPatch table = patch(f, 30, 600, 400, 470), box = patch(f, 400, 450, 210, 260),
+                     lid = patch(f, 200, 320, 190, 290);
+    ASSERT_GT(table.pixels.size(), 30000u);
+    ASSERT_GT(box.pixels.size(), 1500u);
+    ASSERT_GT(lid.pixels.size(), 9000u);
+    const PlaneFit table_ref = fitPlane(table.points), box_ref = fitPlane(box.points), lid_ref = fitPlane(lid.points);
+    // Each patch is one flat surface, or it was picked wrongly.
+    ASSERT_LT(table_ref.rms, 0.005);
+    ASSERT_LT(box_ref.rms, 0.005);
+    ASSERT_LT(lid_ref.rms, 0.005);
+    double box_height = 0;
+    for (const auto& p : box.points) box_height += table_ref.height(p);
+    box_height /= static_cast<double>(box.points.size());
+    const double lid_tilt = degreesBetween(lid_ref.n, table_ref.n);
+
+    const auto r = perception::FramePipeline().processOrganized(f.points, f.width, f.height);
+    ASSERT_TRUE(r.ground_plane);
+    EXPECT_LT(degreesBetween(r.ground_plane->head<3>().cast<double>(), table_ref.n), 2.0);
+    EXPECT_NEAR((*r.ground_plane)(3), table_ref.d, 0.02);
+    EXPECT_NEAR((*r.ground_plane)(3), 0.71, 0.03);  // the data's README
+    const perception::Segment& ground = r.segments.front();
+    ASSERT_TRUE(ground.is_ground);
+    EXPECT_GE(ground.mobility, 0.9);
+    const PixelSegments on_table = segmentsOfPixels(r, table.pixels);
+    ASSERT_GT(on_table.kept, table.pixels.size() * 9 / 10);
+    EXPECT_EQ(on_table.dominant().first, 0);
+    EXPECT_GT(on_table.dominant().second, 0.95);
+
+    // The box's top: its own segment (not the ground), level with the table, as high
+    // above it as the reference says, and flat enough to stand on (how to get up there is
+    // reach's business).
+    const auto [box_seg, box_share] = segmentsOfPixels(r, box.pixels).dominant();
+    ASSERT_GT(box_seg, 0);
+    EXPECT_GT(box_share, 0.9);
+    const perception::Segment& top = r.segments[static_cast<std::size_t>(box_seg)];
+    EXPECT_LT(top.slope_deg, 3.0);
+    EXPECT_NEAR(heightAbove(*r.ground_plane, top.centroid), box_height, 0.01);
+    EXPECT_GE(top.mobility, 0.9);
+
+    // The lid's back: another segment, tilted as the reference is, untraversable.
+    const auto [lid_seg, lid_share] = segmentsOfPixels(r, lid.pixels).dominant();
+    ASSERT_GT(lid_seg, 0);
+    EXPECT_NE(lid_seg, box_seg);
+    EXPECT_GT(lid_share, 0.9);
+    const perception::Segment& back = r.segments[static_cast<std::size_t>(lid_seg)];
+    EXPECT_LT(degreesBetween(back.normal.cast<double>(), lid_ref.n), 3.0);
+    EXPECT_NEAR(back.slope_deg, lid_tilt, 3.0);
+    EXPECT_LT(back.mobility, 0.1);
+    std::printf("[ info ] %s: table %.3f m away (reference %.3f); box top %.3f m above it (reference %.3f), "
+                "mobility %.2f; lid %.1f degrees (reference %.1f), mobility %.2f\n",
+                std::filesystem::path(path).filename().c_str(), (*r.ground_plane)(3), table_ref.d,
+                heightAbove(*r.ground_plane, top.centroid), box_height, top.mobility, back.slope_deg, lid_tilt,
+                back.mobility);
+  }
+}
+
+// A mug on a textured table, seen by a stereo camera (no depth in the image's left 140
+// columns; the colour there is a red fill). The table is the ground; the mug stands
+// 10 cm above it, and none of it may be called walkable.
+TEST(RealFrames, StereoMugTableIsTheGroundAndNothingOnTheMugIsWalkable) {
+  const std::string path = dataFile("pcl-kinect/table_scene_mug_stereo_textured.pcd");
+  SKIP_WITHOUT(path);
+  const app::LoadedFrame f = app::loadPcd(path);
+  ASSERT_EQ(f.width, 640);
+  const PixelPatch table = patch(f, 160, 600, 400, 470);
+  ASSERT_GT(table.pixels.size(), 20000u);
+  const PlaneFit ref = fitPlane(table.points);
+  ASSERT_LT(ref.rms, 0.005);
+
+  const auto r = perception::FramePipeline().processOrganized(f.points, f.width, f.height);
+  ASSERT_TRUE(r.ground_plane);
+  EXPECT_LT(degreesBetween(r.ground_plane->head<3>().cast<double>(), ref.n), 2.0);
+  EXPECT_NEAR((*r.ground_plane)(3), ref.d, 0.02);
+  const perception::Segment& ground = r.segments.front();
+  ASSERT_TRUE(ground.is_ground);
+  EXPECT_GE(ground.mobility, 0.9);
+  EXPECT_LT(ground.roughness, 1.05);
+  const PixelSegments on_table = segmentsOfPixels(r, table.pixels);
+  EXPECT_EQ(on_table.dominant().first, 0);
+  EXPECT_GT(on_table.dominant().second, 0.9);
+
+  // The mug: kept points 2-15 cm above the reference table and nearer than 1.2 m.
+  std::size_t mug = 0, mug_walkable = 0;
+  float mug_top = 0.f;
+  for (std::size_t i = 0; i < r.points.size(); ++i) {
+    const double h = ref.height(r.points[i].cast<double>());
+    if (h < 0.02 || h > 0.15 || r.points[i].norm() > 1.2f) continue;
+    ++mug;
+    mug_top = std::max(mug_top, static_cast<float>(h));
+    const int s = r.segment_of_point[i];
+    mug_walkable += s >= 0 && r.segments[static_cast<std::size_t>(s)].mobility >= 0.5;
+  }
+  std::printf("[ info ] table %.3f m away (reference %.3f); mug %zu points, %.3f m tall, %zu walkable\n",
+              (*r.ground_plane)(3), ref.d, mug, mug_top, mug_walkable);
+  EXPECT_GT(mug, 100u);
+  EXPECT_GT(mug_top, 0.08f);
+  EXPECT_EQ(mug_walkable, 0u);
 }
 
 TEST(RealFrames, CorruptAndMissingPcdFilesGiveErrorsNamingTheFile) {
