@@ -5,6 +5,7 @@
 #include "frame_source.hpp"
 #include "io_error.hpp"
 #include "map_files.hpp"
+#include "canvas.hpp"
 #include "png_io.hpp"
 #include "simulation_writer.hpp"
 #include "top_view.hpp"
@@ -77,6 +78,25 @@ TEST(Png, RgbRoundTripIsExact) {
   for (int i = 0; i < 20; ++i) img.pixels.push_back({static_cast<std::uint8_t>(i), static_cast<std::uint8_t>(3 * i), 200});
   writePngRgb(dir.file("c.png"), img);
   EXPECT_EQ(readPngRgb(dir.file("c.png")).pixels, img.pixels);
+}
+
+// Overlays show their frame in grey (BT.601 luma) under the mobility colours.
+TEST(Canvas, FramePictureShowsTheColourImageInGreyAndDepthShaded) {
+  EXPECT_EQ(greyOf({255, 0, 0}), (Rgb{76, 76, 76}));
+  EXPECT_EQ(greyOf({0, 255, 0}), (Rgb{150, 150, 150}));
+  EXPECT_EQ(greyOf({0, 0, 255}), (Rgb{29, 29, 29}));
+  EXPECT_EQ(greyOf({255, 255, 255}), (Rgb{255, 255, 255}));
+  EXPECT_EQ(greyOf({192, 0, 0}), (Rgb{57, 57, 57}));  // a stereo camera's fill where it measured nothing
+  const ImageRgb colour{2, 1, {{192, 0, 0}, {10, 200, 30}}};
+  const std::vector<float> depth{1.0f, 0.0f};
+  const Canvas c = framePicture(2, 1, &colour, depth);
+  EXPECT_EQ(c.get(0, 0), greyOf(colour.pixels[0]));
+  EXPECT_EQ(c.get(1, 0), greyOf(colour.pixels[1]));
+  // Without a colour image of the frame's size: depth, nearer lighter, black where none.
+  const ImageRgb small{1, 1, {{255, 0, 0}}};
+  const Canvas d = framePicture(2, 1, &small, depth);
+  EXPECT_EQ(d.get(0, 0), (Rgb{210, 210, 210}));
+  EXPECT_EQ(d.get(1, 0), (Rgb{0, 0, 0}));
 }
 
 TEST(Png, HostileFilesGiveErrorsNamingTheFile) {

@@ -62,11 +62,17 @@ Rgb mobilityColour(double m) {
   return mapping::mobilityRgb(m);
 }
 
+Rgb greyOf(Rgb c) {
+  // Luma, ITU-R BT.601 weights, rounded.
+  const auto y = static_cast<std::uint8_t>((299 * c[0] + 587 * c[1] + 114 * c[2] + 500) / 1000);
+  return {y, y, y};
+}
+
 Canvas framePicture(int width, int height, const ImageRgb* colour, const std::vector<float>& depth_m) {
   Canvas c(width, height, {0, 0, 0});
   if (colour && colour->width == width && colour->height == height) {
     for (int v = 0; v < height; ++v) {
-      for (int u = 0; u < width; ++u) c.set(u, v, colour->pixels[static_cast<std::size_t>(v) * width + u]);
+      for (int u = 0; u < width; ++u) c.set(u, v, greyOf(colour->pixels[static_cast<std::size_t>(v) * width + u]));
     }
     return c;
   }

@@ -40,9 +40,15 @@ class Canvas {
   ImageRgb image_;
 };
 
-/// A frame as the background of a picture drawn over it: its colour image when it has
-/// one of width x height, else its depth (metres, row-major, 0 = nothing measured)
-/// shaded grey, nearer lighter (250 - 40 z, kept within 40..240), black where 0.
+/// A colour's grey (luma, BT.601 weights).
+[[nodiscard]] Rgb greyOf(Rgb c);
+
+/// A frame as the background of a picture drawn over it: its colour image in grey
+/// (greyOf) when it has one of width x height, else its depth (metres, row-major,
+/// 0 = nothing measured) shaded grey, nearer lighter (250 - 40 z, kept within 40..240),
+/// black where 0. Grey either way, so that the only colours in the picture are the
+/// mobility colours laid over it: a red cabinet, a green carpet or a sensor's fill
+/// colour where it measured nothing cannot be read as a mobility.
 [[nodiscard]] Canvas framePicture(int width, int height, const ImageRgb* colour, const std::vector<float>& depth_m);
 
 /// Lays a mobility colour over pixel (x, y): 2 parts picture to 3 parts paint, so the

@@ -198,7 +198,7 @@ Command addOverlayCommand(CLI::App& app) {
     const LoadedFrame f = loadSequenceFrame(*seq, input, n);
     const mapping::MobilityMap map = mapping::openMap(mapping::loadMobilityMap(o->map), metadata);
     const auto& k = f.intrinsics;
-    // Base image: the frame's colour image when the input has one, else shaded depth.
+    // Base image: the frame's colour image in grey when the input has one, else shaded depth.
     Canvas c = framePicture(k.width, k.height, f.colour ? &*f.colour : nullptr, f.depth->depth_m);
     // Project voxels (eq. 13) with a z-buffer; a voxel covers ~fx * size / z pixels.
     Eigen::Isometry3d T_world_camera(f.T_world_camera->matrix());
