@@ -51,6 +51,17 @@ std::string tempDir(const std::string& name) {
   return p.string();
 }
 
+// The first line of `out` that is a JSON object (notes on standard error, which run() mixes in,
+// may come first: query --reach, analyze).
+nlohmann::json jsonLine(const std::string& out) {
+  std::istringstream lines(out);
+  std::string line;
+  while (std::getline(lines, line))
+    if (!line.empty() && line.front() == '{') return nlohmann::json::parse(line);
+  ADD_FAILURE() << "no JSON line in: " << out;
+  return nlohmann::json::object();
+}
+
 TEST(Cli, ScoreWithTheRuleTablePrintsTheTableValueAsJson) {
   const Result r = run("score --slope 15 --roughness 1.3 --model rule --json");
   ASSERT_EQ(r.code, 0) << r.out;
@@ -617,7 +628,42 @@ TEST(Cli, BuildMapsASingleDepthPngWithItsIntrinsics) {
   // A directory of depth PNGs that is not in the 7-Scenes layout: the error says what to do.
   const Result loose = run("build " + dir + "/loose --out " + dir + "/l.ot --quiet");
   EXPECT_EQ(loose.code, 1);
-  EXPECT_NE(loose.out.find("pass the .png itself with --intrinsics"), std::string::npos) << loose.out;
+  EXPECT_NE(loose.out.find("for one depth image, pass the .png itself"), std::string::npos) << loose.out;
+  fs::remove_all(dir);
+}
+
+// Microsoft's 7-Scenes download keeps each sequence in a folder of its own (seq-01, ...)
+// and has no camera-intrinsics.txt: the scene folder's error names its sequences, and
+// --intrinsics stands in for the file.
+TEST(Cli, SevenScenesSequenceFoldersAndIntrinsicsFromTheCommandLine) {
+  const std::string dir = tempDir("7scenes");
+  ASSERT_EQ(run("simulate --out " + dir + "/scene/seq-01 --frames 3 --noise none --quiet").code, 0);
+  fs::remove(dir + "/scene/seq-01/camera-intrinsics.txt");
+  const Result scene = run("build " + dir + "/scene --out " + dir + "/m.ot --quiet");
+  EXPECT_EQ(scene.code, 1);
+  EXPECT_NE(scene.out.find("but these sub-folders have them: seq-01 (3 frames); pass one sequence folder, such as " +
+                           dir + "/scene/seq-01"),
+            std::string::npos)
+      << scene.out;
+  const Result no_k = run("build " + dir + "/scene/seq-01 --out " + dir + "/m.ot --quiet");
+  EXPECT_EQ(no_k.code, 1);
+  EXPECT_NE(no_k.out.find("no camera-intrinsics.txt here or in the parent directory: pass --intrinsics fx,fy,cx,cy"),
+            std::string::npos)
+      << no_k.out;
+  EXPECT_FALSE(fs::exists(dir + "/m.ot"));
+  // The simulator's camera, given on the command line: build, info and analyze use it.
+  const Result b = run("build " + dir + "/scene/seq-01 --intrinsics 585,585,320,240 --out " + dir + "/m.ot --quiet");
+  ASSERT_EQ(b.code, 0) << b.out;
+  const Result info = run("info " + dir + "/m.ot");
+  EXPECT_NE(info.out.find("depth camera: 640x480, fx 585.00 fy 585.00 cx 320.00 cy 240.00\n"), std::string::npos)
+      << info.out;
+  const Result a = run("analyze " + dir + "/scene/seq-01 --frame 2 --intrinsics 585,585,320,240 --json");
+  ASSERT_EQ(a.code, 0) << a.out;
+  EXPECT_TRUE(jsonLine(a.out).contains("ground_plane")) << a.out;
+  // A wrong camera is caught, not mapped.
+  const Result odd = run("build " + dir + "/scene/seq-01 --intrinsics 585,585,320 --out " + dir + "/n.ot --quiet");
+  EXPECT_EQ(odd.code, 2);
+  EXPECT_NE(odd.out.find("--intrinsics"), std::string::npos) << odd.out;
   fs::remove_all(dir);
 }
 
@@ -990,17 +1036,6 @@ std::pair<int, int> pngSize(const std::string& path) {
   if (!in) return {0, 0};
   const auto be = [&](int i) { return (b[i] << 24) | (b[i + 1] << 16) | (b[i + 2] << 8) | b[i + 3]; };
   return {be(16), be(20)};
-}
-
-// The first line of `out` that is a JSON object (query --reach also writes a note on
-// standard error, which run() mixes in).
-nlohmann::json jsonLine(const std::string& out) {
-  std::istringstream lines(out);
-  std::string line;
-  while (std::getline(lines, line))
-    if (!line.empty() && line.front() == '{') return nlohmann::json::parse(line);
-  ADD_FAILURE() << "no JSON line in: " << out;
-  return nlohmann::json::object();
 }
 
 // The robot options of `reach` and `query --reach` that change which places count

@@ -352,13 +352,38 @@ TEST(SevenScenesDirectory, MismatchedInputsNameTheFile) {
   TempDir dir;
   EXPECT_NE(errorOf([&] { SevenScenesDirectory{dir.str()}; }).find("no frame-NNNNNN.depth.png"), std::string::npos);
   writePng16(dir.file("frame-000000.depth.png"), Image16{8, 6, std::vector<std::uint16_t>(48, 1000)});
-  EXPECT_NE(errorOf([&] { SevenScenesDirectory{dir.str()}; }).find("no camera-intrinsics.txt"), std::string::npos);
+  const std::string no_k = errorOf([&] { SevenScenesDirectory{dir.str()}; });
+  EXPECT_NE(no_k.find("no camera-intrinsics.txt here or in the parent directory: pass --intrinsics"), std::string::npos)
+      << no_k;
+  // Microsoft's 7-Scenes download has no camera-intrinsics.txt: --intrinsics stands in.
+  {
+    const SevenScenesDirectory given(dir.str(), "5,6,3.5,2.5");
+    EXPECT_EQ(given.intrinsics().width, 8);
+    EXPECT_EQ(given.intrinsics().height, 6);
+    EXPECT_EQ(given.intrinsics().fy, 6.0);
+    EXPECT_EQ(given.intrinsics().cx, 3.5);
+  }
   writeIntrinsicsFile(dir.file("camera-intrinsics.txt"), {8, 6, 5, 5, 4, 3});
+  // ... and wins over the file.
+  EXPECT_EQ(SevenScenesDirectory(dir.str(), "7,7,4,3").intrinsics().fx, 7.0);
   writePng16(dir.file("frame-000001.depth.png"), Image16{9, 6, std::vector<std::uint16_t>(54, 1000)});
   const SevenScenesDirectory d(dir.str());
   EXPECT_NO_THROW((void)d.readDepth(0));
   EXPECT_NE(errorOf([&] { (void)d.readDepth(1); }).find("frame-000001.depth.png: depth image is 9x6"), std::string::npos);
   EXPECT_NE(errorOf([&] { (void)d.readPose(0); }).find("frame-000000.pose.txt: no such file"), std::string::npos);
+  // A scene folder of the 7-Scenes / 3DMatch downloads: its sequences are sub-folders.
+  TempDir scene;
+  std::filesystem::create_directories(scene.file("seq-02"));
+  std::filesystem::create_directories(scene.file("seq-01"));
+  std::filesystem::create_directories(scene.file("empty"));
+  for (const char* f : {"seq-02/frame-000000.depth.png", "seq-02/frame-000001.depth.png", "seq-01/frame-000000.depth.png"})
+    writePng16(scene.file(f), Image16{8, 6, std::vector<std::uint16_t>(48, 1000)});
+  const std::string parent = errorOf([&] { SevenScenesDirectory{scene.str()}; });
+  EXPECT_NE(parent.find(scene.str() + ": no frame-NNNNNN.depth.png files here, but these sub-folders have them: "
+                                      "seq-01 (1 frame), seq-02 (2 frames); pass one sequence folder, such as " +
+                        scene.file("seq-01")),
+            std::string::npos)
+      << parent;
 }
 
 // The top view's grid against the voxels it was drawn from: every occupied column gets

@@ -115,7 +115,7 @@ Command addAnalyzeCommand(CLI::App& app) {
   cmd->add_option("INPUT", o->input, "A .pcd, a 16-bit depth .png (millimetres), a 7-Scenes layout directory or a TUM RGB-D directory")->required();
   cmd->add_option("--frame", o->frame, "Frame number in a directory, as build numbers them (default: the first)");
   cmd->add_option("--gravity", o->gravity, "Gravity (down) in the camera frame, X,Y,Z (default: from the pose and gravity-direction.txt if present; without gravity the largest plane is the ground, or, if it leans more than ground_upright_prior_deg from the image's up axis, the largest floor within that cone; 0,1,0 for a level camera)");
-  cmd->add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy or a camera-intrinsics.txt file (for a PNG: default the camera-intrinsics.txt beside it; TUM default 525,525,319.5,239.5)");
+  cmd->add_option("--intrinsics", o->intrinsics, kIntrinsicsHelp);
   cmd->add_option("--max-range", o->max_range, "Maximum range in metres (default 3)");
   cmd->add_option("--config", o->config, "YAML file with any of the parameters of `mobmap config --print-default`");
   auto* voxel = cmd->add_option("--voxel", o->voxel, kVoxelHelp);

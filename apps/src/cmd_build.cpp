@@ -248,7 +248,7 @@ Command addBuildCommand(CLI::App& app) {
                                  "Read a live OpenNI2 depth sensor instead of INPUT: the first attached one, or the "
                                  "given device URI. Stops after --frames LAST (default 300 frames) or Ctrl-C")
                      ->expected(0, 1);
-  cmd->add_option("--intrinsics", o->intrinsics, "fx,fy,cx,cy or a camera-intrinsics.txt file (for a PNG: default the camera-intrinsics.txt beside it; TUM default 525,525,319.5,239.5)");
+  cmd->add_option("--intrinsics", o->intrinsics, kIntrinsicsHelp);
   cmd->add_option("--poses", o->poses,
                   "Trajectory, TUM format 't tx ty tz qx qy qz qw' (camera to world). For .pcd frames: one line per "
                   "frame in file-name order, or timestamped and matched to time stamps in the file names. For .oni "

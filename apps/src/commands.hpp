@@ -18,6 +18,12 @@ inline constexpr const char* kVoxelHelp =
     "sample spacings of the configuration are rescaled to keep their physical sizes (docs/PERCEPTION.md, \"Coarser "
     "voxels\"). 0.02 makes perception ~3x faster, but texture at the 10 cm scale then reads less rough and small surfaces blur";
 
+/// `--intrinsics` of analyze and build.
+inline constexpr const char* kIntrinsicsHelp =
+    "fx,fy,cx,cy or a camera-intrinsics.txt file (default: a 7-Scenes / 3DMatch directory's camera-intrinsics.txt, or "
+    "its parent's; for a PNG, the camera-intrinsics.txt beside it; TUM 525,525,319.5,239.5). Needed for Microsoft's "
+    "7-Scenes download, which has no such file: 585,585,320,240";
+
 /// Parses `args` (a subcommand and its options) with `app` and runs it, as if typed;
 /// `demo` uses it to run `build`. Defined in main.cpp, which owns the command table.
 int runSubcommand(CLI::App& app, const std::vector<std::string>& args);

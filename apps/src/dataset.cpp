@@ -1,6 +1,7 @@
 #include "dataset.hpp"
 
 #include "files.hpp"
+#include "frame_source.hpp"
 #include "io_error.hpp"
 #include "png_io.hpp"
 
@@ -145,7 +146,22 @@ perception::DepthImage readDepthPng(const std::string& path) {
   return d;
 }
 
-SevenScenesDirectory::SevenScenesDirectory(std::string dir) : dir_(std::move(dir)) {
+namespace {
+
+// How many frame-NNNNNN.depth.png files a directory holds.
+std::size_t countDepthFrames(const std::filesystem::path& dir) {
+  static const std::regex pattern(R"(frame-(\d{6})\.depth\.png)");
+  std::error_code ec;
+  std::size_t n = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
+    n += std::regex_match(entry.path().filename().string(), pattern);
+  }
+  return n;
+}
+
+}  // namespace
+
+SevenScenesDirectory::SevenScenesDirectory(std::string dir, const std::string& intrinsics_spec) : dir_(std::move(dir)) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (!fs::is_directory(dir_, ec)) throw IoError(dir_, "not a directory");
@@ -156,17 +172,42 @@ SevenScenesDirectory::SevenScenesDirectory(std::string dir) : dir_(std::move(dir
     if (std::regex_match(name, m, pattern)) frames_.push_back(std::stoi(m[1]));
   }
   if (ec) throw IoError(dir_, "cannot list: " + ec.message());
-  if (frames_.empty()) throw IoError(dir_, "no frame-NNNNNN.depth.png files (not a 7-Scenes layout directory; for one depth image, "
-                                     "pass the .png itself with --intrinsics)");
-  std::sort(frames_.begin(), frames_.end());
-  std::string kpath = (fs::path(dir_) / "camera-intrinsics.txt").string();
-  if (!fs::exists(kpath, ec)) {
-    const std::string parent = (fs::absolute(dir_, ec).parent_path() / "camera-intrinsics.txt").string();
-    if (!fs::exists(parent, ec)) throw IoError(dir_, "no camera-intrinsics.txt here or in the parent directory");
-    kpath = parent;
+  if (frames_.empty()) {
+    // 7-Scenes and 3DMatch keep each sequence in its own folder (seq-01, ...): name them.
+    std::vector<std::string> sequences;
+    for (const auto& entry : fs::directory_iterator(dir_, ec)) {
+      if (!entry.is_directory(ec)) continue;
+      const std::size_t n = countDepthFrames(entry.path());
+      if (n > 0) sequences.push_back(entry.path().filename().string() + " (" + std::to_string(n) + (n == 1 ? " frame)" : " frames)"));
+    }
+    std::sort(sequences.begin(), sequences.end());
+    if (!sequences.empty()) {
+      std::string list;
+      for (std::size_t i = 0; i < sequences.size() && i < 6; ++i) list += (i ? ", " : "") + sequences[i];
+      if (sequences.size() > 6) list += ", ...";
+      const std::string first = sequences.front().substr(0, sequences.front().find(" ("));
+      throw IoError(dir_, "no frame-NNNNNN.depth.png files here, but these sub-folders have them: " + list +
+                              "; pass one sequence folder, such as " + (fs::path(dir_) / first).string());
+    }
+    throw IoError(dir_, "no frame-NNNNNN.depth.png files (not a 7-Scenes layout directory; for one depth image, "
+                        "pass the .png itself)");
   }
+  std::sort(frames_.begin(), frames_.end());
   const Image16 first = readPng16(depthPath(frames_.front()));
-  intrinsics_ = readIntrinsicsFile(kpath, first.width, first.height);
+  if (!intrinsics_spec.empty()) {
+    intrinsics_ = parseIntrinsics(intrinsics_spec, first.width, first.height);
+  } else {
+    std::string kpath = (fs::path(dir_) / "camera-intrinsics.txt").string();
+    if (!fs::exists(kpath, ec)) {
+      const std::string parent = (fs::absolute(dir_, ec).parent_path() / "camera-intrinsics.txt").string();
+      if (!fs::exists(parent, ec)) {
+        throw IoError(dir_, "no camera-intrinsics.txt here or in the parent directory: pass --intrinsics "
+                            "fx,fy,cx,cy (Microsoft's 7-Scenes Kinect: 585,585,320,240)");
+      }
+      kpath = parent;
+    }
+    intrinsics_ = readIntrinsicsFile(kpath, first.width, first.height);
+  }
   const std::string gpath = (fs::path(dir_) / "gravity-direction.txt").string();
   if (fs::exists(gpath, ec)) gravity_ = readGravityFile(gpath);
 }

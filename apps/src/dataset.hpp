@@ -42,11 +42,13 @@ std::string frameStem(int index);
 /// A directory in the 7-Scenes layout, scanned once.
 class SevenScenesDirectory {
  public:
-  /// Scans `dir` for frame-NNNNNN.depth.png. camera-intrinsics.txt is looked for in
-  /// `dir` and then its parent (the 3DMatch layout keeps it one level up); image size
-  /// comes from the first depth image. IoError if the directory has no frames or no
+  /// Scans `dir` for frame-NNNNNN.depth.png. The intrinsics are `intrinsics_spec`
+  /// (fx,fy,cx,cy or a file, as --intrinsics) when given, else camera-intrinsics.txt in
+  /// `dir` and then its parent (the 3DMatch layout keeps it one level up; Microsoft's
+  /// 7-Scenes download has none); image size comes from the first depth image. IoError
+  /// if the directory has no frames (naming sub-folders that have them) or no
   /// intrinsics.
-  explicit SevenScenesDirectory(std::string dir);
+  explicit SevenScenesDirectory(std::string dir, const std::string& intrinsics_spec = "");
 
   [[nodiscard]] const std::string& dir() const { return dir_; }
   /// Frame numbers found, ascending (not necessarily contiguous).

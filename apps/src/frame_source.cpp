@@ -127,7 +127,7 @@ LoadedFrame loadSingleFrame(const std::string& input, int frame, const std::stri
     return f;
   }
   if (fs::is_directory(input, ec)) {
-    const SevenScenesDirectory dir(input);
+    const SevenScenesDirectory dir(input, intrinsics_spec);
     const int n = frame < 0 ? dir.frameNumbers().front() : frame;
     if (std::find(dir.frameNumbers().begin(), dir.frameNumbers().end(), n) == dir.frameNumbers().end()) {
       throw IoError(input, "has no frame " + std::to_string(n) + " (frames " + std::to_string(dir.frameNumbers().front()) +
@@ -135,8 +135,7 @@ LoadedFrame loadSingleFrame(const std::string& input, int frame, const std::stri
     }
     LoadedFrame f;
     f.description = "frame " + std::to_string(n) + " of " + input;
-    f.intrinsics = intrinsics_spec.empty() ? dir.intrinsics()
-                                           : parseIntrinsics(intrinsics_spec, dir.intrinsics().width, dir.intrinsics().height);
+    f.intrinsics = dir.intrinsics();
     f.depth = dir.readDepth(n);
     f.colour = dir.readColour(n);
     if (fs::exists(dir.posePath(n), ec)) {

@@ -23,11 +23,9 @@ namespace fs = std::filesystem;
 
 class SevenScenesSequence : public Sequence {
  public:
-  SevenScenesSequence(const std::string& dir, const std::string& intrinsics_spec) : dir_(dir) {
-    k_ = intrinsics_spec.empty() ? dir_.intrinsics() : parseIntrinsics(intrinsics_spec, dir_.intrinsics().width, dir_.intrinsics().height);
-  }
+  SevenScenesSequence(const std::string& dir, const std::string& intrinsics_spec) : dir_(dir, intrinsics_spec) {}
   std::string describe() const override { return dir_.dir() + " (7-Scenes layout, " + std::to_string(dir_.frameNumbers().size()) + " frames)"; }
-  const perception::PinholeIntrinsics& intrinsics() const override { return k_; }
+  const perception::PinholeIntrinsics& intrinsics() const override { return dir_.intrinsics(); }
   std::optional<Eigen::Vector3d> gravityDown() const override { return dir_.gravityDown(); }
   const std::vector<int>& frames() const override { return dir_.frameNumbers(); }
   void check(int n) const override {
@@ -51,7 +49,6 @@ class SevenScenesSequence : public Sequence {
 
  private:
   SevenScenesDirectory dir_;
-  perception::PinholeIntrinsics k_;
 };
 
 }  // namespace
