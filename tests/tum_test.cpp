@@ -263,17 +263,26 @@ TEST(TumSequence, OverlayPaintsTheMapOverTheRegisteredColourAndAnalyzeReadsTheSa
     EXPECT_GT(n.blocked_red, 0.9 * n.blocked_painted) << n.blocked_red << " of " << n.blocked_painted;
   };
   ASSERT_NO_FATAL_FAILURE(expectMobilityPaint(judge(ov)));
-  // Frame 3 (of the map's own input: N alone) has no colour to pair: the base is the
-  // shaded depth, so the pattern's grey shows only where the two happen to agree.
-  ASSERT_EQ(std::system((std::string(MOBMAP_EXE) + " overlay " + map + " --frame 3 --out " + out + log).c_str()), 0);
-  const app::ImageRgb grey = app::readPngRgb(out);
-  int pattern_pixels = 0, sampled = 0;
-  for (int v = 0; v < k.height; v += 7) {
-    for (int u = 0; u < k.width; u += 7, ++sampled) {
-      pattern_pixels += grey.pixels[static_cast<std::size_t>(v) * k.width + u] == app::greyOf(pattern(u, v, 3));
+  // How many of a sample of a picture's pixels show frame f's colour image, in grey.
+  const auto patternPixels = [&](const app::ImageRgb& picture, int f) {
+    std::pair<int, int> shown_sampled{0, 0};
+    for (int v = 0; v < k.height; v += 7) {
+      for (int u = 0; u < k.width; u += 7, ++shown_sampled.second) {
+        shown_sampled.first += picture.pixels[static_cast<std::size_t>(v) * k.width + u] == app::greyOf(pattern(u, v, f));
+      }
     }
-  }
-  EXPECT_LT(pattern_pixels, sampled / 50) << pattern_pixels << " of " << sampled;
+    return shown_sampled;
+  };
+  EXPECT_GT(patternPixels(ov, 6).first, patternPixels(ov, 6).second / 20);
+  // Frame 3 (of the map's own input: N alone) has no colour to pair: the base is the
+  // shaded depth, so the pattern's grey shows only where the two happen to agree. So
+  // does frame 6 with --background depth.
+  ASSERT_EQ(std::system((std::string(MOBMAP_EXE) + " overlay " + map + " --frame 3 --out " + out + log).c_str()), 0);
+  const auto [unpaired, sampled] = patternPixels(app::readPngRgb(out), 3);
+  EXPECT_LT(unpaired, sampled / 50) << unpaired << " of " << sampled;
+  ASSERT_EQ(std::system((std::string(MOBMAP_EXE) + " overlay " + map + " --frame 6 --background depth --out " + out + log).c_str()), 0);
+  const int on_depth = patternPixels(app::readPngRgb(out), 6).first;
+  EXPECT_LT(on_depth, sampled / 50) << on_depth << " of " << sampled;
   // analyze reads the same frame, numbered the same way: its ground plane lies the
   // camera's height below it.
   const std::string json = dir + "/frame6.json", analyze_ov = dir + "/analyze.png", segments = dir + "/segments.pcd";
@@ -289,6 +298,11 @@ TEST(TumSequence, OverlayPaintsTheMapOverTheRegisteredColourAndAnalyzeReadsTheSa
     const Paint n = judge(app::readPngRgb(analyze_ov));
     ASSERT_NO_FATAL_FAILURE(expectMobilityPaint(n));
     EXPECT_EQ(n.beyond_range_painted, 0);
+    ASSERT_EQ(std::system((std::string(MOBMAP_EXE) + " analyze " + dir + " --frame 6 --intrinsics " + intrinsics +
+                           " --background depth --overlay " + analyze_ov + log).c_str()),
+              0);
+    const auto [shown, of] = patternPixels(app::readPngRgb(analyze_ov), 6);
+    EXPECT_LT(shown, of / 50) << shown << " of " << of;
   }
   // analyze --segments: an ASCII PCD of the segmented points in the camera frame, each
   // with its segment's id, mobility and the mobility's colour as PCL's packed rgb.

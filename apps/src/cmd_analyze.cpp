@@ -73,7 +73,7 @@ void writeSegmentsPcd(const std::string& path, const perception::FrameResult& r)
   writeTextFileAtomically(path, text);
 }
 
-Canvas overlay(const LoadedFrame& f, const perception::FrameResult& r, int width, int height) {
+Canvas overlay(const LoadedFrame& f, const perception::FrameResult& r, int width, int height, bool colour) {
   // Depth for the shaded background: the depth image, or an organized cloud's z.
   std::vector<float> cloud_z;
   if (!f.depth) {
@@ -83,7 +83,7 @@ Canvas overlay(const LoadedFrame& f, const perception::FrameResult& r, int width
       cloud_z[i] = std::isfinite(f.points[i].z()) ? f.points[i].z() : 0.f;
     }
   }
-  Canvas c = framePicture(width, height, f.colour ? &*f.colour : nullptr, f.depth ? f.depth->depth_m : cloud_z);
+  Canvas c = framePicture(width, height, colour && f.colour ? &*f.colour : nullptr, f.depth ? f.depth->depth_m : cloud_z);
   if (r.point_of_pixel.empty()) return c;
   for (int v = 0; v < height; ++v) {
     for (int u = 0; u < width; ++u) {
@@ -107,6 +107,7 @@ Command addAnalyzeCommand(CLI::App& app) {
     bool json = false;
     std::string segments;
     std::string overlay;
+    std::string background = "colour";
     double max_range = -1;
     double voxel = 0;
     std::string config;
@@ -122,6 +123,9 @@ Command addAnalyzeCommand(CLI::App& app) {
   cmd->add_flag("--json", o->json, "Print one JSON object instead of tables");
   cmd->add_option("--segments", o->segments, "Write the segmented points as PCD (x y z rgb segment mobility)");
   cmd->add_option("--overlay", o->overlay, "Write a PNG of the frame coloured by mobility (red 0, green 1)");
+  cmd->add_option("--background", o->background, kBackgroundHelp)
+      ->check(CLI::IsMember({"colour", "depth"}))
+      ->capture_default_str();
   return [o, voxel]() {
     LoadedFrame f = loadSingleFrame(o->input, o->frame, o->intrinsics);
     if (!f.note.empty()) std::fprintf(stderr, "note: %s\n", f.note.c_str());
@@ -148,7 +152,7 @@ Command addAnalyzeCommand(CLI::App& app) {
     if (!o->segments.empty()) writeSegmentsPcd(o->segments, r);
     if (!o->overlay.empty()) {
       if (width == 0) throw UsageError("--overlay needs an organized input (depth image or organized PCD)");
-      overlay(f, r, width, height).save(o->overlay);
+      overlay(f, r, width, height, o->background == "colour").save(o->overlay);
     }
     if (o->json) {
       auto j = frameResultJson(r);

@@ -110,6 +110,7 @@ Command addOverlayCommand(CLI::App& app) {
   struct Options {
     std::string map, frame, out, poses, intrinsics;
     double max_pose_gap = 0.05;
+    std::string background = "colour";
   };
   auto o = std::make_shared<Options>();
   cmd->add_option("MAP", o->map, "A .ot map")->required();
@@ -122,6 +123,9 @@ Command addOverlayCommand(CLI::App& app) {
   cmd->add_option("--poses", o->poses, "For .pcd frames and .oni recordings: their trajectory (default: the one the map was built with)");
   cmd->add_option("--intrinsics", o->intrinsics,
                   "fx,fy,cx,cy or a camera-intrinsics.txt file (default: those the map was built with, else the input's own)");
+  cmd->add_option("--background", o->background, kBackgroundHelp)
+      ->check(CLI::IsMember({"colour", "depth"}))
+      ->capture_default_str();
   auto* gap = cmd->add_option("--max-pose-gap", o->max_pose_gap,
                               "TUM / timestamped --poses: as for build, which numbers the frames by it (default: the "
                               "map's, else 0.05)");
@@ -199,7 +203,8 @@ Command addOverlayCommand(CLI::App& app) {
     const mapping::MobilityMap map = mapping::openMap(mapping::loadMobilityMap(o->map), metadata);
     const auto& k = f.intrinsics;
     // Base image: the frame's colour image in grey when the input has one, else shaded depth.
-    Canvas c = framePicture(k.width, k.height, f.colour ? &*f.colour : nullptr, f.depth->depth_m);
+    const bool colour = f.colour && o->background == "colour";
+    Canvas c = framePicture(k.width, k.height, colour ? &*f.colour : nullptr, f.depth->depth_m);
     // Project voxels (eq. 13) with a z-buffer; a voxel covers ~fx * size / z pixels.
     Eigen::Isometry3d T_world_camera(f.T_world_camera->matrix());
     const Eigen::Isometry3d T_camera_world = T_world_camera.inverse();

@@ -24,6 +24,12 @@ inline constexpr const char* kIntrinsicsHelp =
     "its parent's; for a PNG, the camera-intrinsics.txt beside it; TUM 525,525,319.5,239.5). Needed for Microsoft's "
     "7-Scenes download, which has no such file: 585,585,320,240";
 
+/// `--background` of overlay and analyze --overlay.
+inline constexpr const char* kBackgroundHelp =
+    "What the mobility colours are laid over, shown in grey: colour (the frame's colour image when the input has one "
+    "of the depth's size, else shaded depth) or depth (shaded depth: for colour images not registered to the depth, "
+    "such as the .color.png frames of Microsoft's 7-Scenes download)";
+
 /// Parses `args` (a subcommand and its options) with `app` and runs it, as if typed;
 /// `demo` uses it to run `build`. Defined in main.cpp, which owns the command table.
 int runSubcommand(CLI::App& app, const std::vector<std::string>& args);
