@@ -148,13 +148,18 @@ perception::DepthImage readDepthPng(const std::string& path) {
 
 namespace {
 
+// A 7-Scenes depth frame's file name; the match's first group is its number.
+const std::regex& depthFramePattern() {
+  static const std::regex pattern(R"(frame-(\d{6})\.depth\.png)");
+  return pattern;
+}
+
 // How many frame-NNNNNN.depth.png files a directory holds.
 std::size_t countDepthFrames(const std::filesystem::path& dir) {
-  static const std::regex pattern(R"(frame-(\d{6})\.depth\.png)");
   std::error_code ec;
   std::size_t n = 0;
   for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
-    n += std::regex_match(entry.path().filename().string(), pattern);
+    n += std::regex_match(entry.path().filename().string(), depthFramePattern());
   }
   return n;
 }
@@ -165,29 +170,30 @@ SevenScenesDirectory::SevenScenesDirectory(std::string dir, const std::string& i
   namespace fs = std::filesystem;
   std::error_code ec;
   if (!fs::is_directory(dir_, ec)) throw IoError(dir_, "not a directory");
-  const std::regex pattern(R"(frame-(\d{6})\.depth\.png)");
   for (const auto& entry : fs::directory_iterator(dir_, ec)) {
     std::smatch m;
     const std::string name = entry.path().filename().string();
-    if (std::regex_match(name, m, pattern)) frames_.push_back(std::stoi(m[1]));
+    if (std::regex_match(name, m, depthFramePattern())) frames_.push_back(std::stoi(m[1]));
   }
   if (ec) throw IoError(dir_, "cannot list: " + ec.message());
   if (frames_.empty()) {
     // 7-Scenes and 3DMatch keep each sequence in its own folder (seq-01, ...): name them.
-    std::vector<std::string> sequences;
+    std::vector<std::pair<std::string, std::size_t>> sequences;  // folder name, frames
     for (const auto& entry : fs::directory_iterator(dir_, ec)) {
       if (!entry.is_directory(ec)) continue;
       const std::size_t n = countDepthFrames(entry.path());
-      if (n > 0) sequences.push_back(entry.path().filename().string() + " (" + std::to_string(n) + (n == 1 ? " frame)" : " frames)"));
+      if (n > 0) sequences.emplace_back(entry.path().filename().string(), n);
     }
     std::sort(sequences.begin(), sequences.end());
     if (!sequences.empty()) {
       std::string list;
-      for (std::size_t i = 0; i < sequences.size() && i < 6; ++i) list += (i ? ", " : "") + sequences[i];
+      for (std::size_t i = 0; i < sequences.size() && i < 6; ++i) {
+        const auto& [name, n] = sequences[i];
+        list += (i ? ", " : "") + name + " (" + std::to_string(n) + (n == 1 ? " frame)" : " frames)");
+      }
       if (sequences.size() > 6) list += ", ...";
-      const std::string first = sequences.front().substr(0, sequences.front().find(" ("));
       throw IoError(dir_, "no frame-NNNNNN.depth.png files here, but these sub-folders have them: " + list +
-                              "; pass one sequence folder, such as " + (fs::path(dir_) / first).string());
+                              "; pass one sequence folder, such as " + (fs::path(dir_) / sequences.front().first).string());
     }
     throw IoError(dir_, "no frame-NNNNNN.depth.png files (not a 7-Scenes layout directory; for one depth image, "
                         "pass the .png itself)");
