@@ -36,13 +36,11 @@ struct PlaneFit {
   Eigen::Vector3d n = Eigen::Vector3d::Zero();
   double d = 0;
   double rms = 0;
-  std::size_t count = 0;
   [[nodiscard]] double height(const Eigen::Vector3d& p) const { return n.dot(p) + d; }
 };
 
 PlaneFit fitPlane(const std::vector<Eigen::Vector3d>& pts) {
   PlaneFit fit;
-  fit.count = pts.size();
   if (pts.size() < 3) return fit;
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const auto& p : pts) mean += p;
