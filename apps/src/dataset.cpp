@@ -1,7 +1,6 @@
 #include "dataset.hpp"
 
 #include "files.hpp"
-#include "frame_source.hpp"
 #include "io_error.hpp"
 #include "png_io.hpp"
 
@@ -144,6 +143,23 @@ perception::DepthImage readDepthPng(const std::string& path) {
     d.depth_m[i] = (mm == 0 || mm == 65535) ? 0.f : static_cast<float>(mm) * 1e-3f;
   }
   return d;
+}
+
+perception::PinholeIntrinsics parseIntrinsics(const std::string& spec, int width, int height) {
+  const auto v = splitNumbers(spec);
+  if (v.size() == 4) {
+    perception::PinholeIntrinsics k{width, height, v[0], v[1], v[2], v[3]};
+    try {
+      perception::validate(k);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--intrinsics: ") + e.what());
+    }
+    return k;
+  }
+  if (!std::filesystem::exists(spec)) {
+    throw UsageError("--intrinsics must be fx,fy,cx,cy or a camera-intrinsics.txt file; '" + spec + "' is neither");
+  }
+  return readIntrinsicsFile(spec, width, height);
 }
 
 namespace {

@@ -21,6 +21,9 @@ namespace mobmap::app {
 /// Parses a 3x3 camera matrix (camera-intrinsics.txt). IoError names the file, line
 /// and problem. Width and height are not in the file: pass them.
 perception::PinholeIntrinsics readIntrinsicsFile(const std::string& path, int width, int height);
+/// Parses "fx,fy,cx,cy" (--intrinsics; UsageError if invalid) or reads a
+/// camera-intrinsics.txt file.
+perception::PinholeIntrinsics parseIntrinsics(const std::string& spec, int width, int height);
 /// Parses a 4x4 camera-to-world pose and checks it is rigid (mapping::checkRigid).
 Eigen::Matrix4d readPoseFile(const std::string& path);
 /// Parses three numbers (a direction), returned as a unit vector; IoError if missing,

@@ -85,6 +85,18 @@ std::optional<double> parseFiniteNumber(const std::string& token) {
   return v;
 }
 
+std::vector<double> splitNumbers(const std::string& spec) {
+  std::vector<double> out;
+  std::stringstream in(spec);
+  std::string cell;
+  while (std::getline(in, cell, ',')) {
+    const auto v = parseFiniteNumber(cell);
+    if (!v) return {};
+    out.push_back(*v);
+  }
+  return out;
+}
+
 void writeTextFileAtomically(const std::string& path, const std::string& text) {
   writeAtomically(path, [&](const std::string& tmp) {
     std::ofstream out(tmp, std::ios::binary);

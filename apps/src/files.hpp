@@ -4,6 +4,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace mobmap::app {
 
@@ -24,5 +25,8 @@ void writeTextFileAtomically(const std::string& path, const std::string& text);
 
 /// The whole of `token` as a finite number, else nullopt ("1e3" yes; "1x", "", "nan" no).
 std::optional<double> parseFiniteNumber(const std::string& token);
+
+/// Comma-separated finite numbers ("585,585,320,240"); empty if any cell is not one.
+std::vector<double> splitNumbers(const std::string& spec);
 
 }  // namespace mobmap::app

@@ -16,21 +16,6 @@
 #include <sstream>
 
 namespace mobmap::app {
-namespace {
-
-std::vector<double> splitNumbers(const std::string& spec) {
-  std::vector<double> out;
-  std::stringstream in(spec);
-  std::string cell;
-  while (std::getline(in, cell, ',')) {
-    const auto v = parseFiniteNumber(cell);
-    if (!v) return {};
-    out.push_back(*v);
-  }
-  return out;
-}
-
-}  // namespace
 
 Eigen::Vector3f parseVector3(const std::string& spec, const std::string& what) {
   const auto v = splitNumbers(spec);
@@ -41,23 +26,6 @@ Eigen::Vector3f parseVector3(const std::string& spec, const std::string& what) {
   const double length = d.stableNorm();
   if (length < 1e-6) throw UsageError(what + " must not be the zero vector");
   return (d / length).cast<float>();
-}
-
-perception::PinholeIntrinsics parseIntrinsics(const std::string& spec, int width, int height) {
-  const auto v = splitNumbers(spec);
-  if (v.size() == 4) {
-    perception::PinholeIntrinsics k{width, height, v[0], v[1], v[2], v[3]};
-    try {
-      perception::validate(k);
-    } catch (const std::invalid_argument& e) {
-      throw UsageError(std::string("--intrinsics: ") + e.what());
-    }
-    return k;
-  }
-  if (!std::filesystem::exists(spec)) {
-    throw UsageError("--intrinsics must be fx,fy,cx,cy or a camera-intrinsics.txt file; '" + spec + "' is neither");
-  }
-  return readIntrinsicsFile(spec, width, height);
 }
 
 LoadedFrame loadPcd(const std::string& path) {

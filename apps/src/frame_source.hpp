@@ -37,8 +37,6 @@ struct LoadedFrame {
 /// is missing, unreadable, has no x/y/z fields or fewer points than declared.
 LoadedFrame loadPcd(const std::string& path);
 
-/// Parses "fx,fy,cx,cy" or reads a camera-intrinsics.txt file.
-perception::PinholeIntrinsics parseIntrinsics(const std::string& spec, int width, int height);
 
 /// Runs `pipeline` on a loaded frame: its depth image, else its cloud (organized when
 /// it has more than one row).

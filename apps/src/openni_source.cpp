@@ -1,5 +1,6 @@
 #include "openni_source.hpp"
 
+#include "dataset.hpp"
 #include "files.hpp"
 #include "frame_source.hpp"
 #include "io_error.hpp"
