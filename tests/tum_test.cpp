@@ -273,7 +273,8 @@ TEST(TumSequence, OverlayPaintsTheMapOverTheRegisteredColourAndAnalyzeReadsTheSa
     }
     return shown_sampled;
   };
-  EXPECT_GT(patternPixels(ov, 6).first, patternPixels(ov, 6).second / 20);
+  const auto [paired, of_paired] = patternPixels(ov, 6);
+  EXPECT_GT(paired, of_paired / 20) << paired << " of " << of_paired;
   // Frame 3 (of the map's own input: N alone) has no colour to pair: the base is the
   // shaded depth, so the pattern's grey shows only where the two happen to agree. So
   // does frame 6 with --background depth.
