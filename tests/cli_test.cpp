@@ -96,7 +96,16 @@ TEST(Cli, ScoreErrorsAreClearWithUsageExitCodes) {
   EXPECT_NE(missing.out.find("/nonexistent/t.csv: no such file"), std::string::npos) << missing.out;
   const Result negative = run("score --slope -5 --roughness 1.0");
   EXPECT_EQ(negative.code, 2);
-  EXPECT_NE(negative.out.find("must be finite and >= 0"), std::string::npos) << negative.out;
+  EXPECT_NE(negative.out.find("--slope must be in [0, 180] degrees, got -5"), std::string::npos) << negative.out;
+  const Result overhang = run("score --slope 500 --roughness 1.0");
+  EXPECT_EQ(overhang.code, 2);
+  EXPECT_NE(overhang.out.find("got 500"), std::string::npos) << overhang.out;
+  // A surface is never smaller than its projection: A/A' < 1 cannot be measured.
+  const Result smooth = run("score --slope 5 --roughness 0.5 --json");
+  EXPECT_EQ(smooth.code, 2);
+  EXPECT_NE(smooth.out.find("--roughness is the ratio A/A'"), std::string::npos) << smooth.out;
+  EXPECT_NE(smooth.out.find("so >= 1; got 0.5"), std::string::npos) << smooth.out;
+  EXPECT_EQ(run("score --slope 180 --roughness 1.0").code, 0);  // the bounds themselves are fine
   const Result nothing = run("score");
   EXPECT_EQ(nothing.code, 2);
   const Result unknown = run("frobnicate");
@@ -1274,6 +1283,41 @@ TEST(Cli, BadSequencesAndMapsGiveErrorsNamingTheFile) {
   EXPECT_EQ(cfg.code, 1);
   EXPECT_NE(cfg.out.find("c.yaml: mapping.resolutoin_m: unknown key"), std::string::npos) << cfg.out;
   EXPECT_EQ(run("config --print-default").code, 0);
+  fs::remove_all(dir);
+}
+
+// Lengths, times and coordinates that are NaN or negative are usage errors (exit 2) naming
+// the option, not quietly taken: NaN compares false with every bound, and a negative
+// --snap used to mean "no snap" and a negative --max-pose-gap was accepted where it applies to nothing.
+TEST(Cli, NonFiniteOrNegativeLengthsAndTimesAreUsageErrors) {
+  const std::string dir = tempDir("domains");
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 2 --noise none --quiet").code, 0);
+  const std::string map = dir + "/m.ot";
+  for (const std::string gap : {"nan", "-1", "inf"}) {
+    const Result r = run("build " + dir + "/seq --out " + map + " --quiet --max-pose-gap " + gap);
+    EXPECT_EQ(r.code, 2) << r.out;
+    EXPECT_NE(r.out.find("--max-pose-gap: must be a finite number >= 0, got '" + gap + "'"), std::string::npos) << r.out;
+    EXPECT_FALSE(fs::exists(map));
+  }
+  ASSERT_EQ(run("build " + dir + "/seq --out " + map + " --quiet --max-pose-gap 0").code, 0);
+  // The floor under the first camera, 1.0 m ahead of it (the camera looks along +x).
+  const Result ok = run("query " + map + " 1.0 0 0.3 --snap 0.5 --json");
+  ASSERT_EQ(ok.code, 0) << ok.out;
+  EXPECT_EQ(jsonLine(ok.out)["state"], "surface") << ok.out;
+  for (const std::string snap : {"-1", "nan", "-0.5", "1x"}) {
+    const Result r = run("query " + map + " 1.0 0 0.3 --snap " + snap);
+    EXPECT_EQ(r.code, 2) << r.out;
+    EXPECT_NE(r.out.find("--snap: must be a finite number >= 0, got '" + snap + "'"), std::string::npos) << r.out;
+  }
+  for (const std::string xyz : {"1.0 0 nan", "inf 0 0.3"}) {
+    const Result r = run("query " + map + " " + xyz);
+    EXPECT_EQ(r.code, 2) << r.out;
+    EXPECT_NE(r.out.find("X Y Z: values must be finite"), std::string::npos) << r.out;
+  }
+  const Result overlay = run("overlay " + map + " --frame 1 --out " + dir + "/o.png --max-pose-gap -0.1");
+  EXPECT_EQ(overlay.code, 2) << overlay.out;
+  EXPECT_NE(overlay.out.find("--max-pose-gap: must be a finite number >= 0"), std::string::npos) << overlay.out;
+  EXPECT_FALSE(fs::exists(dir + "/o.png"));
   fs::remove_all(dir);
 }
 

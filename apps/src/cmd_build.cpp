@@ -255,6 +255,7 @@ Command addBuildCommand(CLI::App& app) {
                   "and --device: matched to the frames' time stamps (seconds of the device clock); without it the "
                   "camera is taken as static");
   cmd->add_option("--max-pose-gap", o->max_pose_gap, "TUM / timestamped --poses: skip frames whose neighbouring poses are farther apart in time (s)")
+      ->check(finiteNonNegative())
       ->capture_default_str();
   cmd->add_option("--out", o->out, "Map file to write (MAP.ot; MAP.bt, MAP.octovis.ot and MAP.json go beside it)")->required();
   cmd->add_option("--frames", o->frames, "FIRST:LAST:STEP of the frame numbers to use (default: all; a live sensor: 0:299; OpenNI2 frames are numbered as they arrive)");

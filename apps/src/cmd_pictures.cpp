@@ -128,7 +128,8 @@ Command addOverlayCommand(CLI::App& app) {
       ->capture_default_str();
   auto* gap = cmd->add_option("--max-pose-gap", o->max_pose_gap,
                               "TUM / timestamped --poses: as for build, which numbers the frames by it (default: the "
-                              "map's, else 0.05)");
+                              "map's, else 0.05)")
+                 ->check(finiteNonNegative());
   return [o, gap]() {
     // MAP.json says how the map's runs read their frames: overlay reads them the same
     // way unless told otherwise (wrong intrinsics would shift the picture silently).

@@ -128,7 +128,8 @@ Command addQueryCommand(CLI::App& app) {
       ->excludes(foot);
   cmd->add_option("--snap", o->snap,
                   "Search down along gravity up to this many metres for the supporting surface (points; for soles, "
-                  "below Z, default 0.1, and 0.1 above it)");
+                  "below Z, default 0.1, and 0.1 above it)")
+      ->check(finiteNonNegative());
   cmd->add_option("--input-frame", o->frame, "Frame of the given coordinates: map (gravity aligned) or world (the data's own)")
       ->check(CLI::IsMember({"map", "world"}))->capture_default_str();
   cmd->add_flag("--json", o->json, "One JSON object per answer");
@@ -250,6 +251,7 @@ Command addQueryCommand(CLI::App& app) {
       }
     };
     if (!o->xyz.empty()) {
+      if (!Eigen::Vector3d(o->xyz[0], o->xyz[1], o->xyz[2]).allFinite()) throw UsageError("X Y Z: values must be finite");
       answer({o->xyz[0], o->xyz[1], o->xyz[2]});
       return 0;
     }

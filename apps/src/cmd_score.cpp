@@ -8,9 +8,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <iomanip>
 #include <iostream>
 #include <memory>
+#include <sstream>
 
 namespace mobmap::app {
 
@@ -27,7 +29,7 @@ Command addScoreCommand(CLI::App& app) {
     bool fit = false;
   };
   auto o = std::make_shared<Options>();
-  auto* slope = cmd->add_option("--slope", o->slope, "Slope in degrees against gravity/ground (>= 0)");
+  auto* slope = cmd->add_option("--slope", o->slope, "Slope in degrees against gravity/ground (0-180)");
   auto* rough = cmd->add_option("--roughness", o->roughness, "Roughness ratio A/A' (>= 1)");
   cmd->add_option("--model", o->model, "Scorer: rule (paper Table I) or gp (GP over the table)")
       ->check(CLI::IsMember({"rule", "gp"}))->capture_default_str();
@@ -73,6 +75,18 @@ Command addScoreCommand(CLI::App& app) {
         std::cout << "wrote " << o->plot << "\n";
       }
       return 0;
+    }
+    // The pipeline measures slopes in [0, 180] degrees and ratios A/A' >= 1 (a surface is
+    // never smaller than its projection); outside those the models only extrapolate.
+    const auto text = [](double v) {
+      std::ostringstream out;
+      out << v;
+      return out.str();
+    };
+    if (!(o->slope >= 0 && o->slope <= 180)) throw UsageError("--slope must be in [0, 180] degrees, got " + text(o->slope));
+    if (!(o->roughness >= 1 && std::isfinite(o->roughness))) {
+      throw UsageError("--roughness is the ratio A/A' of a surface's area to its projection's, so >= 1; got " +
+                       text(o->roughness));
     }
     gp::MobilityEstimate e;
     try {

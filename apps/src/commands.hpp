@@ -4,6 +4,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include <cmath>
+#include <cstdlib>
 #include <functional>
 #include <string>
 #include <vector>
@@ -29,6 +31,19 @@ inline constexpr const char* kBackgroundHelp =
     "What the mobility colours are laid over, shown in grey: colour (the frame's colour image when the input has one "
     "of the depth's size, else shaded depth) or depth (shaded depth: for colour images not registered to the depth, "
     "such as the .color.png frames of Microsoft's 7-Scenes download)";
+
+/// For options that take a length or a time: a finite number >= 0. (CLI::NonNegativeNumber
+/// lets "nan" through, which then compares false with every bound.)
+inline CLI::Validator finiteNonNegative() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double v = std::strtod(text.c_str(), &end);
+        const bool whole = !text.empty() && end == text.c_str() + text.size();
+        return whole && std::isfinite(v) && v >= 0 ? std::string() : "must be a finite number >= 0, got '" + text + "'";
+      },
+      "NUMBER>=0");
+}
 
 /// Parses `args` (a subcommand and its options) with `app` and runs it, as if typed;
 /// `demo` uses it to run `build`. Defined in main.cpp, which owns the command table.
