@@ -33,8 +33,9 @@ struct Result {
   std::string out;  // stdout and stderr together
 };
 
-Result run(const std::string& args) {
-  const std::string cmd = std::string(MOBMAP_EXE) + " " + args + " 2>&1";
+// Runs a shell command line with its standard error mixed into the output.
+Result runShell(const std::string& command_line) {
+  const std::string cmd = command_line + " 2>&1";
   Result r;
   FILE* pipe = ::popen(cmd.c_str(), "r");
   if (!pipe) return r;
@@ -43,6 +44,14 @@ Result run(const std::string& args) {
   const int status = ::pclose(pipe);
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return r;
+}
+
+Result run(const std::string& args) { return runShell(std::string(MOBMAP_EXE) + " " + args); }
+
+// run() with the size of any file the command writes limited to `kib` KiB (as `ulimit -f`
+// sets) and SIGXFSZ ignored, so writes past it fail as on a full disk.
+Result runWithFileSizeLimit(int kib, const std::string& args) {
+  return runShell("trap '' XFSZ; ulimit -f " + std::to_string(2 * kib) + "; " + MOBMAP_EXE + " " + args);
 }
 
 std::string tempDir(const std::string& name) {
@@ -1283,6 +1292,53 @@ TEST(Cli, BadSequencesAndMapsGiveErrorsNamingTheFile) {
   EXPECT_EQ(cfg.code, 1);
   EXPECT_NE(cfg.out.find("c.yaml: mapping.resolutoin_m: unknown key"), std::string::npos) << cfg.out;
   EXPECT_EQ(run("config --print-default").code, 0);
+  fs::remove_all(dir);
+}
+
+// A disk that fills while the map is saved: build exits 1 naming the file, and the map
+// files are all what they were (none, for a new map; the earlier run's, for --extend),
+// with no temporary left beside them. An --extend run's new .ot beside the old .json
+// would describe frames the metadata does not list.
+TEST(Cli, AMapThatCannotBeSavedInFullLeavesTheFilesOnDiskAsTheyWere) {
+  const std::string dir = tempDir("full");
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 3 --noise none --quiet").code, 0);
+  const std::string map = dir + "/maps/m.ot";
+  const auto listing = [&] {
+    std::map<std::string, std::string> files;  // name -> bytes
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(dir + "/maps", ec)) {
+      std::string& bytes = files[e.path().filename().string()];
+      if (!e.is_regular_file()) continue;
+      std::ifstream in(e.path(), std::ios::binary);
+      bytes.assign(std::istreambuf_iterator<char>(in), {});
+    }
+    return files;
+  };
+  const Result fresh = runWithFileSizeLimit(32, "build " + dir + "/seq --frames 0:0 --out " + map + " --quiet");
+  EXPECT_EQ(fresh.code, 1) << fresh.out;
+  EXPECT_NE(fresh.out.find("m.ot: write failed (disk full?); no file of the set was changed"), std::string::npos) << fresh.out;
+  EXPECT_TRUE(listing().empty());
+  ASSERT_EQ(run("build " + dir + "/seq --frames 0:0 --out " + map + " --quiet").code, 0);
+  const auto before = listing();
+  ASSERT_EQ(before.size(), 4u);
+  ASSERT_GT(before.at("m.ot").size(), 32u * 1024);
+  const Result extend = runWithFileSizeLimit(32, "build " + dir + "/seq --frames 1:2 --extend --out " + map + " --quiet");
+  EXPECT_EQ(extend.code, 1) << extend.out;
+  EXPECT_NE(extend.out.find("write failed (disk full?)"), std::string::npos) << extend.out;
+  EXPECT_TRUE(listing() == before);  // byte for byte, and nothing else in the folder
+  // A file of the set that could not be replaced (a directory in its place) is found
+  // before the run, not after MAP.ot and MAP.bt have been replaced.
+  fs::remove(dir + "/maps/m.octovis.ot");
+  fs::create_directory(dir + "/maps/m.octovis.ot");
+  const Result blocked = run("build " + dir + "/seq --frames 1:2 --extend --out " + map + " --quiet");
+  EXPECT_EQ(blocked.code, 1) << blocked.out;
+  EXPECT_NE(blocked.out.find("m.octovis.ot: is a directory"), std::string::npos) << blocked.out;
+  EXPECT_EQ(listing().at("m.ot"), before.at("m.ot"));
+  EXPECT_EQ(listing().at("m.bt"), before.at("m.bt"));
+  fs::remove(dir + "/maps/m.octovis.ot");
+  // Without the limit the same run goes through.
+  ASSERT_EQ(run("build " + dir + "/seq --frames 1:2 --extend --out " + map + " --quiet").code, 0);
+  EXPECT_GT(listing().at("m.ot").size(), before.at("m.ot").size());
   fs::remove_all(dir);
 }
 

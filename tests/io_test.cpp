@@ -188,6 +188,39 @@ TEST(AtomicWrite, FailedWriteLeavesTheOldFileAndNoTemporary) {
   EXPECT_EQ(files, 1);
 }
 
+// A map's files are written as a set: one that fails (disk full) leaves every file of the
+// set as it was, removes the temporaries, and the error names the file by its own name.
+TEST(AtomicWrite, AFileSetIsReplacedAllOrNothing) {
+  TempDir dir;
+  for (const char* name : {"m.ot", "m.bt", "m.json"}) writeTextFileAtomically(dir.file(name), std::string("old ") + name);
+  const auto text = [](const std::string& content) {
+    return [content](const std::string& tmp) { writeTextFileAtomically(tmp, content); };
+  };
+  const std::string error = errorOf([&] {
+    writeFilesTogether({{dir.file("m.ot"), text("new ot")},
+                        {dir.file("m.bt"), text("new bt")},
+                        {dir.file("m.octovis.ot"), text("new octovis")},
+                        {dir.file("m.json"),
+                         [](const std::string& tmp) {
+                           std::ofstream(tmp) << "{\"half";
+                           throw IoError(tmp, "write failed (disk full?)");
+                         }}});
+  });
+  EXPECT_EQ(error, dir.file("m.json") + ": write failed (disk full?); no file of the set was changed");
+  for (const char* name : {"m.ot", "m.bt", "m.json"}) EXPECT_EQ(readTextFile(dir.file(name)), std::string("old ") + name);
+  EXPECT_FALSE(fs::exists(dir.file("m.octovis.ot")));  // a new file of the set is not created either
+  int files = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir.str())) ++files;
+  EXPECT_EQ(files, 3);
+  // When every write succeeds, all are replaced and nothing else is left.
+  writeFilesTogether({{dir.file("m.ot"), text("new ot")}, {dir.file("sub/m.json"), text("new json")}});
+  EXPECT_EQ(readTextFile(dir.file("m.ot")), "new ot");
+  EXPECT_EQ(readTextFile(dir.file("sub/m.json")), "new json");
+  files = 0;
+  for ([[maybe_unused]] const auto& e : fs::recursive_directory_iterator(dir.str())) ++files;
+  EXPECT_EQ(files, 5);  // m.ot, m.bt, m.json, sub, sub/m.json
+}
+
 // Writes a short noise-free corridor and reads it back through the dataset reader.
 class WrittenCorridor : public ::testing::Test {
  protected:

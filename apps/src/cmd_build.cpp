@@ -292,7 +292,12 @@ Command addBuildCommand(CLI::App& app) {
     if (!o->force && !o->extend && fs::exists(o->out, ec)) {
       throw UsageError(o->out + " exists; pass --force to overwrite it or --extend to add frames to it");
     }
-    checkWritable(o->out);  // now, not after the whole run
+    // Now, not after the whole run; all four files, so that none of them is in the way
+    // (a directory of that name) when they are renamed into place.
+    {
+      const std::string out_stem = mapping::mapFileStem(o->out);
+      for (const std::string& path : {o->out, out_stem + ".bt", out_stem + ".octovis.ot", out_stem + ".json"}) checkWritable(path);
+    }
     Config config = o->config.empty() ? Config{} : loadConfig(o->config);
     perception::PerceptionParams& pp = config.perception;
     mapping::MapParams& mp = config.mapping;
@@ -499,16 +504,13 @@ Command addBuildCommand(CLI::App& app) {
     int last_fused = frames.front();  // frame number of the last frame fused
     nlohmann::json trajectory = nlohmann::json::array();  // camera positions, map frame
     double read_ms = 0, fuse_ms = 0;
-    // The map files: MAP.ot first, MAP.json last, each replaced atomically. A checkpoint
+    // The map files: all written, then renamed into place, MAP.ot first, MAP.json last. A checkpoint
     // (--checkpoint) writes the same files in the middle of the run; fusion then goes on
     // in the finalized (pruned) tree, which gives the same map as without (docs/MAPPING.md).
     const std::string stem = mapping::mapFileStem(o->out);
     const std::string device_label = "OpenNI2 device " + (o->device.empty() ? std::string("(first attached)") : o->device);
     auto writeMap = [&](bool checkpoint, double run_s) {
       map.finalize();
-      mapping::saveMobilityMap(map.tree(), o->out);
-      mapping::saveOccupancyBt(map.tree(), stem + ".bt");
-      mapping::saveOctovisColorTree(map.tree(), stem + ".octovis.ot");
       nlohmann::json meta;
       meta["format"] = "mobmap-map-metadata";
       meta["tool"] = std::string("mobmap ") + MOBMAP_VERSION_STRING;
@@ -558,7 +560,14 @@ Command addBuildCommand(CLI::App& app) {
       if (!o->config.empty()) meta["config"] = fs::absolute(o->config, ec).lexically_normal().string();
       meta["trajectory_map"] = trajectory;
       if (existing) mergeEarlierRuns(meta, existing->meta);
-      writeTextFileAtomically(stem + ".json", formatMapMetadata(meta));
+      // All four or none: a disk that fills up while they are written leaves the map
+      // on disk as it was (an --extend run's map included), not a new .ot beside an old .json.
+      const mapping::MobilityOcTree& tree = map.tree();
+      const std::string meta_text = formatMapMetadata(meta);
+      writeFilesTogether({{o->out, [&](const std::string& tmp) { mapping::saveMobilityMap(tree, tmp); }},
+                          {stem + ".bt", [&](const std::string& tmp) { mapping::saveOccupancyBt(tree, tmp); }},
+                          {stem + ".octovis.ot", [&](const std::string& tmp) { mapping::saveOctovisColorTree(tree, tmp); }},
+                          {stem + ".json", [&](const std::string& tmp) { writeTextFileAtomically(tmp, meta_text); }}});
       return meta;
     };
     // Two frames in perception at once (both cores), fused strictly in order.

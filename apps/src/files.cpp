@@ -60,6 +60,37 @@ void writeAtomically(const std::string& path, const std::function<void(const std
   }
 }
 
+void writeFilesTogether(const std::vector<PendingFile>& files) {
+  std::error_code ec;
+  std::vector<std::string> temporaries;
+  const auto discard = [&](std::size_t from) {
+    for (std::size_t i = from; i < temporaries.size(); ++i) std::filesystem::remove(temporaries[i], ec);
+  };
+  for (const PendingFile& f : files) {
+    createParentDirectory(f.path);
+    // Not ".tmp.PID": the writer may itself write through path + ".tmp.PID".
+    temporaries.push_back(f.path + ".new." + std::to_string(::getpid()));
+    const std::string& tmp = temporaries.back();
+    try {
+      f.write(tmp);
+    } catch (const std::exception& e) {
+      discard(0);
+      // The writer named the temporary file; the user knows the file by its own name.
+      const std::string what = e.what();
+      const std::string reason = what.rfind(tmp + ": ", 0) == 0 ? what.substr(tmp.size() + 2) : what;
+      throw IoError(f.path, reason + (files.size() > 1 ? "; no file of the set was changed" : ""));
+    }
+  }
+  for (std::size_t i = 0; i < files.size(); ++i) {
+    if (std::rename(temporaries[i].c_str(), files[i].path.c_str()) != 0) {
+      const std::string reason = std::strerror(errno);
+      discard(i);
+      throw IoError(files[i].path, "cannot rename the temporary file into place: " + reason +
+                                       (i > 0 ? " (the files before it in the set were replaced)" : ""));
+    }
+  }
+}
+
 void checkWritable(const std::string& path) {
   const std::filesystem::path target(path);
   std::error_code ec;

@@ -16,6 +16,19 @@ std::string readTextFile(const std::string& path, std::size_t max_bytes = 64u <<
 /// temporary file is removed if `write` throws. Creates missing parent directories.
 void writeAtomically(const std::string& path, const std::function<void(const std::string&)>& write);
 
+/// One file of a set written together: `write(temporary_path)` writes it there.
+struct PendingFile {
+  std::string path;
+  std::function<void(const std::string& temporary_path)> write;
+};
+
+/// Writes a set of files that belong together (a map's .ot, .bt, octovis .ot and .json)
+/// all or nothing: every file goes to a temporary beside its path first, and only when
+/// all are written are they renamed into place, in the given order. If a write fails
+/// (disk full), every temporary is removed, the files on disk stay as they were, and the
+/// error names the file that failed. Creates missing parent directories.
+void writeFilesTogether(const std::vector<PendingFile>& files);
+
 /// Checks before a long job that `path` could be written: creates its directory and a
 /// probe file beside it (removed again). IoError naming the path and the reason if not.
 void checkWritable(const std::string& path);
