@@ -79,6 +79,9 @@ void writeFilesTogether(const std::vector<PendingFile>& files) {
       const std::string what = e.what();
       const std::string reason = what.rfind(tmp + ": ", 0) == 0 ? what.substr(tmp.size() + 2) : what;
       throw IoError(f.path, reason + (files.size() > 1 ? "; no file of the set was changed" : ""));
+    } catch (...) {
+      discard(0);
+      throw;
     }
   }
   for (std::size_t i = 0; i < files.size(); ++i) {

@@ -14,7 +14,8 @@ std::vector<Level> gatherLevels(std::map<long, std::size_t> bins, double res, st
     long peak = 0;
     std::size_t most = 0;
     for (const auto& [b, n] : bins) {
-      const bool near = std::any_of(taken.begin(), taken.end(), [&](long k) { return std::abs(k - b) <= 3; });
+      const long bin = b;  // C++17 lambdas cannot capture a structured binding (clang refuses)
+      const bool near = std::any_of(taken.begin(), taken.end(), [bin](long k) { return std::abs(k - bin) <= 3; });
       if (!near && n > most) peak = b, most = n;
     }
     if (most == 0) break;
