@@ -1281,6 +1281,16 @@ TEST(Cli, BadSequencesAndMapsGiveErrorsNamingTheFile) {
   EXPECT_EQ(under_file.code, 1);
   EXPECT_NE(under_file.out.find("plain/m.ot: cannot create directory"), std::string::npos) << under_file.out;
   for (const auto& e : fs::directory_iterator(dir)) EXPECT_EQ(e.path().string().find(".probe."), std::string::npos);
+  // A depth frame cut short (a recorder killed mid-write), here the last one: found before
+  // the run, not after the whole sequence has been processed.
+  ASSERT_EQ(run("simulate --out " + dir + "/cut --frames 3 --noise none --quiet").code, 0);
+  const std::string last = dir + "/cut/frame-000002.depth.png";
+  fs::resize_file(last, fs::file_size(last) / 2);
+  const Result cut = run("build " + dir + "/cut --out " + dir + "/cut.ot");  // not a terminal: a log line per frame
+  EXPECT_EQ(cut.code, 1);
+  EXPECT_NE(cut.out.find("frame-000002.depth.png: truncated PNG"), std::string::npos) << cut.out;
+  EXPECT_EQ(cut.out.find("build 1/3"), std::string::npos) << cut.out;  // no frame was processed
+  EXPECT_FALSE(fs::exists(dir + "/cut.ot"));
   // Not a map.
   std::ofstream(dir + "/junk.ot") << "junk";
   const Result junk = run("info " + dir + "/junk.ot");

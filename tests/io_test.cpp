@@ -116,6 +116,33 @@ TEST(Png, HostileFilesGiveErrorsNamingTheFile) {
   EXPECT_NE(errorOf([&] { readPng16(dir.file("rgb.png")); }).find("not a 16-bit greyscale PNG"), std::string::npos);
 }
 
+// The cheap check `build` runs on every frame before a long run: whole files pass, files
+// cut anywhere (a recorder killed mid-write) fail, and so does whatever readPng16 refuses
+// to open.
+TEST(Png, CompletenessCheckFindsEveryCutWithoutDecoding) {
+  TempDir dir;
+  Image16 img{64, 64, std::vector<std::uint16_t>(64 * 64)};
+  for (std::size_t i = 0; i < img.pixels.size(); ++i) img.pixels[i] = static_cast<std::uint16_t>(i * 7919);
+  writePng16(dir.file("full.png"), img);
+  EXPECT_EQ(errorOf([&] { checkPngComplete(dir.file("full.png")); }), "no error");
+  const std::string bytes = readTextFile(dir.file("full.png"));
+  ASSERT_GT(bytes.size(), 100u);
+  int cuts = 0;
+  for (std::size_t keep = 8; keep < bytes.size(); keep += 1 + keep / 4, ++cuts) {
+    writeBytes(dir.file("cut.png"), bytes.substr(0, keep));
+    EXPECT_EQ(errorOf([&] { checkPngComplete(dir.file("cut.png")); }),
+              dir.file("cut.png") + ": truncated PNG: " + std::to_string(keep) + " bytes, and no complete IEND chunk at its end");
+    // ...and each is a file the decoder refuses too.
+    EXPECT_NE(errorOf([&] { readPng16(dir.file("cut.png")); }), "no error") << keep;
+  }
+  EXPECT_GT(cuts, 10);
+  writeBytes(dir.file("cut.png"), bytes.substr(0, bytes.size() - 1));  // only the CRC's last byte missing
+  EXPECT_NE(errorOf([&] { checkPngComplete(dir.file("cut.png")); }), "no error");
+  EXPECT_NE(errorOf([&] { checkPngComplete(dir.file("missing.png")); }).find("missing.png: cannot open"), std::string::npos);
+  writeBytes(dir.file("text.png"), "this is not a png at all");
+  EXPECT_NE(errorOf([&] { checkPngComplete(dir.file("text.png")); }).find("text.png: not a PNG"), std::string::npos);
+}
+
 TEST(DepthPng, MillimetresWithZeroAndMaxMeaningNoMeasurement) {
   TempDir dir;
   Image16 img{4, 1, {0, 1000, 65535, 1500}};

@@ -5,6 +5,8 @@
 
 #include <png.h>
 
+#include <algorithm>
+#include <cerrno>
 #include <csetjmp>
 #include <cstdio>
 #include <cstring>
@@ -149,6 +151,23 @@ void writeRaw(const std::string& path, int width, int height, int bit_depth, int
 }
 
 }  // namespace
+
+void checkPngComplete(const std::string& path) {
+  const FilePtr fp = openForReading(path);
+  // The IEND chunk is the last 12 bytes; a little slack for writers that append padding.
+  long size = -1;
+  if (std::fseek(fp.get(), 0, SEEK_END) == 0) size = std::ftell(fp.get());
+  if (size < 0) throw IoError(path, std::string("cannot read: ") + std::strerror(errno));
+  const long tail = std::min(size, 4096L);
+  std::string bytes(static_cast<std::size_t>(tail), '\0');
+  if (std::fseek(fp.get(), size - tail, SEEK_SET) != 0 || std::fread(bytes.data(), 1, bytes.size(), fp.get()) != bytes.size()) {
+    throw IoError(path, std::string("cannot read: ") + std::strerror(errno));
+  }
+  const std::size_t iend = bytes.rfind("IEND");  // the chunk type, then its 4-byte CRC
+  if (iend == std::string::npos || bytes.size() - iend < 8) {
+    throw IoError(path, "truncated PNG: " + std::to_string(size) + " bytes, and no complete IEND chunk at its end");
+  }
+}
 
 Image16 readPng16(const std::string& path) {
   FilePtr fp = openForReading(path);

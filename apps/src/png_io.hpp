@@ -28,6 +28,11 @@ Image16 readPng16(const std::string& path);
 /// Reads any 8-bit PNG (grey, RGB, RGBA, palette) as RGB.
 ImageRgb readPngRgb(const std::string& path);
 
+/// Checks cheaply, without decoding, that a PNG file opens, has the PNG signature and
+/// ends with its IEND chunk (a file cut short by a recorder that was killed does not):
+/// `build` checks every frame this way before a long run. IoError (with the path) if not.
+void checkPngComplete(const std::string& path);
+
 /// Writes atomically (temporary file + rename).
 void writePng16(const std::string& path, const Image16& image);
 void writePngRgb(const std::string& path, const ImageRgb& image);

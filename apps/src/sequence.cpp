@@ -31,6 +31,7 @@ class SevenScenesSequence : public Sequence {
   void check(int n) const override {
     std::error_code ec;
     if (!fs::exists(dir_.posePath(n), ec)) throw IoError(dir_.posePath(n), "missing: every frame needs a pose");
+    checkPngComplete(dir_.depthPath(n));
   }
   SequenceFrame load(int n) const override {
     SequenceFrame f;
@@ -250,7 +251,9 @@ class TumSequence : public Sequence {
   const std::vector<int>& frames() const override { return frames_; }
   void check(int n) const override {
     std::error_code ec;
-    if (!fs::exists(entries_.at(static_cast<std::size_t>(n)).path, ec)) throw IoError(entries_.at(static_cast<std::size_t>(n)).path, "missing");
+    const std::string& path = entries_.at(static_cast<std::size_t>(n)).path;
+    if (!fs::exists(path, ec)) throw IoError(path, "missing");
+    checkPngComplete(path);
   }
   SequenceFrame load(int n) const override {
     const Entry& e = entries_.at(static_cast<std::size_t>(n));
