@@ -15,6 +15,7 @@
 #include "mobmap/perception/pipeline.hpp"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -294,10 +295,9 @@ Command addBuildCommand(CLI::App& app) {
     }
     // Now, not after the whole run; all four files, so that none of them is in the way
     // (a directory of that name) when they are renamed into place.
-    {
-      const std::string out_stem = mapping::mapFileStem(o->out);
-      for (const std::string& path : {o->out, out_stem + ".bt", out_stem + ".octovis.ot", out_stem + ".json"}) checkWritable(path);
-    }
+    const std::string stem = mapping::mapFileStem(o->out);
+    const std::array<std::string, 4> map_paths{o->out, stem + ".bt", stem + ".octovis.ot", stem + ".json"};
+    for (const std::string& path : map_paths) checkWritable(path);
     Config config = o->config.empty() ? Config{} : loadConfig(o->config);
     perception::PerceptionParams& pp = config.perception;
     mapping::MapParams& mp = config.mapping;
@@ -507,7 +507,6 @@ Command addBuildCommand(CLI::App& app) {
     // The map files: all written, then renamed into place, MAP.ot first, MAP.json last. A checkpoint
     // (--checkpoint) writes the same files in the middle of the run; fusion then goes on
     // in the finalized (pruned) tree, which gives the same map as without (docs/MAPPING.md).
-    const std::string stem = mapping::mapFileStem(o->out);
     const std::string device_label = "OpenNI2 device " + (o->device.empty() ? std::string("(first attached)") : o->device);
     auto writeMap = [&](bool checkpoint, double run_s) {
       map.finalize();
@@ -564,10 +563,10 @@ Command addBuildCommand(CLI::App& app) {
       // on disk as it was (an --extend run's map included), not a new .ot beside an old .json.
       const mapping::MobilityOcTree& tree = map.tree();
       const std::string meta_text = formatMapMetadata(meta);
-      writeFilesTogether({{o->out, [&](const std::string& tmp) { mapping::saveMobilityMap(tree, tmp); }},
-                          {stem + ".bt", [&](const std::string& tmp) { mapping::saveOccupancyBt(tree, tmp); }},
-                          {stem + ".octovis.ot", [&](const std::string& tmp) { mapping::saveOctovisColorTree(tree, tmp); }},
-                          {stem + ".json", [&](const std::string& tmp) { writeTextFileAtomically(tmp, meta_text); }}});
+      writeFilesTogether({{map_paths[0], [&](const std::string& tmp) { mapping::saveMobilityMap(tree, tmp); }},
+                          {map_paths[1], [&](const std::string& tmp) { mapping::saveOccupancyBt(tree, tmp); }},
+                          {map_paths[2], [&](const std::string& tmp) { mapping::saveOctovisColorTree(tree, tmp); }},
+                          {map_paths[3], [&](const std::string& tmp) { writeTextFileAtomically(tmp, meta_text); }}});
       return meta;
     };
     // Two frames in perception at once (both cores), fused strictly in order.

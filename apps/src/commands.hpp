@@ -2,10 +2,10 @@
 // The `mobmap` subcommands. Each registers its options on the CLI11 app and returns
 // the function that runs it (exit code).
 
+#include "files.hpp"
+
 #include <CLI/CLI.hpp>
 
-#include <cmath>
-#include <cstdlib>
 #include <functional>
 #include <string>
 #include <vector>
@@ -37,10 +37,8 @@ inline constexpr const char* kBackgroundHelp =
 inline CLI::Validator finiteNonNegative() {
   return CLI::Validator(
       [](std::string& text) -> std::string {
-        char* end = nullptr;
-        const double v = std::strtod(text.c_str(), &end);
-        const bool whole = !text.empty() && end == text.c_str() + text.size();
-        return whole && std::isfinite(v) && v >= 0 ? std::string() : "must be a finite number >= 0, got '" + text + "'";
+        const auto v = parseFiniteNumber(text);
+        return v && *v >= 0 ? std::string() : "must be a finite number >= 0, got '" + text + "'";
       },
       "NUMBER>=0");
 }
