@@ -1352,6 +1352,81 @@ TEST(Cli, AMapThatCannotBeSavedInFullLeavesTheFilesOnDiskAsTheyWere) {
   fs::remove_all(dir);
 }
 
+// A frame whose files cannot be read stops the run, before it starts when a cheap check
+// finds it (a pose that is not rigid) and when it is decoded otherwise (a depth image
+// with a bad checksum), naming the file and the way round it. With --skip-bad-frames the
+// run leaves such frames out, says which, and gives the map of the frames left: byte
+// for byte the map of the same sequence without those frames.
+TEST(Cli, SkipBadFramesLeavesOutUnreadableFramesAndMapsTheRest) {
+  const std::string dir = tempDir("skipbad");
+  ASSERT_EQ(run("simulate --out " + dir + "/bad --frames 6 --noise none --quiet").code, 0);
+  fs::copy(dir + "/bad", dir + "/clean");
+  // Frame 2: a depth image whose first IDAT chunk has a wrong CRC (libpng refuses it).
+  const std::string png = dir + "/bad/frame-000002.depth.png";
+  std::string bytes = fileBytes(png);
+  const std::size_t idat = bytes.find("IDAT");
+  ASSERT_NE(idat, std::string::npos);
+  const auto byte = [&](std::size_t i) { return static_cast<std::uint32_t>(static_cast<unsigned char>(bytes[i])); };
+  const std::uint32_t length = byte(idat - 4) << 24 | byte(idat - 3) << 16 | byte(idat - 2) << 8 | byte(idat - 1);
+  bytes[idat + 4 + length + 3] = static_cast<char>(bytes[idat + 4 + length + 3] ^ 1);
+  std::ofstream(png, std::ios::binary) << bytes;
+  // Frame 4: a pose scaled by 2.
+  std::ofstream(dir + "/bad/frame-000004.pose.txt") << "2 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
+
+  // Without the flag: the pose is found before any frame is processed.
+  const Result pose = run("build " + dir + "/bad --out " + dir + "/m.ot");  // not a terminal: a log line per frame
+  EXPECT_EQ(pose.code, 1);
+  EXPECT_NE(pose.out.find("frame-000004.pose.txt: not a rigid transform"), std::string::npos) << pose.out;
+  EXPECT_NE(pose.out.find("(build --skip-bad-frames leaves such frames out)"), std::string::npos) << pose.out;
+  EXPECT_EQ(pose.out.find("build 1/"), std::string::npos) << pose.out;
+  EXPECT_FALSE(fs::exists(dir + "/m.ot"));
+  // The depth image's checksum is found when the frame is decoded.
+  const Result crc = run("build " + dir + "/bad --frames 0:3 --out " + dir + "/m.ot --quiet");
+  EXPECT_EQ(crc.code, 1);
+  EXPECT_NE(crc.out.find("frame-000002.depth.png: corrupt or truncated PNG (IDAT: CRC error) (build --skip-bad-frames"),
+            std::string::npos)
+      << crc.out;
+  EXPECT_FALSE(fs::exists(dir + "/m.ot"));
+
+  // With it: both are left out and named; the other four frames make the map.
+  const Result skip = run("build " + dir + "/bad --out " + dir + "/m.ot --quiet --skip-bad-frames");
+  ASSERT_EQ(skip.code, 0) << skip.out;
+  EXPECT_NE(skip.out.find("warning: skipped " + dir + "/bad/frame-000004.pose.txt: not a rigid"), std::string::npos) << skip.out;
+  EXPECT_NE(skip.out.find("warning: skipped " + png + ": corrupt"), std::string::npos) << skip.out;
+  EXPECT_NE(skip.out.find("4 of 6 frames fused"), std::string::npos) << skip.out;
+  EXPECT_NE(skip.out.find("2 frames skipped as unreadable (--skip-bad-frames)"), std::string::npos) << skip.out;
+  const auto meta = nlohmann::json::parse(fileBytes(dir + "/m.json"));
+  EXPECT_EQ(meta["frames"], 4);
+  EXPECT_EQ(meta["frames_selected"], 6);
+  EXPECT_EQ(meta["frames_unreadable"], 2);
+  ASSERT_EQ(meta["unreadable"].size(), 2u);
+  EXPECT_EQ(meta["unreadable"][0].get<std::string>().rfind(dir + "/bad/frame-000004.pose.txt: ", 0), 0u) << meta;
+  EXPECT_EQ(meta["unreadable"][1].get<std::string>().rfind(png + ": ", 0), 0u) << meta;
+  for (const char* suffix : {"-000002", "-000004"}) {
+    for (const char* kind : {".depth.png", ".color.png", ".labels.png", ".pose.txt"}) {
+      fs::remove(dir + "/clean/frame" + suffix + kind);
+    }
+  }
+  ASSERT_EQ(run("build " + dir + "/clean --out " + dir + "/clean.ot --quiet").code, 0);
+  EXPECT_TRUE(fileBytes(dir + "/m.ot") == fileBytes(dir + "/clean.ot"));
+  EXPECT_TRUE(fileBytes(dir + "/m.bt") == fileBytes(dir + "/clean.bt"));
+
+  // Nothing readable: an error, no map.
+  const Result none = run("build " + dir + "/bad --frames 2:2 --out " + dir + "/none.ot --quiet --skip-bad-frames");
+  EXPECT_EQ(none.code, 1) << none.out;
+  EXPECT_NE(none.out.find("no selected frame could be read (1 tried; the first: " + png), std::string::npos) << none.out;
+  EXPECT_FALSE(fs::exists(dir + "/none.ot"));
+  const Result no_pose = run("build " + dir + "/bad --frames 4:4 --out " + dir + "/none.ot --quiet --skip-bad-frames");
+  EXPECT_EQ(no_pose.code, 1) << no_pose.out;
+  EXPECT_NE(no_pose.out.find("no selected frame can be read (1 tried; the first: "), std::string::npos) << no_pose.out;
+  EXPECT_FALSE(fs::exists(dir + "/none.ot"));
+  // Not for a single frame.
+  const Result single = run("build " + dir + "/clean/frame-000000.depth.png --out " + dir + "/one.ot --skip-bad-frames");
+  EXPECT_EQ(single.code, 2) << single.out;
+  EXPECT_NE(single.out.find("--skip-bad-frames is for sequences of files"), std::string::npos) << single.out;
+  fs::remove_all(dir);
+}
+
 // Lengths, times and coordinates that are NaN or negative are usage errors (exit 2) naming
 // the option, not quietly taken: NaN compares false with every bound, and a negative
 // --snap used to mean "no snap" and a negative --max-pose-gap was accepted where it applies to nothing.

@@ -36,6 +36,9 @@ namespace {
 std::atomic<bool> g_interrupted{false};
 extern "C" void onSigint(int) { g_interrupted.store(true); }
 
+// Added to the error of a frame that cannot be read, when the run stops for it.
+constexpr const char* kSkipHint = " (build --skip-bad-frames leaves such frames out)";
+
 struct FrameRange {
   int first = 0, last = -1, step = 1;
 };
@@ -91,7 +94,7 @@ struct GravityGuess {
 // up axis (a camera held upright, tilted at most that much), and the floor normals,
 // taken to the world frame, vote. Without a floor in view, the cameras' mean +y axis.
 GravityGuess estimateGravity(const Sequence& dir, const std::vector<int>& frames, const perception::PerceptionParams& pp,
-                             const gp::MobilityModel& model) {
+                             const gp::MobilityModel& model, bool skip_unreadable) {
   perception::PerceptionParams p = pp;
   p.ground_max_tilt_deg = 45.0;
   const perception::FramePipeline finder(p, model);
@@ -101,7 +104,13 @@ GravityGuess estimateGravity(const Sequence& dir, const std::vector<int>& frames
   int posed = 0;
   for (std::size_t i = 0; i < samples; ++i) {
     const std::size_t at = samples == 1 ? 0 : i * (frames.size() - 1) / (samples - 1);
-    const SequenceFrame f = dir.load(frames[at]);
+    SequenceFrame f;
+    try {
+      f = dir.load(frames[at]);
+    } catch (const IoError& e) {
+      if (!skip_unreadable) throw IoError(e.path(), e.reason() + kSkipHint);
+      continue;  // the run skips it too, and says so
+    }
     if (!f.has_pose) continue;
     ++posed;
     const Eigen::Matrix3d r_wc = f.T_world_camera.linear();
@@ -234,6 +243,7 @@ Command addBuildCommand(CLI::App& app) {
     std::vector<double> keyframes;  // metres, degrees
     bool quiet = false;
     bool no_free_space = false;
+    bool skip_bad_frames = false;
     std::string config;
     std::string intrinsics;
     double max_pose_gap = 0.05;
@@ -284,6 +294,10 @@ Command addBuildCommand(CLI::App& app) {
                         ->delimiter(',')
                         ->expected(2);
   cmd->add_flag("--no-free-space", o->no_free_space, "Skip free-space updates: neither clear voxels a frame sees through nor cast free-space rays (faster; obstacles that moved stay in the map)");
+  cmd->add_flag("--skip-bad-frames", o->skip_bad_frames,
+                "Leave out, with a warning naming the file, a frame that cannot be read (a depth image that is "
+                "corrupt or cut short, a pose file that is missing or not a rigid transform, an unreadable .pcd) "
+                "instead of stopping the run; the summary and MAP.json count them. For sequences of files");
   cmd->add_flag("--quiet,-q", o->quiet, "No progress output");
   return [o, max_range, resolution, device, voxel, keyframes]() {
     namespace fs = std::filesystem;
@@ -338,6 +352,22 @@ Command addBuildCommand(CLI::App& app) {
     const bool oni = !live && fs::path(o->input).extension() == ".oni";
     if (live == !o->input.empty()) throw UsageError("give either INPUT or --device");
     const bool is_dir = live || oni || fs::is_directory(o->input, ec) || !o->poses.empty();
+    if (o->skip_bad_frames && (live || oni || !is_dir)) {
+      throw UsageError("--skip-bad-frames is for sequences of files (7-Scenes, TUM, .pcd frames with --poses), not " +
+                       std::string(live ? "a live sensor" : oni ? "an .oni recording" : "a single frame"));
+    }
+    // Frames left out as unreadable (--skip-bad-frames): "FILE: problem", in the order found.
+    std::vector<std::string> unreadable;
+    std::size_t unreadable_before_run = 0;  // left out of `frames` by the checks before the run
+    auto noteUnreadable = [&](const std::string& what) {
+      unreadable.push_back(what);
+      constexpr std::size_t kListed = 10;
+      if (unreadable.size() <= kListed) {
+        Progress::message("warning: skipped " + what);
+      } else if (unreadable.size() == kListed + 1) {
+        Progress::message("warning: more unreadable frames skipped; the summary counts them");
+      }
+    };
     if (live || oni) {
       const FrameRange range = parseRange(o->frames);
       OpenNiOptions on;
@@ -359,7 +389,23 @@ Command addBuildCommand(CLI::App& app) {
       if (frames.empty()) throw UsageError("--frames " + o->frames + " selects none of the frames in " + o->input);
       gravity_world = dir->gravityDown();
       // Every frame needs a pose: check them all before the long run starts.
-      for (int f : frames) dir->check(f);
+      std::vector<int> readable;
+      readable.reserve(frames.size());
+      for (int f : frames) {
+        try {
+          dir->check(f);
+          readable.push_back(f);
+        } catch (const IoError& e) {
+          if (!o->skip_bad_frames) throw IoError(e.path(), e.reason() + kSkipHint);
+          noteUnreadable(e.what());
+        }
+      }
+      if (readable.empty()) {
+        throw IoError(o->input, "no selected frame can be read (" + std::to_string(frames.size()) +
+                                    " tried; the first: " + unreadable.front() + "); no map written");
+      }
+      frames = std::move(readable);
+      unreadable_before_run = unreadable.size();
       if (keyframes->count() > 0) {
         if (live || oni) {
           throw UsageError("--keyframes needs the poses before the run (7-Scenes, TUM, .pcd frames with --poses); "
@@ -434,7 +480,7 @@ Command addBuildCommand(CLI::App& app) {
                        ")";
     }
     if (is_dir && !gravity_world && !live && !oni) {
-      const GravityGuess guess = estimateGravity(*dir, frames, pp, model);
+      const GravityGuess guess = estimateGravity(*dir, frames, pp, model, o->skip_bad_frames);
       gravity_world = guess.down;
       gravity_source = guess.how;
       std::fprintf(stderr, "note: gravity (down) in the world frame (%.3f, %.3f, %.3f), from %s; --gravity X,Y,Z sets it\n",
@@ -501,6 +547,7 @@ Command addBuildCommand(CLI::App& app) {
     std::vector<std::pair<std::string, double>> stage_ms;  // in pipeline order
     std::size_t points = 0;
     int used = 0, no_ground = 0, no_pose = 0;
+    int unreadable_in_run = 0;  // frames skipped as unreadable after the run started
     int last_fused = frames.front();  // frame number of the last frame fused
     nlohmann::json trajectory = nlohmann::json::array();  // camera positions, map frame
     double read_ms = 0, fuse_ms = 0;
@@ -517,7 +564,7 @@ Command addBuildCommand(CLI::App& app) {
       meta["input"] = live ? device_label : fs::absolute(o->input, ec).lexically_normal().string();
       meta["frames"] = used;
       meta["frames_in_run"] = used;
-      meta["frames_selected"] = frames.size();
+      meta["frames_selected"] = frames.size() + unreadable_before_run;
       if (keyframes_considered > 0) {
         meta["keyframes"] = {{"min_translation_m", o->keyframes[0]}, {"min_rotation_deg", o->keyframes[1]},
                              {"frames_considered", keyframes_considered}};
@@ -531,6 +578,10 @@ Command addBuildCommand(CLI::App& app) {
       if (!o->poses.empty()) meta["poses"] = fs::absolute(o->poses, ec).lexically_normal().string();
       meta["max_pose_gap_s"] = o->max_pose_gap;
       if (no_pose > 0) meta["frames_without_pose"] = no_pose;
+      if (!unreadable.empty()) {
+        meta["frames_unreadable"] = unreadable.size();
+        meta["unreadable"] = unreadable;
+      }
       meta["frame_numbers"] = {frames.front(), last_fused};
       meta["interrupted"] = g_interrupted.load();
       meta["resolution_m"] = map.tree().getResolution();
@@ -584,12 +635,21 @@ Command addBuildCommand(CLI::App& app) {
       } catch (const StreamInterrupted&) {  // Ctrl-C while a live sensor was silent
         in_flight.pop_front();
         continue;
+      } catch (const IoError& e) {  // a frame that passed check() but cannot be decoded
+        if (live || oni) throw;
+        if (!o->skip_bad_frames) throw IoError(e.path(), e.reason() + kSkipHint);
+        in_flight.pop_front();
+        launch();
+        noteUnreadable(e.what());
+        ++unreadable_in_run;
+        progress.update(used + no_pose + unreadable_in_run, "map " + std::to_string(map.tree().size()) + " nodes");
+        continue;
       }
       in_flight.pop_front();
       launch();
       if (s.no_pose) {
         ++no_pose;
-        progress.update(used + no_pose, "map " + std::to_string(map.tree().size()) + " nodes");
+        progress.update(used + no_pose + unreadable_in_run, "map " + std::to_string(map.tree().size()) + " nodes");
         continue;
       }
       const auto t0 = std::chrono::steady_clock::now();
@@ -607,8 +667,9 @@ Command addBuildCommand(CLI::App& app) {
       no_ground += !s.result.ground_plane;
       ++used;
       last_fused = s.number;
-      progress.update(used + no_pose, "map " + std::to_string(map.tree().size()) + " nodes");
-      if (o->checkpoint > 0 && used % o->checkpoint == 0 && used + no_pose < static_cast<int>(frames.size())) {
+      progress.update(used + no_pose + unreadable_in_run, "map " + std::to_string(map.tree().size()) + " nodes");
+      if (o->checkpoint > 0 && used % o->checkpoint == 0 &&
+          used + no_pose + unreadable_in_run < static_cast<int>(frames.size())) {
         writeMap(true, std::chrono::duration<double>(std::chrono::steady_clock::now() - run_start).count());
       }
     }
@@ -622,6 +683,10 @@ Command addBuildCommand(CLI::App& app) {
       msg << "none of the " << no_pose << " frames read has a pose within " << o->max_pose_gap
           << " s of its time stamp (are the poses on the sensor's clock, in seconds?); no map written";
       throw IoError(o->poses, msg.str());
+    }
+    if (used == 0 && unreadable_in_run > 0 && !g_interrupted.load()) {
+      throw IoError(o->input, "no selected frame could be read (" + std::to_string(unreadable.size()) +
+                                  " tried; the first: " + unreadable.front() + "); no map written");
     }
     if (g_interrupted.load() && used == 0) {
       // Stopped before the first frame was fused: there is nothing to save, and a map
@@ -656,7 +721,7 @@ Command addBuildCommand(CLI::App& app) {
     const std::string keyframe_note =
         keyframes_considered > 0 ? ", keyframes of " + std::to_string(keyframes_considered) + " selected" : "";
     std::printf("\n%d of %zu frames fused (%d without a ground plane%s)%s in %.1f s (%.1f frames/s), %zu points, %zu map nodes (%zu leaves)\n",
-                used, frames.size(), no_ground, keyframe_note.c_str(), g_interrupted.load() ? ", INTERRUPTED" : "", run_s,
+                used, frames.size() + unreadable_before_run, no_ground, keyframe_note.c_str(), g_interrupted.load() ? ", INTERRUPTED" : "", run_s,
                 meta["frames_per_second"].get<double>(), points, map.tree().size(), map.tree().getNumLeafNodes());
     if (existing) {
       std::printf("the map now holds %d frames from %zu runs\n", meta["frames"].get<int>(), meta["earlier_runs"].size() + 1);
@@ -666,6 +731,11 @@ Command addBuildCommand(CLI::App& app) {
                   o->poses.c_str());
     }
     if (live && !dir->skipped().empty()) std::printf("%s\n", dir->skipped().c_str());
+    if (!unreadable.empty()) {
+      std::printf("%zu %s skipped as unreadable (--skip-bad-frames), the first: %s%s\n", unreadable.size(),
+                  unreadable.size() == 1 ? "frame" : "frames", unreadable.front().c_str(),
+                  unreadable.size() > 1 ? " (MAP.json lists them all)" : "");
+    }
     std::printf("time per frame (ms): read %.1f", used ? read_ms / used : 0.0);
     for (const auto& [name, ms] : stage_ms) std::printf(", %s %.1f", name.c_str(), ms / std::max(1, used));
     std::printf(", fusion %.1f\n", used ? fuse_ms / used : 0.0);

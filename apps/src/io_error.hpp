@@ -11,11 +11,13 @@ namespace mobmap::app {
 class IoError : public std::runtime_error {
  public:
   IoError(const std::string& path, const std::string& reason)
-      : std::runtime_error(path + ": " + reason), path_(path) {}
+      : std::runtime_error(path + ": " + reason), path_(path), reason_(reason) {}
   [[nodiscard]] const std::string& path() const { return path_; }
+  [[nodiscard]] const std::string& reason() const { return reason_; }
 
  private:
   std::string path_;
+  std::string reason_;
 };
 
 /// A mistake on the command line (exit code 2).

@@ -18,6 +18,12 @@ class Progress {
            std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now())
       : label_(std::move(label)), total_(total), quiet_(quiet), tty_(::isatty(2) == 1), start_(start) {}
 
+  /// Writes `line` (and a newline) to stderr over the status line on a terminal, which
+  /// the next update() draws again below it; shown with --quiet too.
+  static void message(const std::string& line) {
+    std::fprintf(stderr, "%s%s\n", ::isatty(2) == 1 ? "\r\x1b[K" : "", line.c_str());
+  }
+
   void update(int done, const std::string& extra = "") {
     if (quiet_ || total_ <= 0) return;
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();

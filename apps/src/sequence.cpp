@@ -31,6 +31,7 @@ class SevenScenesSequence : public Sequence {
   void check(int n) const override {
     std::error_code ec;
     if (!fs::exists(dir_.posePath(n), ec)) throw IoError(dir_.posePath(n), "missing: every frame needs a pose");
+    (void)dir_.readPose(n);  // parsed and found rigid now, not when the run reaches frame n
     checkPngComplete(dir_.depthPath(n));
   }
   SequenceFrame load(int n) const override {
