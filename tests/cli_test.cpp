@@ -504,6 +504,16 @@ TEST(Cli, CoarserVoxelsReduceTheCloudAndKeepTheFloor) {
   EXPECT_EQ(ov.code, 2) << ov.out;
   EXPECT_NE(ov.out.find("mobmap analyze FILE --overlay OUT.png"), std::string::npos) << ov.out;
   EXPECT_FALSE(fs::exists(dir + "/ov.png"));
+  // A mistyped map name is said to be one, not taken for a map without its MAP.json.
+  const Result typo = run("overlay " + dir + "/n.ot --frame 0 --out " + dir + "/ov.png");
+  EXPECT_EQ(typo.code, 1) << typo.out;
+  EXPECT_NE(typo.out.find(dir + "/n.ot: no such file"), std::string::npos) << typo.out;
+  // A map without its MAP.json: N alone names no input.
+  fs::copy_file(dir + "/m.ot", dir + "/bare.ot");
+  const Result bare = run("overlay " + dir + "/bare.ot --frame 0 --out " + dir + "/ov.png");
+  EXPECT_EQ(bare.code, 2) << bare.out;
+  EXPECT_NE(bare.out.find("give INPUT:N (there is no MAP.json to name the input)"), std::string::npos) << bare.out;
+  EXPECT_FALSE(fs::exists(dir + "/ov.png"));
   fs::remove_all(dir);
 }
 

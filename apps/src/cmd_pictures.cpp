@@ -131,6 +131,8 @@ Command addOverlayCommand(CLI::App& app) {
                               "map's, else 0.05)")
                  ->check(finiteNonNegative());
   return [o, gap]() {
+    // The map first: a mistyped map name is reported as such, not as a MAP.json that is missing.
+    std::unique_ptr<mapping::MobilityOcTree> tree = mapping::loadMobilityMap(o->map);
     // MAP.json says how the map's runs read their frames: overlay reads them the same
     // way unless told otherwise (wrong intrinsics would shift the picture silently).
     const mapping::MapMetadata metadata = mapping::readMapMetadata(o->map);
@@ -201,7 +203,7 @@ Command addOverlayCommand(CLI::App& app) {
       throw IoError(input, "its frames are unorganized clouds, not images: there is no picture to draw the map into");
     }
     const LoadedFrame f = loadSequenceFrame(*seq, input, n);
-    const mapping::MobilityMap map = mapping::openMap(mapping::loadMobilityMap(o->map), metadata);
+    const mapping::MobilityMap map = mapping::openMap(std::move(tree), metadata);
     const auto& k = f.intrinsics;
     // Base image: the frame's colour image in grey when the input has one, else shaded depth.
     const bool colour = f.colour && o->background == "colour";
