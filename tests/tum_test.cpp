@@ -3,6 +3,7 @@
 // --poses trajectory (in order or by time stamps in the file names), built into maps.
 #include "canvas.hpp"
 #include "dataset.hpp"
+#include "frame_source.hpp"
 #include "io_error.hpp"
 #include "png_io.hpp"
 #include "map_files.hpp"
@@ -412,6 +413,66 @@ void writeOrganizedPcd(const sim::CorridorScene& scene, int f, const std::string
       out.write(reinterpret_cast<const char*>(&packed), sizeof packed);
     }
   }
+}
+
+// A .pcd frame cut short is found from its header and size before a run, without
+// parsing its points: binary data shorter than WIDTH x HEIGHT x point size, or
+// binary_compressed data shorter than its block's declared size.
+TEST(PcdSequence, ACutFrameIsFoundFromItsHeaderBeforeTheRun) {
+  sim::CorridorParams p;
+  p.frames = 2;
+  p.noise = sim::NoiseModel::kNone;
+  const sim::CorridorScene scene(p);
+  const fs::path dir = fs::temp_directory_path() / ("mobmap-pcdcut-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir / "frames");
+  const std::string a = (dir / "frames" / "a.pcd").string(), b = (dir / "frames" / "b.pcd").string();
+  writeOrganizedPcd(scene, 0, a);
+  writeOrganizedPcd(scene, 1, b);
+  {
+    std::ofstream poses(dir / "poses.txt");
+    sim::writeTumPoseLine(poses, 0.0, scene.cameraPose(0));
+    sim::writeTumPoseLine(poses, 0.0, scene.cameraPose(1));
+  }
+  const auto full = fs::file_size(b);
+  fs::resize_file(b, full - 1);  // one byte short of the last point's rgb
+  const auto seq = app::openSequence((dir / "frames").string(), "", 0.05, (dir / "poses.txt").string());
+  EXPECT_NO_THROW(seq->check(0));
+  try {
+    seq->check(1);
+    FAIL() << "a cut frame passed the check";
+  } catch (const app::IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("b.pcd: PCD data is shorter than its header declares (" + std::to_string(full - 1) +
+                                         " bytes, " + std::to_string(full) + " needed)"),
+              std::string::npos)
+        << e.what();
+  }
+  // binary_compressed: the block says 1000 compressed bytes follow its two sizes.
+  const std::string head = "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 100\n"
+                           "HEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 100\nDATA binary_compressed\n";
+  const std::string sizes("\xe8\x03\x00\x00\xb0\x04\x00\x00", 8);  // 1000, 1200
+  const std::string c = (dir / "c.pcd").string();
+  std::ofstream(c, std::ios::binary) << head << sizes << std::string(999, 'z');
+  EXPECT_THROW(app::checkPcdComplete(c), app::IoError);
+  std::ofstream(c, std::ios::binary) << head << sizes << std::string(1000, 'z');
+  EXPECT_NO_THROW(app::checkPcdComplete(c));  // the sizes add up (the bytes are only checked by loading)
+  std::ofstream(c, std::ios::binary) << head << sizes.substr(0, 5);
+  EXPECT_THROW(app::checkPcdComplete(c), app::IoError);
+  // No x, y, z; and ASCII, which only loading can check.
+  const std::string d = (dir / "d.pcd").string();
+  std::ofstream(d) << "# .PCD v0.7\nVERSION 0.7\nFIELDS x y\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nWIDTH 1\nHEIGHT 1\n"
+                      "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 1\nDATA ascii\n1 2\n";
+  try {
+    app::checkPcdComplete(d);
+    FAIL();
+  } catch (const app::IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("d.pcd: PCD has no x, y and z fields"), std::string::npos) << e.what();
+  }
+  std::ofstream(d) << "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\n"
+                      "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA ascii\n1 2 3\n";
+  EXPECT_NO_THROW(app::checkPcdComplete(d));
+  EXPECT_THROW(app::checkPcdComplete((dir / "none.pcd").string()), app::IoError);
+  fs::remove_all(dir);
 }
 
 TEST(PcdSequence, FileNameTimeStamps) {

@@ -732,9 +732,12 @@ Command addBuildCommand(CLI::App& app) {
     }
     if (live && !dir->skipped().empty()) std::printf("%s\n", dir->skipped().c_str());
     if (!unreadable.empty()) {
-      std::printf("%zu %s skipped as unreadable (--skip-bad-frames), the first: %s%s\n", unreadable.size(),
-                  unreadable.size() == 1 ? "frame" : "frames", unreadable.front().c_str(),
-                  unreadable.size() > 1 ? " (MAP.json lists them all)" : "");
+      if (unreadable.size() == 1) {
+        std::printf("1 frame skipped as unreadable (--skip-bad-frames): %s\n", unreadable.front().c_str());
+      } else {
+        std::printf("%zu frames skipped as unreadable (--skip-bad-frames), the first: %s (MAP.json lists them all)\n",
+                    unreadable.size(), unreadable.front().c_str());
+      }
     }
     std::printf("time per frame (ms): read %.1f", used ? read_ms / used : 0.0);
     for (const auto& [name, ms] : stage_ms) std::printf(", %s %.1f", name.c_str(), ms / std::max(1, used));

@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <sstream>
 
 namespace mobmap::app {
@@ -28,26 +29,71 @@ Eigen::Vector3f parseVector3(const std::string& spec, const std::string& what) {
   return (d / length).cast<float>();
 }
 
-LoadedFrame loadPcd(const std::string& path) {
+namespace {
+
+struct PcdHeader {
+  pcl::PCLPointCloud2 fields;  // fields, width, height, point_step; no data
+  int data_type = 0;           // 0 ascii, 1 binary, 2 binary_compressed
+  unsigned int data_offset = 0;
+  bool has_rgb = false;
+};
+
+// The header of a .pcd, which must exist and have x, y and z; IoError if not.
+PcdHeader readPcdHeader(const std::string& path) {
   if (!std::filesystem::exists(path)) throw IoError(path, "no such file");
   pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);  // errors come back as codes; we word them
   pcl::PCDReader reader;
-  pcl::PCLPointCloud2 header;
+  PcdHeader h;
   Eigen::Vector4f origin;
   Eigen::Quaternionf orientation;
-  int version = 0, type = 0;
-  unsigned int offset = 0;
-  if (reader.readHeader(path, header, origin, orientation, version, type, offset) < 0) {
+  int version = 0;
+  if (reader.readHeader(path, h.fields, origin, orientation, version, h.data_type, h.data_offset) < 0) {
     throw IoError(path, "not a readable PCD file (bad header)");
   }
-  bool has_x = false, has_y = false, has_z = false, has_rgb = false;
-  for (const auto& f : header.fields) {
+  bool has_x = false, has_y = false, has_z = false;
+  for (const auto& f : h.fields.fields) {
     has_x |= f.name == "x";
     has_y |= f.name == "y";
     has_z |= f.name == "z";
-    has_rgb |= f.name == "rgb" || f.name == "rgba";
+    h.has_rgb |= f.name == "rgb" || f.name == "rgba";
   }
   if (!(has_x && has_y && has_z)) throw IoError(path, "PCD has no x, y and z fields");
+  return h;
+}
+
+}  // namespace
+
+void checkPcdComplete(const std::string& path) {
+  const PcdHeader h = readPcdHeader(path);
+  std::error_code ec;
+  const auto size = static_cast<unsigned long long>(std::filesystem::file_size(path, ec));
+  if (ec) throw IoError(path, "cannot read its size: " + ec.message());
+  const unsigned long long start = h.data_offset;
+  unsigned long long need = start;
+  if (h.data_type == 1) {
+    need += static_cast<unsigned long long>(h.fields.width) * h.fields.height * h.fields.point_step;
+  } else if (h.data_type == 2) {
+    // Two little-endian 32-bit sizes (compressed, uncompressed), then the compressed bytes.
+    std::ifstream in(path, std::ios::binary);
+    unsigned char sizes[8] = {};
+    if (!in.seekg(static_cast<std::streamoff>(start)) || !in.read(reinterpret_cast<char*>(sizes), 8)) {
+      throw IoError(path, "PCD data is corrupt or shorter than its header declares (no compressed block sizes)");
+    }
+    const unsigned long long compressed = sizes[0] | sizes[1] << 8 | sizes[2] << 16 | static_cast<unsigned long long>(sizes[3]) << 24;
+    need += 8 + compressed;
+  } else {
+    return;  // ASCII: only loading it tells
+  }
+  if (size < need) {
+    throw IoError(path, "PCD data is shorter than its header declares (" + std::to_string(size) + " bytes, " +
+                            std::to_string(need) + " needed)");
+  }
+}
+
+LoadedFrame loadPcd(const std::string& path) {
+  const PcdHeader h = readPcdHeader(path);
+  const bool has_rgb = h.has_rgb;
+  pcl::PCDReader reader;
   pcl::PointCloud<pcl::PointXYZRGBA> cloud;
   if (reader.read(path, cloud) < 0) throw IoError(path, "PCD data is corrupt or shorter than its header declares");
   LoadedFrame f;

@@ -36,6 +36,11 @@ struct LoadedFrame {
 /// Reads a PCD file (x y z, optional rgb/rgba) with PCL. IoError naming the file if it
 /// is missing, unreadable, has no x/y/z fields or fewer points than declared.
 LoadedFrame loadPcd(const std::string& path);
+/// Checks cheaply (header only, no point parsed) that a .pcd can be loaded: a readable
+/// header with x, y and z, and for binary and binary_compressed data at least the bytes
+/// the header declares. ASCII data is not checked (counting its lines means reading it).
+/// IoError naming the file if not.
+void checkPcdComplete(const std::string& path);
 
 
 /// Runs `pipeline` on a loaded frame: its depth image, else its cloud (organized when

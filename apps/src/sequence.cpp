@@ -153,6 +153,7 @@ class PcdSequence : public Sequence {
     std::error_code ec;
     const std::string& path = entries_.at(static_cast<std::size_t>(n)).path;
     if (!fs::exists(path, ec)) throw IoError(path, "missing");
+    checkPcdComplete(path);
   }
   SequenceFrame load(int n) const override {
     const Entry& e = entries_.at(static_cast<std::size_t>(n));
