@@ -43,24 +43,11 @@ void createParentDirectory(const std::string& path) {
 
 }  // namespace
 
-void writeAtomically(const std::string& path, const std::function<void(const std::string&)>& write) {
-  std::error_code ec;
-  createParentDirectory(path);
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
-  try {
-    write(tmp);
-  } catch (...) {
-    std::filesystem::remove(tmp, ec);
-    throw;
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const std::string reason = std::strerror(errno);
-    std::filesystem::remove(tmp, ec);
-    throw IoError(path, "cannot rename the temporary file into place: " + reason);
-  }
-}
+namespace {
 
-void writeFilesTogether(const std::vector<PendingFile>& files) {
+// Writes each file to path + suffix + PID, then renames them all into place in order;
+// on a failed write every temporary is removed and the error names the file itself.
+void replaceFiles(const std::vector<PendingFile>& files, const std::string& suffix) {
   std::error_code ec;
   std::vector<std::string> temporaries;
   const auto discard = [&](std::size_t from) {
@@ -68,16 +55,20 @@ void writeFilesTogether(const std::vector<PendingFile>& files) {
   };
   for (const PendingFile& f : files) {
     createParentDirectory(f.path);
-    // Not ".tmp.PID": the writer may itself write through path + ".tmp.PID".
-    temporaries.push_back(f.path + ".new." + std::to_string(::getpid()));
+    temporaries.push_back(f.path + suffix + std::to_string(::getpid()));
     const std::string& tmp = temporaries.back();
     try {
       f.write(tmp);
     } catch (const std::exception& e) {
       discard(0);
-      // The writer named the temporary file; the user knows the file by its own name.
-      const std::string what = e.what();
-      const std::string reason = what.rfind(tmp + ": ", 0) == 0 ? what.substr(tmp.size() + 2) : what;
+      // The user knows the file by its own name, not by the temporary's a writer may give.
+      std::string reason;
+      if (const auto* io = dynamic_cast<const IoError*>(&e)) {
+        reason = io->reason();
+      } else {
+        const std::string what = e.what();
+        reason = what.rfind(tmp + ": ", 0) == 0 ? what.substr(tmp.size() + 2) : what;
+      }
       throw IoError(f.path, reason + (files.size() > 1 ? "; no file of the set was changed" : ""));
     } catch (...) {
       discard(0);
@@ -92,6 +83,18 @@ void writeFilesTogether(const std::vector<PendingFile>& files) {
                                        (i > 0 ? " (the files before it in the set were replaced)" : ""));
     }
   }
+}
+
+}  // namespace
+
+void writeAtomically(const std::string& path, const std::function<void(const std::string&)>& write) {
+  replaceFiles({{path, write}}, ".tmp.");
+}
+
+void writeFilesTogether(const std::vector<PendingFile>& files) {
+  // Not ".tmp.PID", which the writers' own atomic saves use inside: a temporary left
+  // behind by a killed run then says which of the two left it.
+  replaceFiles(files, ".new.");
 }
 
 void checkWritable(const std::string& path) {
