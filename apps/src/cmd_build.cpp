@@ -36,8 +36,10 @@ namespace {
 std::atomic<bool> g_interrupted{false};
 extern "C" void onSigint(int) { g_interrupted.store(true); }
 
-// Added to the error of a frame that cannot be read, when the run stops for it.
-constexpr const char* kSkipHint = " (build --skip-bad-frames leaves such frames out)";
+// The error of a frame that cannot be read, when the run stops for it: it says how not to.
+IoError withSkipHint(const IoError& e) {
+  return IoError(e.path(), e.reason() + " (build --skip-bad-frames leaves such frames out)");
+}
 
 struct FrameRange {
   int first = 0, last = -1, step = 1;
@@ -108,7 +110,7 @@ GravityGuess estimateGravity(const Sequence& dir, const std::vector<int>& frames
     try {
       f = dir.load(frames[at]);
     } catch (const IoError& e) {
-      if (!skip_unreadable) throw IoError(e.path(), e.reason() + kSkipHint);
+      if (!skip_unreadable) throw withSkipHint(e);
       continue;  // the run skips it too, and says so
     }
     if (!f.has_pose) continue;
@@ -396,7 +398,7 @@ Command addBuildCommand(CLI::App& app) {
           dir->check(f);
           readable.push_back(f);
         } catch (const IoError& e) {
-          if (!o->skip_bad_frames) throw IoError(e.path(), e.reason() + kSkipHint);
+          if (!o->skip_bad_frames) throw withSkipHint(e);
           noteUnreadable(e.what());
         }
       }
@@ -637,7 +639,7 @@ Command addBuildCommand(CLI::App& app) {
         continue;
       } catch (const IoError& e) {  // a frame that passed check() but cannot be decoded
         if (live || oni) throw;
-        if (!o->skip_bad_frames) throw IoError(e.path(), e.reason() + kSkipHint);
+        if (!o->skip_bad_frames) throw withSkipHint(e);
         in_flight.pop_front();
         launch();
         noteUnreadable(e.what());
