@@ -2,13 +2,17 @@
 // configured as the paper's original code (b), on the same VGA frames, in one run.
 // Prints per-frame times and the medians of (a), (b) and (b)/(a). Release builds only.
 //
-//   perception_bench [SHARED_DATA_DIR] [--all] [--ours-only] [--repeat N] [--config FILE] [--voxel M]
+//   perception_bench [SHARED_DATA_DIR] [--all] [--ours-only] [--repeat N] [--config FILE] [--voxel M] [--dump FILE]
 //
 // (a) runs N times per frame (default 3) and its median is reported; (b) runs once.
 // --config FILE changes (a)'s parameters (for experiments; the reference is fixed);
 // --voxel M then rescales them to M-metre voxels as `mobmap build --voxel` does.
 // The allocator is set up as in `mobmap` (apps/src/main.cpp), so large buffers are
 // reused instead of being mapped and faulted in afresh for every frame.
+//
+// --dump FILE writes, per frame, digests of (a)'s output (points, normals, labels,
+// segment features: every bit) and each segment's features in text, so that a speed
+// change can be checked to leave the results as they were: run both builds, diff.
 //
 // Without --all, every 50th frame of 7scenes-redkitchen is used (the reference takes
 // seconds per frame); all other VGA frames of the data folder are always used.
@@ -31,7 +35,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdlib>
+#include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <malloc.h>
 #include <map>
@@ -66,6 +72,42 @@ Input fromDepth(const std::string& name, const perception::DepthImage& d, const 
     }
   }
   return in;
+}
+
+// FNV-1a over raw bytes: a digest that changes when any bit of the output does.
+class Digest {
+ public:
+  template <typename T>
+  void add(const T& value) {
+    unsigned char bytes[sizeof(T)];
+    std::memcpy(bytes, &value, sizeof(T));
+    for (unsigned char b : bytes) h_ = (h_ ^ b) * 0x100000001b3ULL;
+  }
+  [[nodiscard]] std::uint64_t value() const { return h_; }
+
+ private:
+  std::uint64_t h_ = 0xcbf29ce484222325ULL;
+};
+
+void dumpResult(std::FILE* f, const std::string& name, const perception::FrameResult& r) {
+  Digest points, normals, labels, features;
+  for (const auto& p : r.points) points.add(p.x()), points.add(p.y()), points.add(p.z());
+  for (std::size_t i = 0; i < r.normals.size(); ++i) {
+    normals.add(r.normals[i].x()), normals.add(r.normals[i].y()), normals.add(r.normals[i].z());
+    normals.add(r.curvature[i]);
+  }
+  for (int l : r.segment_of_point) labels.add(l);
+  for (const auto& s : r.segments) {
+    features.add(s.slope_deg), features.add(s.roughness), features.add(s.mobility), features.add(s.area_m2);
+  }
+  std::fprintf(f, "%s: %zu points, %zu segments; points %016llx normals %016llx labels %016llx features %016llx\n",
+               name.c_str(), r.points.size(), r.segments.size(), static_cast<unsigned long long>(points.value()),
+               static_cast<unsigned long long>(normals.value()), static_cast<unsigned long long>(labels.value()),
+               static_cast<unsigned long long>(features.value()));
+  for (const auto& s : r.segments) {
+    std::fprintf(f, "  %3d %6zu %s%s slope %.6f roughness %.6f mobility %.6f\n", s.id, s.points.size(),
+                 s.is_ground ? "g" : "-", s.is_rough ? "r" : "-", s.slope_deg, s.roughness, s.mobility);
+  }
 }
 
 // (b): the paper's original configuration of stock PCL classes.
@@ -158,7 +200,7 @@ int main(int argc, char** argv) {
   std::string data = "../shared/data";
   bool all = false, ours_only = false;
   int repeat = 3;
-  std::string config_path;
+  std::string config_path, dump_path;
   double voxel = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -167,6 +209,7 @@ int main(int argc, char** argv) {
     else if (a == "--repeat" && i + 1 < argc) repeat = std::max(1, std::atoi(argv[++i]));
     else if (a == "--config" && i + 1 < argc) config_path = argv[++i];
     else if (a == "--voxel" && i + 1 < argc) voxel = std::atof(argv[++i]);
+    else if (a == "--dump" && i + 1 < argc) dump_path = argv[++i];
     else data = a;
   }
   mallopt(M_MMAP_THRESHOLD, 256 << 20);  // as apps/src/main.cpp
@@ -202,6 +245,11 @@ int main(int argc, char** argv) {
   if (!config_path.empty()) config = app::loadConfig(config_path);
   if (voxel != 0) config.perception = perception::scaledToVoxel(config.perception, voxel);
   const perception::FramePipeline pipeline(config.perception, app::makeModel(config));  // 3 m range, one thread
+  std::FILE* dump = nullptr;
+  if (!dump_path.empty() && !(dump = std::fopen(dump_path.c_str(), "w"))) {
+    std::fprintf(stderr, "cannot write %s\n", dump_path.c_str());
+    return 1;
+  }
   std::printf("%-40s %10s %10s %8s\n", "frame (VGA)", "(a) ms", "(b) ms", "(b)/(a)");
   std::vector<double> a_all, b_all, ratio;
   std::vector<std::vector<double>> b_stages(6);
@@ -214,6 +262,7 @@ int main(int argc, char** argv) {
       const auto r = pipeline.processOrganized(in.organized, in.width, in.height);
       runs.push_back(ms(t0, Clock::now()));
       for (const auto& s : r.stages) run_stages[s.name].push_back(s.milliseconds);
+      if (dump && rep == 0) dumpResult(dump, in.name, r);
     }
     const double a = median(runs);
     for (const auto& [name, v] : run_stages) a_stages[name].push_back(median(v));
@@ -234,5 +283,6 @@ int main(int argc, char** argv) {
   std::printf("\n(b) per stage:");
   for (int i = 0; i < 6; ++i) std::printf(" %s %.1f", names[i], median(b_stages[static_cast<std::size_t>(i)]));
   std::printf("\n");
+  if (dump) std::fclose(dump);
   return 0;
 }
