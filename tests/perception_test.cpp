@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <limits>
 #include <map>
@@ -33,14 +34,74 @@ std::vector<Eigen::Vector3f> randomCloud(int n, unsigned seed) {
   return pts;
 }
 
+// Every instruction set this machine can run (the portable loops always); each must
+// give the brute-force graph exactly.
+std::vector<Simd> simdChoices() {
+  std::vector<Simd> out{Simd::kPortable};
+  if (simdSupported(Simd::kAvx512)) {
+    out.push_back(Simd::kAvx512);
+  } else {
+    std::printf("note: this CPU has no AVX-512; only the portable kernels are tested\n");
+  }
+  return out;
+}
+
+void expectSameGraph(const KnnGraph& fast, const KnnGraph& ref, const std::string& what) {
+  EXPECT_EQ(fast.count, ref.count) << what;
+  EXPECT_EQ(fast.indices, ref.indices) << what;
+  EXPECT_EQ(fast.sq_dist, ref.sq_dist) << what;
+}
+
 TEST(Neighbours, GridKnnEqualsBruteForce) {
   const auto pts = randomCloud(3000, 1);
-  for (int k : {1, 8, 30}) {
-    const KnnGraph fast = buildKnnGraph(pts, k, 0.02f, 10.f);
-    const KnnGraph ref = bruteForceKnnGraph(pts, k);
-    EXPECT_EQ(fast.count, ref.count) << "k " << k;
-    EXPECT_EQ(fast.indices, ref.indices) << "k " << k;
-    EXPECT_EQ(fast.sq_dist, ref.sq_dist) << "k " << k;
+  for (Simd simd : simdChoices()) {
+    for (int k : {1, 8, 30}) {
+      expectSameGraph(buildKnnGraph(pts, k, 0.02f, 10.f, simd), bruteForceKnnGraph(pts, k),
+                      std::string(toString(simd)) + " k " + std::to_string(k));
+    }
+  }
+}
+
+TEST(Neighbours, SparseAndDenseRegionsTakeEveryBranchOfTheSearch) {
+  // Clusters 2-6 cells apart (rows that need rings 2 and beyond), isolated points with
+  // fewer than k neighbours even within the maximum radius, and a dense blob in which a
+  // cell's guaranteed radius holds hundreds of candidates (the selection for more than
+  // the 64 keys the vector ranking takes).
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  std::vector<Eigen::Vector3f> pts;
+  for (int c = 0; c < 12; ++c) {
+    const Eigen::Vector3f centre(0.09f * static_cast<float>(c), 0.07f * static_cast<float>(c % 3), 0.f);
+    for (int i = 0; i < 6 + 3 * c; ++i) pts.push_back(centre + 0.015f * Eigen::Vector3f(u(rng), u(rng), u(rng)));
+  }
+  for (int i = 0; i < 5; ++i) pts.emplace_back(2.f + 0.5f * static_cast<float>(i), -1.f, 0.3f);
+  for (int i = 0; i < 600; ++i) pts.push_back(Eigen::Vector3f(-0.5f, 0.f, 0.f) + 0.01f * Eigen::Vector3f(u(rng), u(rng), u(rng)));
+  for (Simd simd : simdChoices()) {
+    for (int k : {4, 30}) {
+      for (float max_radius : {0.25f, 1.f}) {
+        const KnnGraph fast = buildKnnGraph(pts, k, 0.02f, max_radius, simd);
+        KnnGraph ref = bruteForceKnnGraph(pts, k);
+        // The reference knows no radius: cut its rows at it.
+        for (std::size_t i = 0; i < pts.size(); ++i) {
+          int c = 0;
+          while (c < ref.count[i] && ref.sq_dist[i * static_cast<std::size_t>(k) + static_cast<std::size_t>(c)] <= max_radius * max_radius) ++c;
+          for (int j = c; j < ref.count[i]; ++j) {
+            ref.indices[i * static_cast<std::size_t>(k) + static_cast<std::size_t>(j)] = -1;
+            ref.sq_dist[i * static_cast<std::size_t>(k) + static_cast<std::size_t>(j)] = 0.f;
+          }
+          ref.count[i] = c;
+        }
+        expectSameGraph(fast, ref, std::string(toString(simd)) + " k " + std::to_string(k) + " radius " + std::to_string(max_radius));
+        if (max_radius < 1.f) {
+          EXPECT_LT(*std::min_element(fast.count.begin(), fast.count.end()), k);  // short rows exist
+        }
+      }
+    }
+  }
+  if (simdSupported(Simd::kAvx512)) {
+    EXPECT_NO_THROW(resolveSimd(Simd::kAvx512, "test"));
+  } else {
+    EXPECT_THROW(buildKnnGraph(pts, 4, 0.02f, 1.f, Simd::kAvx512), std::invalid_argument);
   }
 }
 
@@ -58,23 +119,24 @@ TEST(Neighbours, GridKnnEqualsBruteForceOnALatticeFullOfTies) {
       for (int l = 0; l < 4; ++l) slab.emplace_back(0.01f * i, 0.01f * j, 0.01f * l);
     }
   }
-  for (const auto* pts : {&plane, &slab}) {
-    for (int k : {4, 16, 30}) {
-      const KnnGraph fast = buildKnnGraph(*pts, k, 0.0375f, 0.2f);
-      const KnnGraph ref = bruteForceKnnGraph(*pts, k);
-      EXPECT_EQ(fast.count, ref.count) << "k " << k;
-      EXPECT_EQ(fast.indices, ref.indices) << "k " << k;
-      EXPECT_EQ(fast.sq_dist, ref.sq_dist) << "k " << k;
+  for (Simd simd : simdChoices()) {
+    for (const auto* pts : {&plane, &slab}) {
+      for (int k : {4, 16, 30}) {
+        expectSameGraph(buildKnnGraph(*pts, k, 0.0375f, 0.2f, simd), bruteForceKnnGraph(*pts, k),
+                        std::string(toString(simd)) + " k " + std::to_string(k));
+      }
     }
   }
 }
 
 TEST(Neighbours, MaxRadiusDropsFarNeighbours) {
   std::vector<Eigen::Vector3f> pts = {{0, 0, 0}, {0.01f, 0, 0}, {1, 0, 0}};
-  const KnnGraph g = buildKnnGraph(pts, 2, 0.05f, 0.1f);
-  EXPECT_EQ(g.count[0], 1);
-  EXPECT_EQ(g.indices[0], 1);
-  EXPECT_EQ(g.count[2], 0);
+  for (Simd simd : simdChoices()) {
+    const KnnGraph g = buildKnnGraph(pts, 2, 0.05f, 0.1f, simd);
+    EXPECT_EQ(g.count[0], 1) << toString(simd);
+    EXPECT_EQ(g.indices[0], 1) << toString(simd);
+    EXPECT_EQ(g.count[2], 0) << toString(simd);
+  }
 }
 
 TEST(Neighbours, RestrictedGraphEqualsBruteForceOnTheKeptPoints) {
@@ -87,15 +149,14 @@ TEST(Neighbours, RestrictedGraphEqualsBruteForceOnTheKeptPoints) {
     keep[i] = i % 7 != 0 && (pts[i].head<2>() - Eigen::Vector2f(0.1f, 0.1f)).norm() > 0.05f;
     if (keep[i]) kept.push_back(pts[i]);
   }
-  for (int k : {16, 30}) {
-    std::size_t recomputed = 0;
-    const KnnGraph fast = restrictKnnGraph(all, pts, keep, k, 0.02f, 10.f, &recomputed);
-    const KnnGraph ref = bruteForceKnnGraph(kept, k);
-    EXPECT_EQ(fast.count, ref.count) << "k " << k;
-    EXPECT_EQ(fast.indices, ref.indices) << "k " << k;
-    EXPECT_EQ(fast.sq_dist, ref.sq_dist) << "k " << k;
-    EXPECT_GT(recomputed, 0u) << "k " << k;  // the test exercises the search-again path
-    EXPECT_LT(recomputed, kept.size()) << "k " << k;  // and the reuse path
+  for (Simd simd : simdChoices()) {
+    for (int k : {16, 30}) {
+      std::size_t recomputed = 0;
+      const KnnGraph fast = restrictKnnGraph(all, pts, keep, k, 0.02f, 10.f, &recomputed, simd);
+      expectSameGraph(fast, bruteForceKnnGraph(kept, k), std::string(toString(simd)) + " k " + std::to_string(k));
+      EXPECT_GT(recomputed, 0u) << "k " << k;  // the test exercises the search-again path
+      EXPECT_LT(recomputed, kept.size()) << "k " << k;  // and the reuse path
+    }
   }
   EXPECT_THROW(restrictKnnGraph(all, pts, keep, 31, 0.02f, 10.f), std::invalid_argument);
 }

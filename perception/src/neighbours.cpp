@@ -1,10 +1,13 @@
 #include "mobmap/perception/neighbours.hpp"
 
+#include "simd_kernels.hpp"
 #include "spatial_hash.hpp"
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstring>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -168,7 +171,9 @@ class GridSearch {
         int ring = 1;
         while (n_keys_ < k_ && ring < max_ring_) {
           ++ring;
-          gather(cc, ring, wide_);
+          // Ring r adds only its shell of cells to the ring r - 1 block.
+          if (ring == 2) wide_.idx = block_.idx;
+          gather(cc, ring, wide_, /*shell_only=*/true);
           distances(p, wide_);
           const float r = static_cast<float>(ring) * cell_;
           collect(i, wide_, std::min(r * r, max_r2_));
@@ -185,12 +190,16 @@ class GridSearch {
     std::vector<int> idx;
     std::vector<float> x, y, z, d2;
   };
-  void gather(const Eigen::Vector3i& cc, int ring, Block& b) const {
+  // The cells within `ring` of cc (Chebyshev distance); with shell_only, appends those
+  // at exactly `ring` to what b holds.
+  void gather(const Eigen::Vector3i& cc, int ring, Block& b, bool shell_only = false) const {
     std::vector<int>& idx = b.idx;
-    idx.clear();
+    if (!shell_only) idx.clear();
     for (int dx = -ring; dx <= ring; ++dx) {
       for (int dy = -ring; dy <= ring; ++dy) {
-        for (int dz = -ring; dz <= ring; ++dz) {
+        const bool side = shell_only && std::abs(dx) != ring && std::abs(dy) != ring;
+        // Inside the shell's x and y sides only its two z faces are new.
+        for (int dz = -ring; dz <= ring; dz += side ? 2 * ring : 1) {
           const int nb = buckets_.find(cc.x() + dx, cc.y() + dy, cc.z() + dz);
           if (nb < 0) continue;
           idx.insert(idx.end(), buckets_.order.begin() + buckets_.start[static_cast<std::size_t>(nb)],
@@ -247,21 +256,244 @@ class GridSearch {
   std::vector<std::uint8_t> band_of_;
 };
 
+#if MOBMAP_AVX512_KERNELS
+// The same exact queries as GridSearch, with the points sorted by cell into arrays of
+// coordinates, so a cell's block is a few contiguous copies, and the distance, limit
+// and selection loops in AVX-512 (simd_avx512.cpp). Same graph, bit for bit: the
+// distances are the same operations in the same order, and keys order by (distance,
+// index) whatever the order candidates are found in.
+class SortedCellSearch {
+ public:
+  SortedCellSearch(const std::vector<Eigen::Vector3f>& points, int k, float cell_m, float max_radius_m)
+      : k_(static_cast<std::size_t>(k)),
+        cell_(cell_m),
+        max_r2_(max_radius_m * max_radius_m),
+        max_ring_(std::max(1, static_cast<int>(std::ceil(max_radius_m / cell_m)))),
+        index_(points.size() / 2 + 16) {
+    const float inv = 1.f / cell_m;
+    std::vector<int> cell_of(points.size());
+    std::vector<int> counts;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const Eigen::Vector3i c = detail::cellOf(points[i], inv);
+      int& s = index_.slot(detail::cellKey(c.x(), c.y(), c.z()));
+      if (s < 0) {
+        s = static_cast<int>(cells_.size());
+        cells_.push_back(c);
+        counts.push_back(0);
+      }
+      cell_of[i] = s;
+      ++counts[static_cast<std::size_t>(s)];
+    }
+    start_.assign(cells_.size() + 1, 0);
+    for (std::size_t c = 0; c < cells_.size(); ++c) start_[c + 1] = start_[c] + counts[c];
+    x_.resize(points.size()), y_.resize(points.size()), z_.resize(points.size()), id_.resize(points.size());
+    std::vector<int> fill(start_.begin(), start_.end() - 1);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const auto s = static_cast<std::size_t>(fill[static_cast<std::size_t>(cell_of[i])]++);
+      x_[s] = points[i].x(), y_[s] = points[i].y(), z_[s] = points[i].z();
+      id_[s] = static_cast<int>(i);
+    }
+  }
+
+  template <typename Want, typename RowOf>
+  void run(KnnGraph& g, Want want, RowOf row_of) {
+    const float guarantee = std::min(cell_ * cell_, max_r2_);
+    for (std::size_t c = 0; c < cells_.size(); ++c) {
+      bool any = false;
+      for (int s = start_[c]; s < start_[c + 1] && !any; ++s) any = want(id_[static_cast<std::size_t>(s)]);
+      if (!any) continue;
+      gather(cells_[c], 1, block_);
+      float last_kth2 = 0.f;  // k-th squared distance of the previous point in this cell
+      short_.clear();
+      for (int s = start_[c]; s < start_[c + 1]; ++s) {
+        const int i = id_[static_cast<std::size_t>(s)];
+        if (!want(i)) continue;
+        // Any limit within the block's guarantee (every point closer than one cell is in
+        // it) gives the exact answer once k candidates lie within it. Neighbouring
+        // points see the same density: limits just above the previous point's k-th
+        // distance usually hold k candidates, and fewer candidates make the selection
+        // cheaper. All four are counted in the pass that computes the distances.
+        const float limit[4] = {std::min(1.15f * last_kth2, guarantee), std::min(1.4f * last_kth2, guarantee),
+                                std::min(1.8f * last_kth2, guarantee), guarantee};
+        int count[4];
+        distances(block_, s, limit, count);
+        if (count[3] < static_cast<int>(k_) && guarantee < max_r2_) {
+          short_.push_back(s);  // searched in wider rings below, with the cell's other short points
+          continue;
+        }
+        int pick = 0;
+        while (pick < 3 && count[pick] < static_cast<int>(k_)) ++pick;
+        const std::size_t n = select(block_, i, limit[pick], g, static_cast<std::size_t>(row_of(i)));
+        if (n == k_) last_kth2 = g.sq_dist[static_cast<std::size_t>(row_of(i)) * k_ + k_ - 1];
+      }
+      // Points without k neighbours within one cell: ring r of cells guarantees r cells
+      // of radius; one block per ring serves all of this cell's short points.
+      for (int ring = 2; !short_.empty() && ring <= max_ring_; ++ring) {
+        if (ring == 2) copyBlock(block_, wide_);
+        appendShell(cells_[c], ring, wide_);
+        const float inner = static_cast<float>(ring - 1) * cell_;
+        const float outer2 = std::min(static_cast<float>(ring) * cell_ * static_cast<float>(ring) * cell_, max_r2_);
+        std::size_t still = 0;
+        for (int s : short_) {
+          const int i = id_[static_cast<std::size_t>(s)];
+          float limit[4];
+          for (int q = 0; q < 4; ++q) {
+            const float r = inner + 0.25f * static_cast<float>(q + 1) * cell_;
+            limit[q] = std::min(r * r, outer2);
+          }
+          limit[3] = outer2;
+          int count[4];
+          distances(wide_, s, limit, count);
+          if (count[3] < static_cast<int>(k_) && ring < max_ring_ && outer2 < max_r2_) {
+            short_[still++] = s;
+            continue;
+          }
+          int pick = 0;
+          while (pick < 3 && count[pick] < static_cast<int>(k_)) ++pick;
+          select(wide_, i, limit[pick], g, static_cast<std::size_t>(row_of(i)));
+        }
+        short_.resize(still);
+      }
+    }
+  }
+
+ private:
+  struct Block {
+    std::vector<float> x, y, z, d2;
+    std::vector<int> id;
+    std::size_t points = 0;  // real points
+    std::size_t n = 0;       // padded to a multiple of 16 with NaN points
+  };
+
+  // The points of the cells within `ring` of cc (Chebyshev distance).
+  void gather(const Eigen::Vector3i& cc, int ring, Block& b) const {
+    b.points = 0;
+    for (int dx = -ring; dx <= ring; ++dx) {
+      for (int dy = -ring; dy <= ring; ++dy) {
+        for (int dz = -ring; dz <= ring; ++dz) append(cc.x() + dx, cc.y() + dy, cc.z() + dz, b);
+      }
+    }
+    pad(b);
+  }
+  // Adds the cells at exactly `ring` from cc to a block that holds ring - 1.
+  void appendShell(const Eigen::Vector3i& cc, int ring, Block& b) const {
+    for (int dx = -ring; dx <= ring; ++dx) {
+      for (int dy = -ring; dy <= ring; ++dy) {
+        // Inside the shell's x and y sides only its two z faces are new.
+        const int step = std::abs(dx) != ring && std::abs(dy) != ring ? 2 * ring : 1;
+        for (int dz = -ring; dz <= ring; dz += step) append(cc.x() + dx, cc.y() + dy, cc.z() + dz, b);
+      }
+    }
+    pad(b);
+  }
+  void copyBlock(const Block& from, Block& to) const {
+    if (to.x.size() < from.n + 16) grow(to, from.n + 16);
+    std::copy_n(from.x.begin(), from.points, to.x.begin());
+    std::copy_n(from.y.begin(), from.points, to.y.begin());
+    std::copy_n(from.z.begin(), from.points, to.z.begin());
+    std::copy_n(from.id.begin(), from.points, to.id.begin());
+    to.points = from.points;
+  }
+  void append(int cx, int cy, int cz, Block& b) const {
+    const int nb = index_.find(detail::cellKey(cx, cy, cz));
+    if (nb < 0) return;
+    const auto from = static_cast<std::size_t>(start_[static_cast<std::size_t>(nb)]);
+    const auto to = static_cast<std::size_t>(start_[static_cast<std::size_t>(nb) + 1]);
+    std::size_t n = b.points;
+    if (b.x.size() < n + (to - from) + 16) grow(b, 2 * (n + (to - from) + 16));
+    for (std::size_t s = from; s < to; ++s, ++n) {
+      b.x[n] = x_[s], b.y[n] = y_[s], b.z[n] = z_[s];
+      b.id[n] = id_[s];
+    }
+    b.points = n;
+  }
+  static void pad(Block& b) {
+    std::size_t n = b.points;
+    if (b.x.size() < n + 16) grow(b, n + 16);
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    for (; n % 16 != 0; ++n) {
+      b.x[n] = b.y[n] = b.z[n] = nan;
+      b.id[n] = -1;
+    }
+    b.n = n;
+  }
+  static void grow(Block& b, std::size_t size) {
+    size = std::max<std::size_t>(size, 1024);
+    b.x.resize(size), b.y.resize(size), b.z.resize(size), b.d2.resize(size), b.id.resize(size);
+  }
+
+  // Distances from sorted point s to the block; count[q] excludes the point itself.
+  void distances(Block& b, int s, const float limit[4], int count[4]) const {
+    const auto p = static_cast<std::size_t>(s);
+    detail::avx512::distancesAndCounts(b.x.data(), b.y.data(), b.z.data(), b.n, x_[p], y_[p], z_[p], limit,
+                                       b.d2.data(), count);
+    for (int q = 0; q < 4; ++q) --count[q];  // the point itself, at distance 0
+  }
+
+  // The k nearest of the block's points within `limit` (other than `self`) into row `row`.
+  std::size_t select(const Block& b, int self, float limit, KnnGraph& g, std::size_t row) {
+    if (keys_.size() < b.n + detail::kRankMaxKeys) keys_.resize(b.n + detail::kRankMaxKeys);
+    const std::size_t m = detail::avx512::compactKeys(b.d2.data(), b.id.data(), b.n, self, limit, keys_.data());
+    const std::size_t base = row * k_;
+    std::size_t n = 0;
+    if (m <= detail::kRankMaxKeys) {
+      n = detail::avx512::rankSmallest(keys_.data(), m, k_, &g.sq_dist[base], &g.indices[base]);
+      g.count[row] = static_cast<int>(n);
+    } else {
+      n = selectSmallestBanded(keys_.data(), m, k_, limit, scratch_, band_of_);
+      storeKeys(g, row, keys_.data(), n);
+    }
+    return n;
+  }
+
+  std::size_t k_;
+  float cell_, max_r2_;
+  int max_ring_;
+  detail::CellHash index_;
+  std::vector<Eigen::Vector3i> cells_;
+  std::vector<int> start_;                 // cell c holds sorted points start_[c] .. start_[c+1]
+  std::vector<float> x_, y_, z_;           // points sorted by cell
+  std::vector<int> id_;                    // their indices in the input
+  Block block_, wide_;
+  std::vector<int> short_;
+  std::vector<std::uint64_t> keys_, scratch_;
+  std::vector<std::uint8_t> band_of_;
+};
+#endif
+
+// Runs `search.run(g, want, row_of)` with the search the chosen instruction set uses.
+template <typename Want, typename RowOf>
+void searchInto(KnnGraph& g, const std::vector<Eigen::Vector3f>& points, int k, float cell_m, float max_radius_m,
+                Simd simd, Want want, RowOf row_of) {
+#if MOBMAP_AVX512_KERNELS
+  if (simd == Simd::kAvx512) {
+    SortedCellSearch search(points, k, cell_m, max_radius_m);
+    search.run(g, want, row_of);
+    return;
+  }
+#endif
+  (void)simd;
+  GridSearch search(points, k, cell_m, max_radius_m);
+  search.run(g, want, row_of);
+}
+
 }  // namespace
 
-KnnGraph buildKnnGraph(const std::vector<Eigen::Vector3f>& points, int k, float cell_m, float max_radius_m) {
+KnnGraph buildKnnGraph(const std::vector<Eigen::Vector3f>& points, int k, float cell_m, float max_radius_m,
+                       Simd simd) {
   checkArguments(k, cell_m, max_radius_m);
+  simd = resolveSimd(simd, "buildKnnGraph");
   KnnGraph g;
   allocate(g, points.size(), k);
   if (points.empty()) return g;
-  GridSearch search(points, k, cell_m, max_radius_m);
-  search.run(g, [](int) { return true; }, [](int i) { return i; });
+  searchInto(g, points, k, cell_m, max_radius_m, simd, [](int) { return true; }, [](int i) { return i; });
   return g;
 }
 
 KnnGraph restrictKnnGraph(const KnnGraph& g, const std::vector<Eigen::Vector3f>& points, const std::vector<bool>& keep,
-                          int k, float cell_m, float max_radius_m, std::size_t* recomputed) {
+                          int k, float cell_m, float max_radius_m, std::size_t* recomputed, Simd simd) {
   checkArguments(k, cell_m, max_radius_m);
+  simd = resolveSimd(simd, "restrictKnnGraph");
   if (k > g.k) throw std::invalid_argument("restrictKnnGraph: k exceeds the graph's k");
   if (keep.size() != points.size() || g.count.size() != points.size()) {
     throw std::invalid_argument("restrictKnnGraph: graph, points and mask sizes differ");
@@ -306,9 +538,8 @@ KnnGraph restrictKnnGraph(const KnnGraph& g, const std::vector<Eigen::Vector3f>&
     for (std::size_t i = 0; i < points.size(); ++i) {
       if (keep[i]) kept.push_back(points[i]);
     }
-    GridSearch search(kept, k, cell_m, max_radius_m);
-    search.run(out, [&](int i) { return static_cast<bool>(redo[static_cast<std::size_t>(i)]); },
-               [](int i) { return i; });
+    searchInto(out, kept, k, cell_m, max_radius_m, simd,
+               [&](int i) { return static_cast<bool>(redo[static_cast<std::size_t>(i)]); }, [](int i) { return i; });
   }
   return out;
 }

@@ -1,0 +1,48 @@
+#include "mobmap/perception/simd.hpp"
+
+#include "simd_kernels.hpp"
+
+#include <stdexcept>
+#include <string>
+
+namespace mobmap::perception {
+
+bool simdSupported(Simd simd) {
+  switch (simd) {
+    case Simd::kAuto:
+    case Simd::kPortable: return true;
+    case Simd::kAvx512:
+#if MOBMAP_AVX512_KERNELS
+      // libgcc's CPU check also asks the OS (XGETBV) whether it saves the zmm state.
+      return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
+             __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512vl");
+#else
+      return false;
+#endif
+  }
+  return false;
+}
+
+Simd bestSimd() {
+  static const Simd best = simdSupported(Simd::kAvx512) ? Simd::kAvx512 : Simd::kPortable;
+  return best;
+}
+
+Simd resolveSimd(Simd simd, const char* caller) {
+  if (simd == Simd::kAuto) return bestSimd();
+  if (!simdSupported(simd)) {
+    throw std::invalid_argument(std::string(caller) + ": " + toString(simd) + " is not available on this machine");
+  }
+  return simd;
+}
+
+const char* toString(Simd simd) {
+  switch (simd) {
+    case Simd::kAuto: return "auto";
+    case Simd::kPortable: return "portable";
+    case Simd::kAvx512: return "AVX-512";
+  }
+  return "unknown";
+}
+
+}  // namespace mobmap::perception

@@ -1,0 +1,45 @@
+#pragma once
+// Vector kernels of the hot loops (internal). Each does exactly the floating-point
+// operations of its portable counterpart, in the same order, so results are
+// bit-identical; callers choose through mobmap::perception::Simd.
+
+#include <cstddef>
+#include <cstdint>
+
+#if (defined(__x86_64__) || defined(_M_X64)) && (defined(__GNUC__) || defined(__clang__))
+#define MOBMAP_AVX512_KERNELS 1
+#else
+#define MOBMAP_AVX512_KERNELS 0
+#endif
+
+namespace mobmap::perception::detail {
+
+/// rankSmallest takes at most this many keys. A key is a k-nearest candidate as one
+/// 64-bit number: the squared distance's bit pattern (monotone for non-negative
+/// floats) above the point index, so keys order by (distance, index) and are distinct.
+inline constexpr std::size_t kRankMaxKeys = 64;
+
+#if MOBMAP_AVX512_KERNELS
+namespace avx512 {
+
+/// Block of candidate points as structure of arrays, padded with NaN coordinates (and
+/// index -1) to a multiple of 16; `n` is the padded length.
+/// Writes the squared distance of every block point to (px, py, pz) into d2 (computed
+/// as dx*dx + dy*dy + dz*dz, left to right) and, for q < 4, the number of block points
+/// with d2 <= limit[q] into count[q] (NaN padding is never counted).
+void distancesAndCounts(const float* x, const float* y, const float* z, std::size_t n, float px, float py, float pz,
+                        const float limit[4], float* d2, int count[4]);
+
+/// Appends to `keys` the keys of the block points with d2 <= limit whose index is not
+/// `self`, in block order; returns how many. `keys` needs room for n entries.
+std::size_t compactKeys(const float* d2, const int* index, std::size_t n, int self, float limit, std::uint64_t* keys);
+
+/// The min(k, m) smallest of m <= kRankMaxKeys distinct keys, ascending, unpacked into
+/// squared distances and indices. Each key's rank is the number of smaller keys;
+/// `keys` needs room for m rounded up to a multiple of 8 (the tail is overwritten).
+std::size_t rankSmallest(std::uint64_t* keys, std::size_t m, std::size_t k, float* sq_dist, int* index);
+
+}  // namespace avx512
+#endif
+
+}  // namespace mobmap::perception::detail
