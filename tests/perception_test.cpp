@@ -99,7 +99,7 @@ TEST(Neighbours, SparseAndDenseRegionsTakeEveryBranchOfTheSearch) {
     }
   }
   if (simdSupported(Simd::kAvx512)) {
-    EXPECT_NO_THROW(resolveSimd(Simd::kAvx512, "test"));
+    EXPECT_EQ(resolveSimd(Simd::kAvx512, "test"), Simd::kAvx512);
   } else {
     EXPECT_THROW(buildKnnGraph(pts, 4, 0.02f, 1.f, Simd::kAvx512), std::invalid_argument);
   }
@@ -321,6 +321,64 @@ TEST(Normals, InverseIterationFromANearbyNormalEqualsTheExactEigenvector) {
   EXPECT_LT(worst_shift, 1e-5);  // metres
   std::printf("[ info ] worst angle on planes %.2g deg, worst projection shift %.2g m\n",
               *std::max_element(planar_angles.begin(), planar_angles.end()), worst_shift);
+}
+
+// The vector normals must be the portable loop's to the last bit, for every outcome a
+// lane can have: the closed-form solver (no start), inverse iteration converging,
+// failing (a start orthogonal to the normal, a zero start, a line with no plane) and
+// too few neighbours; on noisy sheets, exact lattices (planes with tied covariances)
+// and point counts that leave a partial block of eight.
+TEST(Normals, EveryInstructionSetGivesThePortableBits) {
+  std::vector<std::vector<Eigen::Vector3f>> clouds = {randomCloud(1001, 21)};
+  std::vector<Eigen::Vector3f> lattice, line;
+  for (int i = 0; i < 20; ++i) {
+    for (int j = 0; j < 19; ++j) lattice.emplace_back(0.01f * i, 0.01f * j, 1.f + 0.005f * i);
+  }
+  for (int i = 0; i < 40; ++i) line.emplace_back(0.01f * i, 0.f, 2.f);
+  line.emplace_back(5.f, 5.f, 5.f);  // alone: no neighbours within the radius
+  clouds.push_back(lattice);
+  clouds.push_back(line);
+  for (std::size_t c = 0; c < clouds.size(); ++c) {
+    const auto& pts = clouds[c];
+    const KnnGraph g = buildKnnGraph(pts, 12, 0.03f, 0.5f);
+    std::vector<Eigen::Vector3f> ref_n, ref_p;
+    std::vector<float> ref_c;
+    estimateNormals(pts, g, Eigen::Vector3f(0, 0, 5), ref_n, ref_c, &ref_p, nullptr, Simd::kPortable);
+    // Starts: the normals themselves, 20 degrees off, orthogonal to them, zero.
+    std::vector<Eigen::Vector3f> near(pts.size());
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      const Eigen::Vector3f side = ref_n[i].unitOrthogonal();
+      switch (i % 4) {
+        case 0: near[i] = ref_n[i]; break;
+        case 1: near[i] = Eigen::AngleAxisf(static_cast<float>(20 * kDeg), side) * ref_n[i]; break;
+        case 2: near[i] = side; break;
+        default: near[i] = Eigen::Vector3f::Zero();
+      }
+    }
+    std::vector<Eigen::Vector3f> ref_nn, ref_np;
+    std::vector<float> ref_nc;
+    estimateNormals(pts, g, Eigen::Vector3f(0, 0, 5), ref_nn, ref_nc, &ref_np, &near, Simd::kPortable);
+    for (Simd simd : simdChoices()) {
+      std::vector<Eigen::Vector3f> n, p;
+      std::vector<float> curv;
+      estimateNormals(pts, g, Eigen::Vector3f(0, 0, 5), n, curv, &p, nullptr, simd);
+      EXPECT_EQ(n, ref_n) << "cloud " << c << " " << toString(simd);
+      EXPECT_EQ(curv, ref_c) << "cloud " << c << " " << toString(simd);
+      EXPECT_EQ(p, ref_p) << "cloud " << c << " " << toString(simd);
+      estimateNormals(pts, g, Eigen::Vector3f(0, 0, 5), n, curv, &p, &near, simd);
+      EXPECT_EQ(n, ref_nn) << "cloud " << c << " " << toString(simd) << " with starts";
+      EXPECT_EQ(curv, ref_nc) << "cloud " << c << " " << toString(simd) << " with starts";
+      EXPECT_EQ(p, ref_np) << "cloud " << c << " " << toString(simd) << " with starts";
+      std::vector<float> no_projection_curv;
+      estimateNormals(pts, g, Eigen::Vector3f(0, 0, 5), n, no_projection_curv, nullptr, &near, simd);
+      EXPECT_EQ(no_projection_curv, ref_nc) << "cloud " << c << " " << toString(simd) << " without projection";
+    }
+    // The lone point and the line's points have no plane; the lattice is exactly planar.
+    if (c == 2) {
+      EXPECT_EQ(ref_n.back(), Eigen::Vector3f::Zero());
+      EXPECT_EQ(ref_c.back(), 1.f);
+    }
+  }
 }
 
 // Rough segments in coarse voxels are projected with fewer neighbours than the normals

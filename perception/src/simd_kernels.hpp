@@ -39,6 +39,22 @@ std::size_t compactKeys(const float* d2, const int* index, std::size_t n, int se
 /// `keys` needs room for m rounded up to a multiple of 8 (the tail is overwritten).
 std::size_t rankSmallest(std::uint64_t* keys, std::size_t m, std::size_t k, float* sq_dist, int* index);
 
+/// Local planes of the points first .. first + lanes - 1 (lanes <= 8), as
+/// estimateNormals computes them with the arithmetic of local_plane.hpp, from their
+/// OffsetSums (sums[q * 8 + lane], fields in declaration order: sx, sy, sz, xx, xy, xz,
+/// yy, yz, zz) and neighbour counts. `points` is x, y, z per point; `near` (the same)
+/// is null for the closed-form solver, whose lanes this leaves to the caller. For each
+/// lane done, writes normal (x, y, z, turned towards `viewpoint`), curvature and, if
+/// `projected` is not null, the projected point. Returns the mask of lanes done; for the
+/// others with at least 2 neighbours, moments[q * 8 + lane] holds the LocalMoments
+/// fields in declaration order (mx, my, mz, xx, xy, xz, yy, yz, zz) for the exact
+/// solver. Lanes with under 2 neighbours are done (zero normal, curvature 1, projected =
+/// point). Gathering the neighbours is left to scalar code: on AMD cores a gather
+/// fetches about one element per cycle, no faster than the scalar loads it replaces.
+unsigned localPlanes8(const float* points, const float sums[9 * 8], const int* counts, std::size_t first, int lanes,
+                      const float* near, const float viewpoint[3], float* normals, float* curvature, float* projected,
+                      double moments[9 * 8]);
+
 }  // namespace avx512
 #endif
 

@@ -1,5 +1,7 @@
 #include "mobmap/perception/stages.hpp"
 
+#include "local_plane.hpp"
+#include "simd_kernels.hpp"
 #include "spatial_hash.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -80,107 +82,77 @@ std::vector<bool> statisticalOutlierMask(const KnnGraph& g, double alpha, int k)
   return keep;
 }
 
-namespace {
+namespace detail {
 
-// Smallest eigenvector of a symmetric 3x3 `cov` from a nearby unit vector: x <- adj(cov) x
-// until it stops moving (at most 8 steps).
-// adj(cov) has the eigenvalues l1 l2, l0 l2, l0 l1 on the eigenvectors v0, v1, v2, so each
-// step shrinks the other components by l0 / l1 and l0 / l2; it is defined for singular
-// matrices too (an exact plane: one step lands on v0). False (use the exact solver) if
-// it does not converge, collapses (start orthogonal to v0, rank <= 1) or finds no plane.
-bool inverseIteration(const Eigen::Matrix3d& c, const Eigen::Vector3d& start, Eigen::Vector3d& normal, float& curvature) {
-  if (start.squaredNorm() < 0.25) return false;
-  Eigen::Matrix3d adj;
-  adj(0, 0) = c(1, 1) * c(2, 2) - c(1, 2) * c(1, 2);
-  adj(1, 1) = c(0, 0) * c(2, 2) - c(0, 2) * c(0, 2);
-  adj(2, 2) = c(0, 0) * c(1, 1) - c(0, 1) * c(0, 1);
-  adj(0, 1) = adj(1, 0) = c(0, 2) * c(1, 2) - c(0, 1) * c(2, 2);
-  adj(0, 2) = adj(2, 0) = c(0, 1) * c(1, 2) - c(0, 2) * c(1, 1);
-  adj(1, 2) = adj(2, 1) = c(0, 1) * c(0, 2) - c(0, 0) * c(1, 2);
-  Eigen::Vector3d x = start;
-  const double scale = adj.cwiseAbs().maxCoeff();
-  for (int step = 0; step < 8; ++step) {
-    const Eigen::Vector3d y = adj * x;
-    const double norm = y.norm();
-    if (!(norm > 1e-30 * scale) || !std::isfinite(norm)) return false;
-    const Eigen::Vector3d next = y / norm;
-    // Converged: a step that moves x by under 1e-5 rad leaves it within ~1e-4 rad of v0
-    // unless l0 / l1 > 0.9, a neighbourhood with no plane, which goes to the exact
-    // solver through the curvature test below.
-    const bool converged = (next - x).norm() < 1e-5;
-    x = next;
-    if (converged) {
-      const double total = c.trace();
-      const double lambda0 = std::max(0.0, x.dot(c * x));  // Rayleigh quotient
-      if (!(total > 0) || lambda0 > 0.25 * total) return false;
-      normal = x;
-      curvature = static_cast<float>(lambda0 / total);
-      return true;
-    }
-  }
-  return false;
+void smallestEigenvectorExact(const LocalMoments& c, double normal[3], float& curvature) {
+  Eigen::Matrix3d cov;
+  cov << c.xx, c.xy, c.xz, c.xy, c.yy, c.yz, c.xz, c.yz, c.zz;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+  es.computeDirect(cov);
+  for (int r = 0; r < 3; ++r) normal[r] = es.eigenvectors()(r, 0);
+  const double total = es.eigenvalues().sum();
+  curvature = total > 0 ? static_cast<float>(std::max(0.0, es.eigenvalues()(0)) / total) : 0.f;
 }
 
-// The least-squares plane of point i and its first `c` graph neighbours `nb`: unit
-// normal (unoriented), curvature, and the neighbourhood mean relative to the point.
-struct LocalPlane {
-  Eigen::Vector3d normal;
-  Eigen::Vector3d mean;
-  float curvature = 1.f;
-  /// The point moved along the normal onto the plane through the neighbourhood mean.
-  [[nodiscard]] Eigen::Vector3f projection(const Eigen::Vector3f& point) const {
-    return (point.cast<double>() + normal * normal.dot(mean)).cast<float>();
-  }
-};
-
-LocalPlane fitLocalPlane(const std::vector<Eigen::Vector3f>& points, std::size_t i, const int* nb, int c,
-                         const Eigen::Vector3f* near) {
-  // Covariance about the mean, accumulated relative to the point: offsets are a few
-  // centimetres, so single precision sums lose nothing that matters (relative error
-  // ~1e-7 of entries ~1e-4 m^2); the eigen-decomposition runs in double.
-  const Eigen::Vector3f pf = points[i];
-  float sx = 0, sy = 0, sz = 0, xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0;
-  for (int j = 0; j < c; ++j) {
-    const Eigen::Vector3f d = points[static_cast<std::size_t>(nb[j])] - pf;
-    sx += d.x(), sy += d.y(), sz += d.z();
-    xx += d.x() * d.x(), xy += d.x() * d.y(), xz += d.x() * d.z();
-    yy += d.y() * d.y(), yz += d.y() * d.z(), zz += d.z() * d.z();
-  }
-  LocalPlane out;
-  const double m = c + 1.0;  // the point itself contributes d = 0
-  out.mean = Eigen::Vector3d(sx, sy, sz) / m;
-  Eigen::Matrix3d ss;
-  ss << xx, xy, xz, xy, yy, yz, xz, yz, zz;
-  const Eigen::Matrix3d cov = ss / m - out.mean * out.mean.transpose();
-  if (!(near && inverseIteration(cov, near->cast<double>(), out.normal, out.curvature))) {
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-    es.computeDirect(cov);
-    out.normal = es.eigenvectors().col(0);
-    const double total = es.eigenvalues().sum();
-    out.curvature = total > 0 ? static_cast<float>(std::max(0.0, es.eigenvalues()(0)) / total) : 0.f;
-  }
-  return out;
-}
-
-}  // namespace
+}  // namespace detail
 
 void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph& g, const Eigen::Vector3f& viewpoint,
                      std::vector<Eigen::Vector3f>& normals, std::vector<float>& curvature,
-                     std::vector<Eigen::Vector3f>* projected, const std::vector<Eigen::Vector3f>* near) {
+                     std::vector<Eigen::Vector3f>* projected, const std::vector<Eigen::Vector3f>* near, Simd simd) {
   const std::size_t n = points.size();
   if (near && near->size() != n) throw std::invalid_argument("estimateNormals: `near` size differs from points");
+  if (g.count.size() != n) throw std::invalid_argument("estimateNormals: graph and points sizes differ");
+  simd = resolveSimd(simd, "estimateNormals");
   normals.assign(n, Eigen::Vector3f::Zero());
   curvature.assign(n, 1.f);
   if (projected) *projected = points;
+#if MOBMAP_AVX512_KERNELS
+  if (simd == Simd::kAvx512) {
+    // Eight points at a time; the lanes the kernel leaves (the closed-form solver) are
+    // finished here with the same arithmetic as the portable loop below.
+    static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "points are read as x, y, z triples");
+    double moments[9 * 8];
+    float sums[9 * 8];
+    for (std::size_t first = 0; first < n; first += 8) {
+      const int lanes = static_cast<int>(std::min<std::size_t>(8, n - first));
+      for (int l = 0; l < lanes; ++l) {
+        const std::size_t i = first + static_cast<std::size_t>(l);
+        const detail::OffsetSums o = detail::sumOffsets(points.data(), i, &g.indices[i * static_cast<std::size_t>(g.k)], g.count[i]);
+        const float fields[9] = {o.sx, o.sy, o.sz, o.xx, o.xy, o.xz, o.yy, o.yz, o.zz};
+        for (int q = 0; q < 9; ++q) sums[8 * q + l] = fields[q];
+      }
+      const unsigned done = detail::avx512::localPlanes8(
+          points.data()->data(), sums, g.count.data(), first, lanes, near ? near->data()->data() : nullptr,
+          viewpoint.data(), normals.data()->data(), curvature.data(), projected ? projected->data()->data() : nullptr, moments);
+      for (int l = 0; l < lanes; ++l) {
+        if (done >> l & 1u) continue;
+        const std::size_t i = first + static_cast<std::size_t>(l);
+        detail::LocalMoments m;
+        double* fields[9] = {&m.mx, &m.my, &m.mz, &m.xx, &m.xy, &m.xz, &m.yy, &m.yz, &m.zz};
+        for (int q = 0; q < 9; ++q) *fields[q] = moments[8 * q + l];
+        double normal[3];
+        detail::smallestEigenvectorExact(m, normal, curvature[i]);
+        normals[i] = detail::orientedNormal(normal, points[i], viewpoint);
+        if (projected) (*projected)[i] = detail::projectedPoint(normal, m, points[i]);
+      }
+    }
+    return;
+  }
+#endif
   for (std::size_t i = 0; i < n; ++i) {
     const int c = g.count[i];
     if (c < 2) continue;  // with the point itself, 3 points make a plane
-    const LocalPlane lp = fitLocalPlane(points, i, &g.indices[i * static_cast<std::size_t>(g.k)], c, near ? &(*near)[i] : nullptr);
-    Eigen::Vector3d normal = lp.normal;
-    curvature[i] = lp.curvature;
-    if (normal.dot((viewpoint - points[i]).cast<double>()) < 0) normal = -normal;  // eq. 4
-    normals[i] = normal.normalized().cast<float>();
-    if (projected) (*projected)[i] = lp.projection(points[i]);
+    const detail::LocalMoments m =
+        detail::momentsOf(detail::sumOffsets(points.data(), i, &g.indices[i * static_cast<std::size_t>(g.k)], c), c);
+    double normal[3];
+    bool done = false;
+    if (near) {
+      const double start[3] = {(*near)[i].x(), (*near)[i].y(), (*near)[i].z()};
+      done = detail::smallestEigenvectorNear(m, start, normal, curvature[i]);
+    }
+    if (!done) detail::smallestEigenvectorExact(m, normal, curvature[i]);
+    normals[i] = detail::orientedNormal(normal, points[i], viewpoint);
+    if (projected) (*projected)[i] = detail::projectedPoint(normal, m, points[i]);
   }
 }
 
@@ -193,8 +165,12 @@ void projectOntoLocalPlanes(const std::vector<Eigen::Vector3f>& points, const Kn
     const auto i = static_cast<std::size_t>(idx);
     const int c = std::min(g.count[i], max_neighbours);
     if (c < 2) continue;
-    const LocalPlane lp = fitLocalPlane(points, i, &g.indices[i * static_cast<std::size_t>(g.k)], c, nullptr);
-    projected[i] = lp.projection(points[i]);
+    const detail::LocalMoments m =
+        detail::momentsOf(detail::sumOffsets(points.data(), i, &g.indices[i * static_cast<std::size_t>(g.k)], c), c);
+    double normal[3];
+    float unused = 0.f;
+    detail::smallestEigenvectorExact(m, normal, unused);
+    projected[i] = detail::projectedPoint(normal, m, points[i]);
   }
 }
 

@@ -38,11 +38,12 @@ std::vector<bool> statisticalOutlierMask(const KnnGraph& graph, double alpha, in
 /// by lambda_1 / lambda_0 per step) until a step moves it by under 1e-5 rad, instead of
 /// the closed-form eigen-decomposition; a test bounds the difference. Points whose
 /// `near` is zero, whose iteration does not converge in 8 steps, or whose smallest
-/// eigenvalue exceeds a quarter of the sum (no plane) use the exact solver.
+/// eigenvalue exceeds a quarter of the sum (no plane) use the exact solver. `simd`
+/// chooses the instruction set (the results are the same to the last bit with each).
 void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph& graph,
                      const Eigen::Vector3f& viewpoint, std::vector<Eigen::Vector3f>& normals,
                      std::vector<float>& curvature, std::vector<Eigen::Vector3f>* projected = nullptr,
-                     const std::vector<Eigen::Vector3f>* near = nullptr);
+                     const std::vector<Eigen::Vector3f>* near = nullptr, Simd simd = Simd::kAuto);
 
 /// For the points listed in `which` only: `projected[i]` = point i moved onto the
 /// least-squares plane of itself and its first `max_neighbours` graph neighbours (the
