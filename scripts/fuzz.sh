@@ -11,7 +11,9 @@ targets=("$@")
 [ ${#targets[@]} -eq 0 ] && targets=(map_reader config poses pipeline)
 bash scripts/setup.sh fuzz
 mkdir -p build-fuzz/obj
-flags=(-std=c++17 -O1 -g -fsanitize=address,undefined -fno-sanitize-recover=undefined
+# -ffp-contract=off as perception/CMakeLists.txt sets it (its vector kernels match the
+# portable loops bit for bit only without fused multiply-adds).
+flags=(-std=c++17 -O1 -g -ffp-contract=off -fsanitize=address,undefined -fno-sanitize-recover=undefined
        -Igp/include -Iperception/include -Imapping/include -Iapps/src -I/usr/include/eigen3 -I/usr/include/openni2 -Ibuild-fuzz)
 for d in /usr/include/mrpt/*/include; do flags+=("-I$d"); done
 cmake -DIN=apps/default.yaml -DOUT=build-fuzz/default_yaml.inc -P apps/embed.cmake
@@ -26,9 +28,13 @@ objects() {
     echo "$o"
   done
 }
-gp=(gp/src/rule_table.cpp gp/src/gaussian_process.cpp gp/src/mobility_model.cpp)
-perception=(perception/src/pipeline.cpp perception/src/stages.cpp perception/src/neighbours.cpp
-            perception/src/camera.cpp perception/src/delaunay_roughness.cpp)
+# A module's sources as its CMakeLists.txt lists them (SOURCES up to the *_DEPS line), so
+# a file added there is never missing here.
+module_sources() {
+  sed -n '/SOURCES/,/_DEPS/p' "$1/CMakeLists.txt" | grep -o 'src/[A-Za-z0-9_]*\.cpp' | sed "s|^|$1/|"
+}
+mapfile -t gp < <(module_sources gp)
+mapfile -t perception < <(module_sources perception)
 mrpt=(-lmrpt-poses -lmrpt-math -lmrpt-core)
 link() {  # link TARGET SOURCES... -- LIBS...
   local target=$1; shift
