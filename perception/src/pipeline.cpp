@@ -40,6 +40,11 @@ constexpr double kUprightEdgeDeg = 5.0;
 // Grid cell for the kNN search: large enough that the k-th neighbour on a surface
 // sampled every voxel_m usually lies inside the guaranteed radius (sqrt(k / pi)
 // spacings on a plane), so the exact search rarely widens.
+// Extra neighbours per row of the shared graph beyond normal_k, so that a row that lost
+// a neighbour or two to the outlier removal still holds normal_k kept ones and need not
+// be searched again (see restrictKnnGraph).
+constexpr int kRestrictMargin = 2;
+
 float knnCell(double voxel_m, int k) {
   return static_cast<float>(voxel_m * (std::sqrt(k / M_PI) + 0.6));
 }
@@ -246,8 +251,8 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
   // reads the first outlier_k, and the normals' graph over the kept points is derived
   // from it (exactly; only points that lost neighbours to the removal search again).
   clock.start();
-  const int graph_k = std::max(p.outlier_k, p.normal_k);
-  const float cell = knnCell(p.voxel_size_m, graph_k);
+  const int graph_k = std::max(p.outlier_k, p.normal_k + kRestrictMargin);
+  const float cell = knnCell(p.voxel_size_m, std::max(p.outlier_k, p.normal_k));
   const float max_radius = static_cast<float>(20 * p.voxel_size_m);
   std::vector<int> kept_index(voxels.size(), -1);
   const KnnGraph voxel_graph = buildKnnGraph(voxels, graph_k, cell, max_radius);
