@@ -268,30 +268,18 @@ class SortedCellSearch {
       : k_(static_cast<std::size_t>(k)),
         cell_(cell_m),
         max_r2_(max_radius_m * max_radius_m),
-        max_ring_(std::max(1, static_cast<int>(std::ceil(max_radius_m / cell_m)))),
-        index_(points.size() / 2 + 16) {
-    const float inv = 1.f / cell_m;
-    std::vector<int> cell_of(points.size());
-    std::vector<int> counts;
-    for (std::size_t i = 0; i < points.size(); ++i) {
-      const Eigen::Vector3i c = detail::cellOf(points[i], inv);
-      int& s = index_.slot(detail::cellKey(c.x(), c.y(), c.z()));
-      if (s < 0) {
-        s = static_cast<int>(cells_.size());
-        cells_.push_back(c);
-        counts.push_back(0);
-      }
-      cell_of[i] = s;
-      ++counts[static_cast<std::size_t>(s)];
-    }
-    start_.assign(cells_.size() + 1, 0);
-    for (std::size_t c = 0; c < cells_.size(); ++c) start_[c + 1] = start_[c] + counts[c];
-    x_.resize(points.size()), y_.resize(points.size()), z_.resize(points.size()), id_.resize(points.size());
-    std::vector<int> fill(start_.begin(), start_.end() - 1);
-    for (std::size_t i = 0; i < points.size(); ++i) {
-      const auto s = static_cast<std::size_t>(fill[static_cast<std::size_t>(cell_of[i])]++);
-      x_[s] = points[i].x(), y_[s] = points[i].y(), z_[s] = points[i].z();
-      id_[s] = static_cast<int>(i);
+        max_ring_(std::max(1, static_cast<int>(std::ceil(max_radius_m / cell_m)))) {
+    // Own copies of the buckets' arrays (moved out), not references into them: the hot
+    // loops read them, and plain members keep them as cheap to reach as before.
+    detail::CellBuckets buckets(points, cell_m);
+    index_ = std::move(buckets.index);
+    cells_ = std::move(buckets.cells);
+    start_ = std::move(buckets.start);
+    id_ = std::move(buckets.order);
+    x_.resize(points.size()), y_.resize(points.size()), z_.resize(points.size());
+    for (std::size_t s = 0; s < points.size(); ++s) {
+      const Eigen::Vector3f& p = points[static_cast<std::size_t>(id_[s])];
+      x_[s] = p.x(), y_[s] = p.y(), z_[s] = p.z();
     }
   }
 
@@ -449,11 +437,11 @@ class SortedCellSearch {
   std::size_t k_;
   float cell_, max_r2_;
   int max_ring_;
-  detail::CellHash index_;
+  detail::CellHash index_{1};
   std::vector<Eigen::Vector3i> cells_;
   std::vector<int> start_;                 // cell c holds sorted points start_[c] .. start_[c+1]
-  std::vector<float> x_, y_, z_;           // points sorted by cell
-  std::vector<int> id_;                    // their indices in the input
+  std::vector<int> id_;                    // the sorted points' indices in the input
+  std::vector<float> x_, y_, z_;           // their coordinates
   Block block_, wide_;
   std::vector<int> short_;
   std::vector<std::uint64_t> keys_, scratch_;
