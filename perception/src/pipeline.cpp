@@ -37,14 +37,14 @@ constexpr int kAbsorbPasses = 6;
 // a leaning surface fitted at the edge (see ground_upright_prior_deg), not a floor.
 constexpr double kUprightEdgeDeg = 5.0;
 
-// Grid cell for the kNN search: large enough that the k-th neighbour on a surface
-// sampled every voxel_m usually lies inside the guaranteed radius (sqrt(k / pi)
-// spacings on a plane), so the exact search rarely widens.
 // Extra neighbours per row of the shared graph beyond normal_k, so that a row that lost
 // a neighbour or two to the outlier removal still holds normal_k kept ones and need not
 // be searched again (see restrictKnnGraph).
 constexpr int kRestrictMargin = 2;
 
+// Grid cell for the kNN search: large enough that the k-th neighbour on a surface
+// sampled every voxel_m usually lies inside the guaranteed radius (sqrt(k / pi)
+// spacings on a plane), so the exact search rarely widens.
 float knnCell(double voxel_m, int k) {
   return static_cast<float>(voxel_m * (std::sqrt(k / M_PI) + 0.6));
 }
@@ -247,7 +247,7 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
   clock.stop("reduction", n_raw, voxels.size());
 
   // 2. Statistical outlier removal. One neighbour search serves both this stage and
-  // the normals: the graph holds max(outlier_k, normal_k) neighbours per voxel, SOR
+  // the normals: the graph holds max(outlier_k, normal_k + 2) neighbours per voxel, SOR
   // reads the first outlier_k, and the normals' graph over the kept points is derived
   // from it (exactly; only points that lost neighbours to the removal search again).
   clock.start();
