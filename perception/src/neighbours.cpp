@@ -195,18 +195,12 @@ class GridSearch {
   void gather(const Eigen::Vector3i& cc, int ring, Block& b, bool shell_only = false) const {
     std::vector<int>& idx = b.idx;
     if (!shell_only) idx.clear();
-    for (int dx = -ring; dx <= ring; ++dx) {
-      for (int dy = -ring; dy <= ring; ++dy) {
-        const bool side = shell_only && std::abs(dx) != ring && std::abs(dy) != ring;
-        // Inside the shell's x and y sides only its two z faces are new.
-        for (int dz = -ring; dz <= ring; dz += side ? 2 * ring : 1) {
-          const int nb = buckets_.find(cc.x() + dx, cc.y() + dy, cc.z() + dz);
-          if (nb < 0) continue;
-          idx.insert(idx.end(), buckets_.order.begin() + buckets_.start[static_cast<std::size_t>(nb)],
-                     buckets_.order.begin() + buckets_.start[static_cast<std::size_t>(nb) + 1]);
-        }
-      }
-    }
+    detail::forEachCellWithin(cc, ring, shell_only, [&](int x, int y, int z) {
+      const int nb = buckets_.find(x, y, z);
+      if (nb < 0) return;
+      idx.insert(idx.end(), buckets_.order.begin() + buckets_.start[static_cast<std::size_t>(nb)],
+                 buckets_.order.begin() + buckets_.start[static_cast<std::size_t>(nb) + 1]);
+    });
     b.x.resize(idx.size());
     b.y.resize(idx.size());
     b.z.resize(idx.size());
@@ -309,16 +303,14 @@ class SortedCellSearch {
           short_.push_back(s);  // searched in wider rings below, with the cell's other short points
           continue;
         }
-        int pick = 0;
-        while (pick < 3 && count[pick] < static_cast<int>(k_)) ++pick;
-        const std::size_t n = select(block_, i, limit[pick], g, static_cast<std::size_t>(row_of(i)));
+        const std::size_t n = select(block_, i, limit[tightestHolding(count)], g, static_cast<std::size_t>(row_of(i)));
         if (n == k_) last_kth2 = g.sq_dist[static_cast<std::size_t>(row_of(i)) * k_ + k_ - 1];
       }
       // Points without k neighbours within one cell: ring r of cells guarantees r cells
       // of radius; one block per ring serves all of this cell's short points.
       for (int ring = 2; !short_.empty() && ring <= max_ring_; ++ring) {
         if (ring == 2) copyBlock(block_, wide_);
-        appendShell(cells_[c], ring, wide_);
+        gather(cells_[c], ring, wide_, /*shell_only=*/true);
         const float inner = static_cast<float>(ring - 1) * cell_;
         const float outer2 = std::min(static_cast<float>(ring) * cell_ * static_cast<float>(ring) * cell_, max_r2_);
         std::size_t still = 0;
@@ -336,9 +328,7 @@ class SortedCellSearch {
             short_[still++] = s;
             continue;
           }
-          int pick = 0;
-          while (pick < 3 && count[pick] < static_cast<int>(k_)) ++pick;
-          select(wide_, i, limit[pick], g, static_cast<std::size_t>(row_of(i)));
+          select(wide_, i, limit[tightestHolding(count)], g, static_cast<std::size_t>(row_of(i)));
         }
         short_.resize(still);
       }
@@ -353,25 +343,11 @@ class SortedCellSearch {
     std::size_t n = 0;       // padded to a multiple of 16 with NaN points
   };
 
-  // The points of the cells within `ring` of cc (Chebyshev distance).
-  void gather(const Eigen::Vector3i& cc, int ring, Block& b) const {
-    b.points = 0;
-    for (int dx = -ring; dx <= ring; ++dx) {
-      for (int dy = -ring; dy <= ring; ++dy) {
-        for (int dz = -ring; dz <= ring; ++dz) append(cc.x() + dx, cc.y() + dy, cc.z() + dz, b);
-      }
-    }
-    pad(b);
-  }
-  // Adds the cells at exactly `ring` from cc to a block that holds ring - 1.
-  void appendShell(const Eigen::Vector3i& cc, int ring, Block& b) const {
-    for (int dx = -ring; dx <= ring; ++dx) {
-      for (int dy = -ring; dy <= ring; ++dy) {
-        // Inside the shell's x and y sides only its two z faces are new.
-        const int step = std::abs(dx) != ring && std::abs(dy) != ring ? 2 * ring : 1;
-        for (int dz = -ring; dz <= ring; dz += step) append(cc.x() + dx, cc.y() + dy, cc.z() + dz, b);
-      }
-    }
+  // The points of the cells within `ring` of cc (Chebyshev distance); with shell_only,
+  // appends those at exactly `ring` to a block that holds ring - 1.
+  void gather(const Eigen::Vector3i& cc, int ring, Block& b, bool shell_only = false) const {
+    if (!shell_only) b.points = 0;
+    detail::forEachCellWithin(cc, ring, shell_only, [&](int x, int y, int z) { append(x, y, z, b); });
     pad(b);
   }
   void copyBlock(const Block& from, Block& to) const {
@@ -408,6 +384,14 @@ class SortedCellSearch {
   static void grow(Block& b, std::size_t size) {
     size = std::max<std::size_t>(size, 1024);
     b.x.resize(size), b.y.resize(size), b.z.resize(size), b.d2.resize(size), b.id.resize(size);
+  }
+
+  // The first of the four limits (ascending) within which k candidates lie; the last
+  // when none holds k (it is the widest the block can answer).
+  [[nodiscard]] int tightestHolding(const int count[4]) const {
+    int q = 0;
+    while (q < 3 && count[q] < static_cast<int>(k_)) ++q;
+    return q;
   }
 
   // Distances from sorted point s to the block; count[q] excludes the point itself.

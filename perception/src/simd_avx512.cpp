@@ -206,7 +206,8 @@ MOBMAP_TARGET_AVX512 unsigned localPlanes8(const float* points, const float sums
     }
   }
 
-  // Lanes with under 2 neighbours: zero normal, curvature 1, the point itself.
+  // Lanes with under 2 neighbours keep what the caller set (zero normal, curvature 1,
+  // the point itself).
   const auto few = static_cast<__mmask8>(live & ~planar);
   alignas(32) float out_n[3][8], out_c[8], out_p[3][8];
   if (done) {
@@ -229,22 +230,13 @@ MOBMAP_TARGET_AVX512 unsigned localPlanes8(const float* points, const float sums
     _mm256_store_ps(out_p[1], _mm512_cvtpd_ps(_mm512_add_pd(_mm512_cvtps_pd(py), _mm512_mul_pd(ny, t))));
     _mm256_store_ps(out_p[2], _mm512_cvtpd_ps(_mm512_add_pd(_mm512_cvtps_pd(pz), _mm512_mul_pd(nz, t))));
   }
-  alignas(32) float point[3][8];
-  _mm256_store_ps(point[0], px), _mm256_store_ps(point[1], py), _mm256_store_ps(point[2], pz);
   for (int l = 0; l < lanes; ++l) {
+    if (!(done >> l & 1u)) continue;
     const std::size_t i = first + static_cast<std::size_t>(l);
-    if (done >> l & 1u) {
-      for (int a = 0; a < 3; ++a) normals[3 * i + static_cast<std::size_t>(a)] = out_n[a][l];
-      curvature[i] = out_c[l];
-      if (projected) {
-        for (int a = 0; a < 3; ++a) projected[3 * i + static_cast<std::size_t>(a)] = out_p[a][l];
-      }
-    } else if (few >> l & 1u) {
-      for (int a = 0; a < 3; ++a) normals[3 * i + static_cast<std::size_t>(a)] = 0.f;
-      curvature[i] = 1.f;
-      if (projected) {
-        for (int a = 0; a < 3; ++a) projected[3 * i + static_cast<std::size_t>(a)] = point[a][l];
-      }
+    for (int a = 0; a < 3; ++a) normals[3 * i + static_cast<std::size_t>(a)] = out_n[a][l];
+    curvature[i] = out_c[l];
+    if (projected) {
+      for (int a = 0; a < 3; ++a) projected[3 * i + static_cast<std::size_t>(a)] = out_p[a][l];
     }
   }
   const __m512d fields[9] = {mx, my, mz, cxx, cxy, cxz, cyy, cyz, czz};

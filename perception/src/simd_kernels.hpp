@@ -48,8 +48,8 @@ std::size_t rankSmallest(std::uint64_t* keys, std::size_t m, std::size_t k, floa
 /// `projected` is not null, the projected point. Returns the mask of lanes done; for the
 /// others with at least 2 neighbours, moments[q * 8 + lane] holds the LocalMoments
 /// fields in declaration order (mx, my, mz, xx, xy, xz, yy, yz, zz) for the exact
-/// solver. Lanes with under 2 neighbours are done (zero normal, curvature 1, projected =
-/// point). Gathering the neighbours is left to scalar code: on AMD cores a gather
+/// solver. Lanes with under 2 neighbours count as done and are not written: the caller
+/// has set them (zero normal, curvature 1, projected = point). Gathering the neighbours is left to scalar code: on AMD cores a gather
 /// fetches about one element per cycle, no faster than the scalar loads it replaces.
 unsigned localPlanes8(const float* points, const float sums[9 * 8], const int* counts, std::size_t first, int lanes,
                       const float* near, const float viewpoint[3], float* normals, float* curvature, float* projected,

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <vector>
 
 namespace mobmap::perception::detail {
@@ -80,6 +81,19 @@ class CellHash {
   std::vector<int> values_;
   std::size_t mask_ = 0;
 };
+
+/// Calls f(x, y, z) for every cell within Chebyshev distance `ring` of cc or, with
+/// shell_only, for the cells at exactly `ring` (what ring r adds to ring r - 1).
+template <typename F>
+inline void forEachCellWithin(const Eigen::Vector3i& cc, int ring, bool shell_only, F&& f) {
+  for (int dx = -ring; dx <= ring; ++dx) {
+    for (int dy = -ring; dy <= ring; ++dy) {
+      // Inside the shell's x and y sides only its two z faces are new.
+      const int step = shell_only && std::abs(dx) != ring && std::abs(dy) != ring ? 2 * ring : 1;
+      for (int dz = -ring; dz <= ring; dz += step) f(cc.x() + dx, cc.y() + dy, cc.z() + dz);
+    }
+  }
+}
 
 /// Points bucketed by cell: cell c holds order[start[c] .. start[c+1]).
 struct CellBuckets {

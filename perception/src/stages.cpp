@@ -96,6 +96,15 @@ void smallestEigenvectorExact(const LocalMoments& c, double normal[3], float& cu
 
 }  // namespace detail
 
+namespace {
+
+// The offset sums of point i over its first c graph neighbours.
+detail::OffsetSums rowOffsets(const std::vector<Eigen::Vector3f>& points, const KnnGraph& g, std::size_t i, int c) {
+  return detail::sumOffsets(points.data(), i, &g.indices[i * static_cast<std::size_t>(g.k)], c);
+}
+
+}  // namespace
+
 void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph& g, const Eigen::Vector3f& viewpoint,
                      std::vector<Eigen::Vector3f>& normals, std::vector<float>& curvature,
                      std::vector<Eigen::Vector3f>* projected, const std::vector<Eigen::Vector3f>* near, Simd simd) {
@@ -117,7 +126,7 @@ void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph&
       const int lanes = static_cast<int>(std::min<std::size_t>(8, n - first));
       for (int l = 0; l < lanes; ++l) {
         const std::size_t i = first + static_cast<std::size_t>(l);
-        const detail::OffsetSums o = detail::sumOffsets(points.data(), i, &g.indices[i * static_cast<std::size_t>(g.k)], g.count[i]);
+        const detail::OffsetSums o = rowOffsets(points, g, i, g.count[i]);
         const float fields[9] = {o.sx, o.sy, o.sz, o.xx, o.xy, o.xz, o.yy, o.yz, o.zz};
         for (int q = 0; q < 9; ++q) sums[8 * q + l] = fields[q];
       }
@@ -142,8 +151,7 @@ void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph&
   for (std::size_t i = 0; i < n; ++i) {
     const int c = g.count[i];
     if (c < 2) continue;  // with the point itself, 3 points make a plane
-    const detail::LocalMoments m =
-        detail::momentsOf(detail::sumOffsets(points.data(), i, &g.indices[i * static_cast<std::size_t>(g.k)], c), c);
+    const detail::LocalMoments m = detail::momentsOf(rowOffsets(points, g, i, c), c);
     double normal[3];
     bool done = false;
     if (near) {
@@ -165,8 +173,7 @@ void projectOntoLocalPlanes(const std::vector<Eigen::Vector3f>& points, const Kn
     const auto i = static_cast<std::size_t>(idx);
     const int c = std::min(g.count[i], max_neighbours);
     if (c < 2) continue;
-    const detail::LocalMoments m =
-        detail::momentsOf(detail::sumOffsets(points.data(), i, &g.indices[i * static_cast<std::size_t>(g.k)], c), c);
+    const detail::LocalMoments m = detail::momentsOf(rowOffsets(points, g, i, c), c);
     double normal[3];
     float unused = 0.f;
     detail::smallestEigenvectorExact(m, normal, unused);
