@@ -276,8 +276,8 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
   const KnnGraph graph = restrictKnnGraph(voxel_graph, voxels, keep, p.normal_k, cell, max_radius);
   std::vector<Eigen::Vector3f> smoothed;
   // The first pass starts its eigenvectors from the direction to the camera (only
-  // surfaces seen edge-on are near orthogonal to it, and those few points go to the
-  // closed-form solver): the first pass 10.3 -> 5.3 ms per frame on the real frames.
+  // surfaces seen edge-on are near orthogonal to it; points whose iteration does not
+  // converge go to the closed-form solver): that pass 10.3 -> 5.3 ms per real frame.
   std::vector<Eigen::Vector3f> towards_camera(n);
   for (std::size_t i = 0; i < n; ++i) towards_camera[i] = -out.points[i].normalized();
   estimateNormals(out.points, graph, Eigen::Vector3f::Zero(), out.normals, out.curvature,

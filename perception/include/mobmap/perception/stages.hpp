@@ -33,12 +33,11 @@ std::vector<bool> statisticalOutlierMask(const KnnGraph& graph, double alpha, in
 /// fewer than 3 neighbours get a zero normal and curvature 1. If `projected` is given
 /// it receives each point moved onto its neighbourhood's least-squares plane.
 /// Fast path: with `near` (a unit vector per point not far from the answer, such as the
-/// previous smoothing pass's normal or the direction to the camera: each step shrinks
-/// the error by lambda_1 / lambda_0, ~100 on a surface), the eigenvector is found by
-/// inverse iteration from it
-/// (multiplying by the covariance's adjugate, which amplifies the smallest eigenvector
-/// by lambda_1 / lambda_0 per step) until a step moves it by under 1e-5 rad, instead of
-/// the closed-form eigen-decomposition; a test bounds the difference. Points whose
+/// previous smoothing pass's normal or the direction to the camera), the eigenvector is
+/// found by inverse iteration from it (multiplying by the covariance's adjugate, which
+/// amplifies the smallest eigenvector by lambda_1 / lambda_0 per step, ~100 on a noisy
+/// surface) until a step moves it by under 1e-5 rad, instead of the closed-form
+/// eigen-decomposition; tests bound the difference. Points whose
 /// `near` is zero, whose iteration does not converge in 8 steps, or whose smallest
 /// eigenvalue exceeds a quarter of the sum (no plane) use the exact solver. `simd`
 /// chooses the instruction set (the results are the same to the last bit with each).
