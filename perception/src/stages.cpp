@@ -39,9 +39,18 @@ std::vector<Eigen::Vector3f> voxelReduce(const std::vector<Eigen::Vector3f>& poi
   std::vector<Eigen::Vector3d> sums;  // double: sums of many points stay exact enough
   std::vector<int> counts;
   if (voxel_of_point) voxel_of_point->resize(points.size());
+  // Keys first, so that each lookup's table slot can be asked for kAhead points early:
+  // the first lookup of every voxel missed the cache (reduction stage 5.9 -> 3.9 ms
+  // per real frame).
+  constexpr std::size_t kAhead = 32;
+  std::vector<std::uint64_t> keys(points.size());
   for (std::size_t i = 0; i < points.size(); ++i) {
     const Eigen::Vector3i c = detail::cellOf(points[i], inv);
-    int& v = index.slot(detail::cellKey(c.x(), c.y(), c.z()));
+    keys[i] = detail::cellKey(c.x(), c.y(), c.z());
+  }
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (i + kAhead < points.size()) index.prefetch(keys[i + kAhead]);
+    int& v = index.slot(keys[i]);
     if (v < 0) {
       v = static_cast<int>(sums.size());
       sums.emplace_back(Eigen::Vector3d::Zero());
