@@ -29,6 +29,14 @@ void forNeighboursWithin(const KnnGraph& g, std::size_t i, float max_d2, F&& f) 
   }
 }
 
+// Asks for point i's graph row ahead of a scan that will read it (breadth-first
+// searches jump between rows the hardware prefetcher cannot predict).
+inline void prefetchRow(const KnnGraph& g, std::size_t i) {
+  const std::size_t base = i * static_cast<std::size_t>(g.k);
+  __builtin_prefetch(g.sq_dist.data() + base);
+  __builtin_prefetch(g.indices.data() + base);
+}
+
 }  // namespace
 
 std::vector<Eigen::Vector3f> voxelReduce(const std::vector<Eigen::Vector3f>& points, float voxel_m,
@@ -349,12 +357,15 @@ std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
   for (std::size_t i = 0; i < n; ++i) ycc[i] = rgbToYCrCb(colours[i]);
   const float max_d2 = static_cast<float>(max_distance_m * max_distance_m);
   const float thr2 = static_cast<float>(colour_threshold * colour_threshold);
-  std::vector<int> label(n, -1);
+  // -1: not yet reached, -2: in a region below min_points, -3: not eligible. One test
+  // of the label then rejects a neighbour.
+  std::vector<int> label(n);
+  for (std::size_t i = 0; i < n; ++i) label[i] = eligible[i] ? -1 : -3;
   std::vector<int> members;
   std::vector<int> queue;
   int next = 0;
   for (std::size_t seed = 0; seed < n; ++seed) {
-    if (!eligible[seed] || label[seed] != -1) continue;
+    if (label[seed] != -1) continue;
     members.clear();
     queue.clear();
     queue.push_back(static_cast<int>(seed));
@@ -363,13 +374,14 @@ std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
     Eigen::Vector3f mean_dir = Eigen::Vector3f::Zero();
     for (std::size_t head = 0; head < queue.size(); ++head) {
       const int i = queue[head];
+      if (head + 6 < queue.size()) prefetchRow(g, static_cast<std::size_t>(queue[head + 6]));
       members.push_back(i);
       if (gate) {
         normal_sum += (*normals)[static_cast<std::size_t>(i)];
         mean_dir = normal_sum.normalized();
       }
       forNeighboursWithin(g, static_cast<std::size_t>(i), max_d2, [&](std::size_t nb) {
-        if (!eligible[nb] || label[nb] != -1) return;
+        if (label[nb] != -1) return;
         if ((ycc[static_cast<std::size_t>(i)] - ycc[nb]).squaredNorm() > thr2) return;
         if (gate && (*normals)[nb].dot(mean_dir) < min_cos) return;
         label[nb] = next;
@@ -464,6 +476,7 @@ std::vector<int> mergeFragments(const std::vector<Eigen::Vector3f>& points, cons
       int fragments = 0;
       for (std::size_t head = 0; head < queue.size(); ++head) {
         const auto i = static_cast<std::size_t>(queue[head]);
+        if (head + 6 < queue.size()) prefetchRow(g, static_cast<std::size_t>(queue[head + 6]));
         int& stamp = seen_stamp[static_cast<std::size_t>(labels[i])];
         if (stamp != id) {
           stamp = id;
@@ -767,8 +780,9 @@ std::size_t adoptUnsegmentedPoints(const std::vector<Eigen::Vector3f>& points, c
   // For each point, the orphans that have it as a neighbour (CSR): only those can
   // change their mind when it joins a region.
   std::vector<int> watch_start(n + 1, 0), watchers;
-  for (int o : orphans) {
-    forNeighboursWithin(g, static_cast<std::size_t>(o), max_d2, [&](std::size_t nb) { ++watch_start[nb + 1]; });
+  for (std::size_t s = 0; s < orphans.size(); ++s) {
+    if (s + 8 < orphans.size()) prefetchRow(g, static_cast<std::size_t>(orphans[s + 8]));
+    forNeighboursWithin(g, static_cast<std::size_t>(orphans[s]), max_d2, [&](std::size_t nb) { ++watch_start[nb + 1]; });
   }
   for (std::size_t i = 0; i < n; ++i) watch_start[i + 1] += watch_start[i];
   watchers.resize(static_cast<std::size_t>(watch_start[n]));
@@ -788,7 +802,9 @@ std::size_t adoptUnsegmentedPoints(const std::vector<Eigen::Vector3f>& points, c
   std::vector<int> stamp(n, -1);
   for (int round = 0; !orphans.empty(); ++round) {
     joins.clear();
-    for (int o : orphans) {
+    for (std::size_t s = 0; s < orphans.size(); ++s) {
+      if (s + 8 < orphans.size()) prefetchRow(g, static_cast<std::size_t>(orphans[s + 8]));
+      const int o = orphans[s];
       const auto j = static_cast<std::size_t>(o);
       const Eigen::Vector3f& q = points[j];
       int best = -1;
