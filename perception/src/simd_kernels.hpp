@@ -39,6 +39,14 @@ std::size_t compactKeys(const float* d2, const int* index, std::size_t n, int se
 /// `keys` needs room for m rounded up to a multiple of 8 (the tail is overwritten).
 std::size_t rankSmallest(std::uint64_t* keys, std::size_t m, std::size_t k, float* sq_dist, int* index);
 
+/// The OffsetSums of points first .. first + lanes - 1 (lanes <= 8) over their first
+/// counts[i] neighbours (indices[i * k ..]), into sums[q * 8 + lane] (fields in
+/// declaration order), as sumOffsets computes them: one vector holds a point's nine
+/// sums, so each neighbour is one subtract, one multiply and one add in the same order
+/// as the scalar loop; the eight points' chains are interleaved.
+void offsetSums8(const float* points, const int* indices, std::size_t k, const int* counts, std::size_t first,
+                 int lanes, float sums[9 * 8]);
+
 /// Local planes of the points first .. first + lanes - 1 (lanes <= 8), as
 /// estimateNormals computes them with the arithmetic of local_plane.hpp, from their
 /// OffsetSums (sums[q * 8 + lane], fields in declaration order: sx, sy, sz, xx, xy, xz,

@@ -141,12 +141,8 @@ void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph&
     float sums[9 * 8];
     for (std::size_t first = 0; first < n; first += 8) {
       const int lanes = static_cast<int>(std::min<std::size_t>(8, n - first));
-      for (int l = 0; l < lanes; ++l) {
-        const std::size_t i = first + static_cast<std::size_t>(l);
-        const detail::OffsetSums o = rowOffsets(points, g, i, g.count[i]);
-        const float fields[9] = {o.sx, o.sy, o.sz, o.xx, o.xy, o.xz, o.yy, o.yz, o.zz};
-        for (int q = 0; q < 9; ++q) sums[8 * q + l] = fields[q];
-      }
+      detail::avx512::offsetSums8(points.data()->data(), g.indices.data(), static_cast<std::size_t>(g.k),
+                                  g.count.data(), first, lanes, sums);
       const unsigned done = detail::avx512::localPlanes8(
           points.data()->data(), sums, g.count.data(), first, lanes, near ? near->data()->data() : nullptr,
           viewpoint.data(), normals.data()->data(), curvature.data(), projected ? projected->data()->data() : nullptr, moments);
