@@ -541,6 +541,69 @@ TEST(Ransac, AdaptiveIterationsFindThePlaneAndRespectGravity) {
   EXPECT_NEAR(static_cast<double>(floor->inliers.size()), 3000, 60);
 }
 
+// ransacPlane judges planes on copies of the points laid out for vector loops; its
+// inliers must still be exactly the points the plain rule accepts: |n.p + d| <= the
+// distance and |n.normal| >= the (double) cosine, with Eigen's dot. A tilted plane
+// with pairs of points mirrored about it, so the fitted plane is that plane to within
+// rounding and the pairs lie within a few rounding errors of both thresholds: summing
+// the dot in another order or rounding the cosine to the nearest float changes the
+// inliers.
+TEST(Ransac, InliersAreExactlyThePointsThePlainRuleAccepts) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1, 1), jitter(-1, 1);
+  const Eigen::Vector3f n0 = Eigen::Vector3f(0.3f, -0.9f, 0.2f).normalized();
+  const Eigen::Vector3f e1 = n0.unitOrthogonal(), e2 = n0.cross(e1);
+  const Eigen::Vector3f centre(0.4f, 0.7f, 2.3f);
+  const double tolerance_deg = 30.0;  // the float nearest cos 30 degrees is below it
+  const float dist = 0.02f;
+  std::vector<Eigen::Vector3f> pts, normals;
+  // The plane itself, every hypothesis drawn from it; its normals lean the tolerance
+  // (give or take a rounding error) towards random directions.
+  for (int i = 0; i < 10000; ++i) {
+    pts.push_back(centre + u(rng) * e1 + u(rng) * e2);
+    const Eigen::Vector3f axis = (u(rng) * e1 + u(rng) * e2).normalized();
+    const double tilt = tolerance_deg + 1e-5 * jitter(rng);
+    normals.push_back(Eigen::AngleAxisf(static_cast<float>(tilt * kDeg), axis) * n0);
+  }
+  for (int i = 0; i < 5000; ++i) {  // mirrored pairs at the distance threshold
+    const Eigen::Vector3f q = centre + u(rng) * e1 + u(rng) * e2;
+    const float off = dist + 3e-7f * jitter(rng);
+    for (const float side : {1.f, -1.f}) {
+      pts.push_back(q + side * off * n0);
+      normals.push_back(n0);
+    }
+  }
+  std::vector<int> all(pts.size());
+  for (std::size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
+  for (const bool with_normals : {false, true}) {
+    for (const std::size_t sample : {std::size_t{0}, std::size_t{4096}}) {
+      RansacOptions o;
+      o.distance_m = dist;
+      o.score_sample = sample;
+      if (with_normals) {
+        o.point_normals = &normals;
+        o.normal_tolerance_deg = tolerance_deg;
+      }
+      std::mt19937 r(3);
+      const auto fit = ransacPlane(pts, all, o, r);
+      ASSERT_TRUE(fit);
+      const Eigen::Vector3f n = fit->plane.head<3>();
+      const double cos_normal = std::cos(tolerance_deg * M_PI / 180.0);
+      std::vector<int> expected;
+      for (int i : all) {
+        const auto k = static_cast<std::size_t>(i);
+        if (std::abs(n.dot(pts[k]) + fit->plane(3)) > dist) continue;
+        if (with_normals && std::abs(n.dot(normals[k])) < cos_normal) continue;
+        expected.push_back(i);
+      }
+      EXPECT_EQ(fit->inliers, expected) << "normals " << with_normals << ", score sample " << sample;
+      // The thresholds cut through the point set: both sides are populated.
+      EXPECT_GT(expected.size(), pts.size() / 10);
+      EXPECT_LT(expected.size(), pts.size() * 9 / 10);
+    }
+  }
+}
+
 TEST(GroundReclaim, TheFootOfAGentleRampGoesBackToTheRamp) {
   // Floor z = 0 for x < 1, a 5 degree ramp from x = 1 to 1.6, sampled every cm.
   const float t5 = static_cast<float>(std::tan(5 * kDeg));
