@@ -161,6 +161,31 @@ TEST(Neighbours, RestrictedGraphEqualsBruteForceOnTheKeptPoints) {
   EXPECT_THROW(restrictKnnGraph(all, pts, keep, 31, 0.02f, 10.f), std::invalid_argument);
 }
 
+// The pipeline keeps its two graphs from frame to frame. A graph built into buffers
+// that held another cloud's graph (more points, another k, rows full of stale
+// entries) must equal a fresh one, padding of short rows included.
+TEST(Neighbours, GraphsBuiltIntoReusedBuffersEqualFreshOnes) {
+  auto pts = randomCloud(1500, 9);
+  pts.emplace_back(50.f, 50.f, 50.f);  // isolated: a row with no neighbours
+  pts.emplace_back(50.f, 50.f, 50.01f);  // and two rows with one
+  std::vector<bool> keep(pts.size());
+  for (std::size_t i = 0; i < pts.size(); ++i) keep[i] = i % 5 != 0;
+  for (Simd simd : simdChoices()) {
+    KnnGraph reused = buildKnnGraph(randomCloud(4000, 10), 40, 0.02f, 10.f, simd);
+    KnnGraph restricted_reused = reused;
+    buildKnnGraph(pts, 30, 0.02f, 0.5f, reused, simd);
+    const KnnGraph fresh = buildKnnGraph(pts, 30, 0.02f, 0.5f, simd);
+    expectSameGraph(reused, fresh, toString(simd));
+    EXPECT_EQ(fresh.count[pts.size() - 2], 1);
+    EXPECT_EQ(fresh.indices[(pts.size() - 2) * 30 + 1], -1);
+    EXPECT_EQ(fresh.sq_dist[(pts.size() - 2) * 30 + 1], 0.f);
+    restrictKnnGraph(fresh, pts, keep, 20, 0.02f, 0.5f, restricted_reused, nullptr, simd);
+    expectSameGraph(restricted_reused, restrictKnnGraph(fresh, pts, keep, 20, 0.02f, 0.5f, nullptr, simd),
+                    toString(simd));
+    EXPECT_THROW(restrictKnnGraph(reused, pts, keep, 20, 0.02f, 0.5f, reused, nullptr, simd), std::invalid_argument);
+  }
+}
+
 TEST(OutlierRemoval, FirstKOfALargerGraphEqualsTheSmallerGraph) {
   const auto pts = randomCloud(2000, 6);
   const auto a = statisticalOutlierMask(bruteForceKnnGraph(pts, 30), 1.0, 8);

@@ -13,8 +13,9 @@ namespace mobmap::perception {
 
 /// k nearest neighbours of every point (excluding the point itself), stored flat:
 /// the neighbours of point i are indices[i*k .. i*k+count[i]), nearest first, with
-/// squared distances in sq_dist. count[i] < k only when the cloud has fewer than
-/// k+1 points or the point is isolated beyond `max_radius`.
+/// squared distances in sq_dist; the rest of a row holds index -1 and distance 0.
+/// count[i] < k only when the cloud has fewer than k+1 points or the point is
+/// isolated beyond `max_radius`.
 struct KnnGraph {
   int k = 0;
   std::vector<int> indices;
@@ -33,6 +34,11 @@ struct KnnGraph {
 KnnGraph buildKnnGraph(const std::vector<Eigen::Vector3f>& points, int k, float cell_m,
                        float max_radius_m, Simd simd = Simd::kAuto);
 
+/// The same graph into `out`, reusing its buffers: a caller that keeps one graph
+/// from frame to frame neither allocates nor clears tens of MB per frame.
+void buildKnnGraph(const std::vector<Eigen::Vector3f>& points, int k, float cell_m, float max_radius_m,
+                   KnnGraph& out, Simd simd = Simd::kAuto);
+
 /// The exact k-NN graph (k <= graph.k) of the points with keep[i], renumbered in
 /// their original order, derived from `graph` (the k-NN graph of all `points` built
 /// with the same max_radius_m). A kept point's row is the first k kept entries of its
@@ -41,6 +47,11 @@ KnnGraph buildKnnGraph(const std::vector<Eigen::Vector3f>& points, int k, float 
 KnnGraph restrictKnnGraph(const KnnGraph& graph, const std::vector<Eigen::Vector3f>& points,
                           const std::vector<bool>& keep, int k, float cell_m, float max_radius_m,
                           std::size_t* recomputed = nullptr, Simd simd = Simd::kAuto);
+
+/// The same graph into `out` (not `graph` itself), reusing its buffers.
+void restrictKnnGraph(const KnnGraph& graph, const std::vector<Eigen::Vector3f>& points,
+                      const std::vector<bool>& keep, int k, float cell_m, float max_radius_m, KnnGraph& out,
+                      std::size_t* recomputed = nullptr, Simd simd = Simd::kAuto);
 
 /// Reference: the same graph by brute force, O(n^2). For tests.
 KnnGraph bruteForceKnnGraph(const std::vector<Eigen::Vector3f>& points, int k);
