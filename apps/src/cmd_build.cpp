@@ -8,6 +8,7 @@
 #include "openni_source.hpp"
 #include "progress.hpp"
 #include "sequence.hpp"
+#include "worker_pool.hpp"
 
 #include "mobmap/mapping/gravity.hpp"
 #include "mobmap/mapping/mobility_map.hpp"
@@ -622,11 +623,16 @@ Command addBuildCommand(CLI::App& app) {
                           {map_paths[3], [&](const std::string& tmp) { writeTextFileAtomically(tmp, meta_text); }}});
       return meta;
     };
-    // Two frames in perception at once (both cores), fused strictly in order.
+    // Two frames in perception at once (both cores), fused strictly in order, on two
+    // threads that last the run (each keeps its pipeline buffers from frame to frame).
+    WorkerPool workers(2);
     std::deque<std::future<Scored>> in_flight;
     std::size_t next = 0;
     auto launch = [&] {
-      if (next < frames.size()) in_flight.push_back(std::async(std::launch::async, process, frames[next++]));
+      if (next < frames.size()) {
+        const int number = frames[next++];
+        in_flight.push_back(workers.submit([&process, number] { return process(number); }));
+      }
     };
     launch();
     launch();
