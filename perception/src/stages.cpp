@@ -278,7 +278,9 @@ class InlierTest {
         n += static_cast<std::size_t>(near & facing);
       }
     } else {
-      for (std::size_t j = 0; j < m; ++j) n += static_cast<std::size_t>(!(std::abs(a * x_[j] + (b * y_[j] + c * z_[j]) + d) > dist_));
+      for (std::size_t j = 0; j < m; ++j) {
+        n += static_cast<std::size_t>(!(std::abs(a * x_[j] + (b * y_[j] + c * z_[j]) + d) > dist_));
+      }
     }
     return n;
   }
@@ -838,7 +840,8 @@ std::size_t adoptUnsegmentedPoints(const std::vector<Eigen::Vector3f>& points, c
   std::vector<int> watch_start(n + 1, 0), watchers;
   for (std::size_t s = 0; s < orphans.size(); ++s) {
     if (s + 8 < orphans.size()) prefetchRow(g, static_cast<std::size_t>(orphans[s + 8]));
-    forNeighboursWithin(g, static_cast<std::size_t>(orphans[s]), max_d2, [&](std::size_t nb) { ++watch_start[nb + 1]; });
+    forNeighboursWithin(g, static_cast<std::size_t>(orphans[s]), max_d2,
+                        [&](std::size_t nb) { ++watch_start[nb + 1]; });
   }
   for (std::size_t i = 0; i < n; ++i) watch_start[i + 1] += watch_start[i];
   watchers.resize(static_cast<std::size_t>(watch_start[n]));

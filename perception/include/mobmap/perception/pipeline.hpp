@@ -171,7 +171,9 @@ struct FrameResult {
 };
 
 /// Runs the pipeline. Immutable after construction: process() may run on several
-/// threads at once (each call uses its own buffers).
+/// threads at once (each call uses its own buffers). Each thread that calls it keeps
+/// its two neighbour graphs from call to call (~40 MB for a VGA frame at 1 cm, freed
+/// when the thread ends), so later frames neither allocate nor clear them.
 class FramePipeline {
  public:
   explicit FramePipeline(PerceptionParams params = {}, gp::MobilityModel model = gp::MobilityModel());
