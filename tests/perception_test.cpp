@@ -166,8 +166,10 @@ TEST(Neighbours, RestrictedGraphEqualsBruteForceOnTheKeptPoints) {
 // entries) must equal a fresh one, padding of short rows included.
 TEST(Neighbours, GraphsBuiltIntoReusedBuffersEqualFreshOnes) {
   auto pts = randomCloud(1500, 9);
-  pts.emplace_back(50.f, 50.f, 50.f);  // isolated: a row with no neighbours
-  pts.emplace_back(50.f, 50.f, 50.01f);  // and two rows with one
+  // Two points far from the rest: rows with one neighbour each. The mask removes the
+  // first (index 1500), which leaves the second with none in the restricted graph.
+  pts.emplace_back(50.f, 50.f, 50.f);
+  pts.emplace_back(50.f, 50.f, 50.01f);
   std::vector<bool> keep(pts.size());
   for (std::size_t i = 0; i < pts.size(); ++i) keep[i] = i % 5 != 0;
   for (Simd simd : simdChoices()) {

@@ -23,6 +23,17 @@ inline Eigen::Vector3i cellOf(const Eigen::Vector3f& p, float inv_cell) {
           static_cast<int>(std::floor(p.z() * inv_cell))};
 }
 
+/// The packed cell keys of the points, in order: computed before a scan of lookups so
+/// that CellHash::slotAhead can ask for a slot before it is needed.
+inline std::vector<std::uint64_t> cellKeys(const std::vector<Eigen::Vector3f>& points, float inv_cell) {
+  std::vector<std::uint64_t> keys(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3i c = cellOf(points[i], inv_cell);
+    keys[i] = cellKey(c.x(), c.y(), c.z());
+  }
+  return keys;
+}
+
 /// key -> int32 value; capacity a power of two, linear probing.
 class CellHash {
  public:
@@ -45,12 +56,17 @@ class CellHash {
     }
     return values_[i];
   }
-  /// Asks for the cache lines where `key` would be looked up first (a miss per new key
-  /// otherwise: the table is a few MB and keys land at random places in it).
-  void prefetch(std::uint64_t key) const {
-    const std::size_t i = hash(key) & mask_;
-    __builtin_prefetch(keys_.data() + i);
-    __builtin_prefetch(values_.data() + i);
+  /// slot(keys[i]) in a scan over `keys`, having first asked for the cache lines of
+  /// keys[i + kAhead]'s slot: the first lookup of every key misses the cache otherwise
+  /// (the table is a few MB and keys land at random places in it).
+  int& slotAhead(const std::vector<std::uint64_t>& keys, std::size_t i) {
+    constexpr std::size_t kAhead = 32;
+    if (i + kAhead < keys.size()) {
+      const std::size_t ahead = hash(keys[i + kAhead]) & mask_;
+      __builtin_prefetch(keys_.data() + ahead);
+      __builtin_prefetch(values_.data() + ahead);
+    }
+    return slot(keys[i]);
   }
   [[nodiscard]] int find(std::uint64_t key) const {
     std::size_t i = hash(key) & mask_;
@@ -116,17 +132,9 @@ struct CellBuckets {
     const float inv = 1.f / cell_m;
     cell_of_point.resize(points.size());
     std::vector<int> counts;
-    // Keys first, each table slot asked for kAhead points before its lookup (as in
-    // voxelReduce).
-    constexpr std::size_t kAhead = 32;
-    std::vector<std::uint64_t> keys(points.size());
+    const std::vector<std::uint64_t> keys = cellKeys(points, inv);
     for (std::size_t i = 0; i < points.size(); ++i) {
-      const Eigen::Vector3i c = cellOf(points[i], inv);
-      keys[i] = cellKey(c.x(), c.y(), c.z());
-    }
-    for (std::size_t i = 0; i < points.size(); ++i) {
-      if (i + kAhead < points.size()) index.prefetch(keys[i + kAhead]);
-      int& s = index.slot(keys[i]);
+      int& s = index.slotAhead(keys, i);
       if (s < 0) {
         s = static_cast<int>(cells.size());
         cells.push_back(cellOf(points[i], inv));

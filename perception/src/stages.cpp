@@ -29,10 +29,12 @@ void forNeighboursWithin(const KnnGraph& g, std::size_t i, float max_d2, F&& f) 
   }
 }
 
-// Asks for point i's graph row ahead of a scan that will read it (breadth-first
-// searches jump between rows the hardware prefetcher cannot predict).
-inline void prefetchRow(const KnnGraph& g, std::size_t i) {
-  const std::size_t base = i * static_cast<std::size_t>(g.k);
+// Asks for the graph row of points[pos], if the list reaches that far, ahead of the
+// scan that will read it: breadth-first searches and orphan lists jump between rows in
+// ways the hardware prefetcher cannot predict.
+inline void prefetchRow(const KnnGraph& g, const std::vector<int>& points, std::size_t pos) {
+  if (pos >= points.size()) return;
+  const std::size_t base = static_cast<std::size_t>(points[pos]) * static_cast<std::size_t>(g.k);
   __builtin_prefetch(g.sq_dist.data() + base);
   __builtin_prefetch(g.indices.data() + base);
 }
@@ -47,18 +49,11 @@ std::vector<Eigen::Vector3f> voxelReduce(const std::vector<Eigen::Vector3f>& poi
   std::vector<Eigen::Vector3d> sums;  // double: sums of many points stay exact enough
   std::vector<int> counts;
   if (voxel_of_point) voxel_of_point->resize(points.size());
-  // Keys first, so that each lookup's table slot can be asked for kAhead points early:
-  // the first lookup of every voxel missed the cache (reduction stage 5.9 -> 3.9 ms
-  // per real frame).
-  constexpr std::size_t kAhead = 32;
-  std::vector<std::uint64_t> keys(points.size());
+  // Keys first, so that each lookup can prefetch a later one's slot (reduction stage
+  // 5.9 -> 3.9 ms per real frame).
+  const std::vector<std::uint64_t> keys = detail::cellKeys(points, inv);
   for (std::size_t i = 0; i < points.size(); ++i) {
-    const Eigen::Vector3i c = detail::cellOf(points[i], inv);
-    keys[i] = detail::cellKey(c.x(), c.y(), c.z());
-  }
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    if (i + kAhead < points.size()) index.prefetch(keys[i + kAhead]);
-    int& v = index.slot(keys[i]);
+    int& v = index.slotAhead(keys, i);
     if (v < 0) {
       v = static_cast<int>(sums.size());
       sums.emplace_back(Eigen::Vector3d::Zero());
@@ -268,34 +263,31 @@ class InlierTest {
     }
   }
   [[nodiscard]] std::size_t count(const Eigen::Vector4f& pl) const {
-    const float a = pl(0), b = pl(1), c = pl(2), d = pl(3);
-    const std::size_t m = x_.size();
     std::size_t n = 0;
     if (normals_) {
-      for (std::size_t j = 0; j < m; ++j) {
-        const bool near = !(std::abs(a * x_[j] + (b * y_[j] + c * z_[j]) + d) > dist_);
-        const bool facing = !(std::abs(a * nx_[j] + (b * ny_[j] + c * nz_[j])) < cos_);
-        n += static_cast<std::size_t>(near & facing);
-      }
+      for (std::size_t j = 0; j < x_.size(); ++j) n += static_cast<std::size_t>(near(pl, j) & facing(pl, j));
     } else {
-      for (std::size_t j = 0; j < m; ++j) {
-        n += static_cast<std::size_t>(!(std::abs(a * x_[j] + (b * y_[j] + c * z_[j]) + d) > dist_));
-      }
+      for (std::size_t j = 0; j < x_.size(); ++j) n += static_cast<std::size_t>(near(pl, j));
     }
     return n;
   }
   // The inliers' ids, in candidate order.
   void collect(const Eigen::Vector4f& pl, std::vector<int>& out) const {
-    const float a = pl(0), b = pl(1), c = pl(2), d = pl(3);
     out.clear();
     for (std::size_t j = 0; j < x_.size(); ++j) {
-      if (std::abs(a * x_[j] + (b * y_[j] + c * z_[j]) + d) > dist_) continue;
-      if (normals_ && std::abs(a * nx_[j] + (b * ny_[j] + c * nz_[j])) < cos_) continue;
-      out.push_back(ids_[j]);
+      if (near(pl, j) && (!normals_ || facing(pl, j))) out.push_back(ids_[j]);
     }
   }
 
  private:
+  // The two halves of the rule, the one place they are written.
+  [[nodiscard]] bool near(const Eigen::Vector4f& pl, std::size_t j) const {
+    return !(std::abs(pl(0) * x_[j] + (pl(1) * y_[j] + pl(2) * z_[j]) + pl(3)) > dist_);
+  }
+  [[nodiscard]] bool facing(const Eigen::Vector4f& pl, std::size_t j) const {
+    return !(std::abs(pl(0) * nx_[j] + (pl(1) * ny_[j] + pl(2) * nz_[j])) < cos_);
+  }
+
   const std::vector<int>& ids_;
   bool normals_;
   float dist_, cos_ = 0.f;
@@ -432,7 +424,7 @@ std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
     Eigen::Vector3f mean_dir = Eigen::Vector3f::Zero();
     for (std::size_t head = 0; head < queue.size(); ++head) {
       const int i = queue[head];
-      if (head + 6 < queue.size()) prefetchRow(g, static_cast<std::size_t>(queue[head + 6]));
+      prefetchRow(g, queue, head + 6);
       members.push_back(i);
       if (gate) {
         normal_sum += (*normals)[static_cast<std::size_t>(i)];
@@ -534,7 +526,7 @@ std::vector<int> mergeFragments(const std::vector<Eigen::Vector3f>& points, cons
       int fragments = 0;
       for (std::size_t head = 0; head < queue.size(); ++head) {
         const auto i = static_cast<std::size_t>(queue[head]);
-        if (head + 6 < queue.size()) prefetchRow(g, static_cast<std::size_t>(queue[head + 6]));
+        prefetchRow(g, queue, head + 6);
         int& stamp = seen_stamp[static_cast<std::size_t>(labels[i])];
         if (stamp != id) {
           stamp = id;
@@ -839,7 +831,7 @@ std::size_t adoptUnsegmentedPoints(const std::vector<Eigen::Vector3f>& points, c
   // change their mind when it joins a region.
   std::vector<int> watch_start(n + 1, 0), watchers;
   for (std::size_t s = 0; s < orphans.size(); ++s) {
-    if (s + 8 < orphans.size()) prefetchRow(g, static_cast<std::size_t>(orphans[s + 8]));
+    prefetchRow(g, orphans, s + 8);
     forNeighboursWithin(g, static_cast<std::size_t>(orphans[s]), max_d2,
                         [&](std::size_t nb) { ++watch_start[nb + 1]; });
   }
@@ -862,7 +854,7 @@ std::size_t adoptUnsegmentedPoints(const std::vector<Eigen::Vector3f>& points, c
   for (int round = 0; !orphans.empty(); ++round) {
     joins.clear();
     for (std::size_t s = 0; s < orphans.size(); ++s) {
-      if (s + 8 < orphans.size()) prefetchRow(g, static_cast<std::size_t>(orphans[s + 8]));
+      prefetchRow(g, orphans, s + 8);
       const int o = orphans[s];
       const auto j = static_cast<std::size_t>(o);
       const Eigen::Vector3f& q = points[j];
