@@ -18,11 +18,13 @@ flags=(-std=c++17 -O1 -g -ffp-contract=off -fsanitize=address,undefined -fno-san
 for d in /usr/include/mrpt/*/include; do flags+=("-I$d"); done
 cmake -DIN=apps/default.yaml -DOUT=build-fuzz/default_yaml.inc -P apps/embed.cmake
 
-# Each source is compiled once (again when it is newer than its object).
+# Each source is compiled once, again when it or any first-party header is newer than
+# its object (a header change can change a struct's layout under an old object).
+newest_header=$(ls -t $(find gp perception mapping apps tests/fuzz -name '*.hpp') | head -n 1)
 objects() {
   for src in "$@"; do
     local o="build-fuzz/obj/${src//\//_}.o"
-    if [ ! -f "$o" ] || [ "$src" -nt "$o" ]; then
+    if [ ! -f "$o" ] || [ "$src" -nt "$o" ] || [ "$newest_header" -nt "$o" ]; then
       clang++ "${flags[@]}" -fsanitize=fuzzer-no-link -c "$src" -o "$o"
     fi
     echo "$o"

@@ -50,6 +50,7 @@ TEST(Config, ShippedDefaultYamlEqualsTheStructDefaults) {
   EXPECT_EQ(c.perception.rough_min_normal_spread_deg, p.rough_min_normal_spread_deg);
   EXPECT_EQ(c.perception.plane_ransac_distance_m, p.plane_ransac_distance_m);
   EXPECT_EQ(c.perception.max_triangle_edge_m, p.max_triangle_edge_m);
+  EXPECT_EQ(c.perception.triangulator, p.triangulator);
   EXPECT_EQ(c.perception.roughness_smoothing, p.roughness_smoothing);
   EXPECT_EQ(c.perception.roughness_smoothing_passes, p.roughness_smoothing_passes);
   EXPECT_EQ(c.perception.rough_smoothing_k, p.rough_smoothing_k);
@@ -79,8 +80,9 @@ TEST(Config, ShippedDefaultYamlEqualsTheStructDefaults) {
 }
 
 TEST(Config, PartialFilesOverrideOnlyWhatTheySay) {
-  const Config c = parseConfig("perception:\n  max_range_m: 2.0\nmodel:\n  kind: rule\n", "x.yaml");
+  const Config c = parseConfig("perception:\n  max_range_m: 2.0\n  triangulator: cgal\nmodel:\n  kind: rule\n", "x.yaml");
   EXPECT_EQ(c.perception.max_range_m, 2.0);
+  EXPECT_EQ(c.perception.triangulator, perception::Triangulator::kCgal);
   EXPECT_EQ(c.perception.voxel_size_m, 0.01);
   EXPECT_EQ(c.model.model, gp::ModelKind::kRuleTable);
   EXPECT_TRUE(parseConfig("", "empty.yaml").table_path.empty());
@@ -94,6 +96,8 @@ TEST(Config, BadFilesNameTheFileAndTheKey) {
   EXPECT_NE(errorOf("perception:\n  voxel_size_m: 0\n").find("voxel_size_m is 0"), std::string::npos);
   EXPECT_NE(errorOf("perception:\n  min_range_m: 2\n  max_range_m: 1\n").find("max_range_m"), std::string::npos);
   EXPECT_NE(errorOf("model:\n  kind: magic\n").find("model.kind: 'magic' must be gp or rule"), std::string::npos);
+  EXPECT_NE(errorOf("perception:\n  triangulator: qhull\n").find("perception.triangulator: 'qhull' must be own or cgal"),
+            std::string::npos);
   EXPECT_NE(errorOf("perception: [1, 2\n").find("not valid YAML"), std::string::npos);
   EXPECT_NE(errorOf("perception:\n  normal_k: [1, 2]\n").find("expected a single value"), std::string::npos);
   // Found by fuzzing (tests/fuzz): mappings used as keys threw yaml-cpp's own exception.

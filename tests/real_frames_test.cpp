@@ -7,6 +7,7 @@
 #include "mobmap/mapping/mobility_map.hpp"
 
 #include "mobmap/perception/pipeline.hpp"
+#include "mobmap/perception/stages.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
@@ -176,6 +177,69 @@ TEST(RealFrames, FivePeopleWithoutGravityFindsTheFloorNotTheEndWall) {
   const auto wall = perception::FramePipeline(paper).processOrganized(f.points, f.width, f.height);
   ASSERT_TRUE(wall.ground_plane);
   EXPECT_LT(std::abs((*wall.ground_plane)(1)), 0.2);  // the paper's largest plane: upright, the end wall
+}
+
+// The library's Delaunay triangulation against CGAL's on every segment of two real
+// frames: the same triangles on each segment's points projected on its plane, and the
+// same roughness and area out of the whole pipeline.
+TEST(RealFrames, OwnDelaunayTrianglesAreCgalsOnEverySegment) {
+  for (const char* name : {"pcl-kinect/five_people.pcd", "pcl-kinect/milk_cartoon_all_small_clorox.pcd"}) {
+    const std::string path = dataFile(name);
+    SKIP_WITHOUT(path);
+    const app::LoadedFrame f = app::loadPcd(path);
+    perception::PerceptionParams own, cgal;
+    cgal.triangulator = perception::Triangulator::kCgal;
+    const auto a = perception::FramePipeline(own).processOrganized(f.points, f.width, f.height);
+    const auto b = perception::FramePipeline(cgal).processOrganized(f.points, f.width, f.height);
+    ASSERT_EQ(a.segments.size(), b.segments.size()) << name;
+    ASSERT_GT(a.segments.size(), 5u) << name;
+    std::size_t triangles = 0, same = 0;
+    for (std::size_t s = 0; s < a.segments.size(); ++s) {
+      const perception::Segment& seg = a.segments[s];
+      EXPECT_NEAR(seg.roughness, b.segments[s].roughness, 1e-9) << name << " segment " << s;
+      EXPECT_NEAR(seg.area_m2, b.segments[s].area_m2, 1e-9) << name << " segment " << s;
+      const Eigen::Vector3d n = seg.normal.cast<double>(), e1 = n.unitOrthogonal(), e2 = n.cross(e1);
+      std::vector<Eigen::Vector2d> projected;
+      for (int i : seg.points) {
+        const Eigen::Vector3d p = a.points[static_cast<std::size_t>(i)].cast<double>();
+        projected.emplace_back(e1.dot(p), e2.dot(p));
+      }
+      auto own_tris = perception::delaunayTriangles(projected, perception::Triangulator::kOwn);
+      auto cgal_tris = perception::delaunayTriangles(projected, perception::Triangulator::kCgal);
+      for (auto* tris : {&own_tris, &cgal_tris}) {
+        for (auto& t : *tris) std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
+        std::sort(tris->begin(), tris->end());
+      }
+      // Where four or more points lie on one circle (these segments hold many: their
+      // points are voxel centroids of a lattice-like grid), either diagonal is Delaunay
+      // and the two may pick differently. Then: as many triangles, and brute force finds
+      // no point inside any of our circumcircles beyond rounding.
+      if (own_tris == cgal_tris) {
+        ++same;
+      } else {
+        EXPECT_EQ(own_tris.size(), cgal_tris.size()) << name << " segment " << s;
+        int inside = 0;
+        for (const auto& t : own_tris) {
+          const Eigen::Vector2d &pa = projected[static_cast<std::size_t>(t[0])],
+                                &pb = projected[static_cast<std::size_t>(t[1])],
+                                &pc = projected[static_cast<std::size_t>(t[2])];
+          for (const auto& d : projected) {
+            const Eigen::Vector2d ad = pa - d, bd = pb - d, cd = pc - d;
+            const double x1 = bd.x() * cd.y() - cd.x() * bd.y(), x2 = ad.x() * cd.y() - cd.x() * ad.y(),
+                         x3 = ad.x() * bd.y() - bd.x() * ad.y();
+            const double det = ad.squaredNorm() * x1 - bd.squaredNorm() * x2 + cd.squaredNorm() * x3;
+            const double scale = ad.squaredNorm() * std::abs(x1) + bd.squaredNorm() * std::abs(x2) +
+                                 cd.squaredNorm() * std::abs(x3);
+            if (det > 1e-12 * scale) ++inside;
+          }
+        }
+        EXPECT_EQ(inside, 0) << name << " segment " << s;
+      }
+      triangles += own_tris.size();
+    }
+    EXPECT_GT(triangles, a.points.size());  // most points are in segments, ~2 triangles each
+    EXPECT_GE(same * 10, a.segments.size() * 9) << name << ": " << same << " of " << a.segments.size();
+  }
 }
 
 TEST(RealFrames, MilkCartonCarpetIsAbout0_46MetresAwayAndBottlesAreSeparateObstacles) {

@@ -55,6 +55,11 @@ static Config parseConfigUnchecked(const std::string& text, const std::string& o
     if (key != "perception" && key != "mapping" && key != "model") throw IoError(origin, key + ": unknown section");
   }
   auto& p = c.perception;
+  Setter triangulator = [&](const YAML::Node& n) {
+    const auto v = n.as<std::string>();
+    if (v != "own" && v != "cgal") throw IoError(origin, "perception.triangulator: '" + v + "' must be own or cgal");
+    p.triangulator = v == "own" ? perception::Triangulator::kOwn : perception::Triangulator::kCgal;
+  };
   apply(root["perception"], "perception",
         {{"min_range_m", bind(p.min_range_m)}, {"max_range_m", bind(p.max_range_m)}, {"voxel_size_m", bind(p.voxel_size_m)},
          {"outlier_k", bind(p.outlier_k)}, {"outlier_alpha", bind(p.outlier_alpha)}, {"normal_k", bind(p.normal_k)},
@@ -72,7 +77,8 @@ static Config parseConfigUnchecked(const std::string& text, const std::string& o
          {"rough_min_points", bind(p.rough_min_points)},
          {"rough_min_width_m", bind(p.rough_min_width_m)}, {"rough_max_slope_deg", bind(p.rough_max_slope_deg)},
          {"rough_min_normal_spread_deg", bind(p.rough_min_normal_spread_deg)}, {"plane_ransac_distance_m", bind(p.plane_ransac_distance_m)},
-         {"max_triangle_edge_m", bind(p.max_triangle_edge_m)}, {"roughness_smoothing", bind(p.roughness_smoothing)}, {"roughness_smoothing_passes", bind(p.roughness_smoothing_passes)},
+         {"max_triangle_edge_m", bind(p.max_triangle_edge_m)}, {"triangulator", triangulator},
+         {"roughness_smoothing", bind(p.roughness_smoothing)}, {"roughness_smoothing_passes", bind(p.roughness_smoothing_passes)},
          {"rough_smoothing_k", bind(p.rough_smoothing_k)},
          {"random_seed", bind(p.random_seed)}},
         origin);

@@ -500,7 +500,7 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
     const std::vector<Eigen::Vector3f>& measured =
         !p.roughness_smoothing ? out.points : seg.is_rough ? rough_measured : smoothed;
     const auto [r, area] = delaunayRoughness(measured, seg.points, plane,
-                                             p.max_triangle_edge_m);
+                                             p.max_triangle_edge_m, p.triangulator);
     seg.roughness = r;
     seg.area_m2 = area;
     features(static_cast<Eigen::Index>(s), 0) = seg.slope_deg;

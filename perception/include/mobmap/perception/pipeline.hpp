@@ -6,6 +6,7 @@
 
 #include "mobmap/gp/mobility_model.hpp"
 #include "mobmap/perception/camera.hpp"
+#include "mobmap/perception/triangulator.hpp"
 
 #include <Eigen/Core>
 
@@ -75,6 +76,9 @@ struct PerceptionParams {
   // 7. Surface properties
   double plane_ransac_distance_m = 0.01;  ///< floor of the RANSAC refinement threshold
   double max_triangle_edge_m = 0.05;      ///< Delaunay triangles with a longer edge span gaps: skipped
+  /// Who triangulates (the library, or CGAL as the reference): same triangles, see
+  /// Triangulator.
+  Triangulator triangulator = Triangulator::kOwn;
   /// Measure roughness on points projected onto their local least-squares plane (the
   /// plane of their normal, one planar moving-least-squares step) instead of the raw
   /// voxel centroids. Removes sensor noise and depth quantisation below the normal
