@@ -184,7 +184,8 @@ double reference(const Input& in, double max_range, std::vector<double>& stage_m
   for (const auto& p : rgb->points) pts.emplace_back(p.x, p.y, p.z);
   for (const auto& c : clusters) {
     const std::vector<int> idx(c.indices.begin(), c.indices.end());
-    (void)perception::delaunayRoughness(pts, idx, perception::leastSquaresPlane(pts, idx), 0.05);
+    (void)perception::delaunayRoughness(pts, idx, perception::leastSquaresPlane(pts, idx), 0.05,
+                                        perception::Triangulator::kCgal);
   }
   const auto t6 = Clock::now();
   stage_ms = {ms(t0, t1), ms(t1, t2), ms(t2, t3), ms(t3, t4), ms(t4, t5), ms(t5, t6)};
