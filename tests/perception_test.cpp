@@ -1239,6 +1239,12 @@ TEST(Delaunay, DuplicatesCollinearAndNonFinitePointsAreHandled) {
   const auto fan = delaunayTriangles(line, Triangulator::kOwn);
   EXPECT_EQ(fan.size(), 19u);
   EXPECT_EQ(canonical(fan), canonical(delaunayTriangles(line, Triangulator::kCgal)));
+  // Coordinates near the double range (products overflow; the exact predicates decide):
+  // a square's corners and its centre, a fan of four.
+  const double big = 1e308;
+  const std::vector<Eigen::Vector2d> huge = {{-big, 0}, {big, 0}, {0, big}, {0, -big}, {0, 0}};
+  EXPECT_EQ(canonical(delaunayTriangles(huge, Triangulator::kOwn)),
+            canonical({{0, 3, 4}, {1, 2, 4}, {0, 4, 2}, {1, 4, 3}}));
   // Fewer than three points, and none.
   EXPECT_TRUE(delaunayTriangles({{0, 0}, {1, 1}}, Triangulator::kOwn).empty());
   EXPECT_TRUE(delaunayTriangles({}, Triangulator::kOwn).empty());

@@ -68,9 +68,8 @@ int PlanarDelaunay::addTriangle(int a, int b, int c) {
 // hull edge t -> s): p is "inside" it when it lies strictly in that half-plane, as in
 // CGAL. Points on a circle's boundary do not flip.
 bool PlanarDelaunay::mustFlip(int e) const {
-  const auto at = [&](int h) { return tv_[static_cast<std::size_t>(h)]; };
-  const int f = th_[static_cast<std::size_t>(e)];
-  const int u = at(e), v = at(nextEdge(e)), p = at(prevEdge(e)), w = at(prevEdge(f));
+  const int f = twin(e);
+  const int u = corner(e), v = corner(nextEdge(e)), p = corner(prevEdge(e)), w = corner(prevEdge(f));
   if (u == n_) return orient(w, v, p) > 0;  // (v, inf, w) is the half-plane left of w -> v
   if (v == n_) return orient(u, w, p) > 0;  // (inf, u, w): left of u -> w
   if (w == n_) return orient(v, u, p) > 0;  // (v, u, inf): left of v -> u
@@ -83,18 +82,12 @@ bool PlanarDelaunay::mustFlip(int e) const {
 
 // (u, v, p) + (v, u, w) -> (u, w, p) + (w, v, p).
 void PlanarDelaunay::flip(int e) {
-  const int f = th_[static_cast<std::size_t>(e)];
+  const int f = twin(e);
   const int b1 = e - e % 3, b2 = f - f % 3;
-  const int u = tv_[static_cast<std::size_t>(e)], v = tv_[static_cast<std::size_t>(nextEdge(e))];
-  const int p = tv_[static_cast<std::size_t>(prevEdge(e))], w = tv_[static_cast<std::size_t>(prevEdge(f))];
-  const int vp = th_[static_cast<std::size_t>(nextEdge(e))], pu = th_[static_cast<std::size_t>(prevEdge(e))];
-  const int uw = th_[static_cast<std::size_t>(nextEdge(f))], wv = th_[static_cast<std::size_t>(prevEdge(f))];
-  tv_[static_cast<std::size_t>(b1)] = u;
-  tv_[static_cast<std::size_t>(b1 + 1)] = w;
-  tv_[static_cast<std::size_t>(b1 + 2)] = p;
-  tv_[static_cast<std::size_t>(b2)] = w;
-  tv_[static_cast<std::size_t>(b2 + 1)] = v;
-  tv_[static_cast<std::size_t>(b2 + 2)] = p;
+  const int u = corner(e), v = corner(nextEdge(e)), p = corner(prevEdge(e)), w = corner(prevEdge(f));
+  const int vp = twin(nextEdge(e)), pu = twin(prevEdge(e)), uw = twin(nextEdge(f)), wv = twin(prevEdge(f));
+  setCorners(b1, u, w, p);
+  setCorners(b2, w, v, p);
   link(b1, uw);
   link(b1 + 1, b2 + 2);
   link(b1 + 2, pu);
@@ -115,11 +108,10 @@ void PlanarDelaunay::legalize() {
 // (a, b, c) -> (a, b, p), (b, c, p), (c, a, p); c (or a, b) may be the infinite vertex.
 void PlanarDelaunay::insertInFace(int p, int t) {
   const int base = 3 * t;
-  const int a = tv_[static_cast<std::size_t>(base)], b = tv_[static_cast<std::size_t>(base + 1)],
-            c = tv_[static_cast<std::size_t>(base + 2)];
-  const int bc = th_[static_cast<std::size_t>(base + 1)], ca = th_[static_cast<std::size_t>(base + 2)];
+  const int a = corner(base), b = corner(base + 1), c = corner(base + 2);
+  const int bc = twin(base + 1), ca = twin(base + 2);
   const int b1 = 3 * addTriangle(b, c, p), b2 = 3 * addTriangle(c, a, p);
-  tv_[static_cast<std::size_t>(base + 2)] = p;
+  setCorners(base, a, b, p);
   link(base + 1, b1 + 2);
   link(base + 2, b2 + 1);
   link(b1, bc);
@@ -132,19 +124,13 @@ void PlanarDelaunay::insertInFace(int p, int t) {
 // p on half-edge e = u -> v of (u, v, s), twin in (v, u, x):
 // -> (v, s, p), (s, u, p), (u, x, p), (x, v, p).
 void PlanarDelaunay::insertInEdge(int p, int e) {
-  const int f = th_[static_cast<std::size_t>(e)];
+  const int f = twin(e);
   const int bt = e - e % 3, bo = f - f % 3;
-  const int u = tv_[static_cast<std::size_t>(e)], v = tv_[static_cast<std::size_t>(nextEdge(e))];
-  const int s = tv_[static_cast<std::size_t>(prevEdge(e))], x = tv_[static_cast<std::size_t>(prevEdge(f))];
-  const int vs = th_[static_cast<std::size_t>(nextEdge(e))], su = th_[static_cast<std::size_t>(prevEdge(e))];
-  const int ux = th_[static_cast<std::size_t>(nextEdge(f))], xv = th_[static_cast<std::size_t>(prevEdge(f))];
+  const int u = corner(e), v = corner(nextEdge(e)), s = corner(prevEdge(e)), x = corner(prevEdge(f));
+  const int vs = twin(nextEdge(e)), su = twin(prevEdge(e)), ux = twin(nextEdge(f)), xv = twin(prevEdge(f));
   const int b1 = 3 * addTriangle(s, u, p), b2 = 3 * addTriangle(x, v, p);
-  tv_[static_cast<std::size_t>(bt)] = v;
-  tv_[static_cast<std::size_t>(bt + 1)] = s;
-  tv_[static_cast<std::size_t>(bt + 2)] = p;
-  tv_[static_cast<std::size_t>(bo)] = u;
-  tv_[static_cast<std::size_t>(bo + 1)] = x;
-  tv_[static_cast<std::size_t>(bo + 2)] = p;
+  setCorners(bt, v, s, p);
+  setCorners(bo, u, x, p);
   link(bt, vs);
   link(bt + 1, b1 + 2);
   link(bt + 2, b2 + 1);
@@ -163,11 +149,10 @@ void PlanarDelaunay::insertInEdge(int p, int e) {
 int PlanarDelaunay::locate(int p, int t, int& on_edge, bool& duplicate) const {
   on_edge = -1;
   duplicate = false;
-  const auto at = [&](int h) { return tv_[static_cast<std::size_t>(h)]; };
   // Start in a finite triangle: across the hull edge from an infinite one.
   for (int k = 0; k < 3; ++k) {
-    if (at(3 * t + k) == n_) {
-      t = th_[static_cast<std::size_t>(3 * t + (k + 1) % 3)] / 3;
+    if (corner(3 * t + k) == n_) {
+      t = twin(3 * t + (k + 1) % 3) / 3;
       break;
     }
   }
@@ -175,15 +160,15 @@ int PlanarDelaunay::locate(int p, int t, int& on_edge, bool& duplicate) const {
   const std::size_t limit = tv_.size() / 3 + 2;
   for (std::size_t step = 0; step < limit; ++step) {
     const int base = 3 * t;
-    if (at(base) == n_ || at(base + 1) == n_ || at(base + 2) == n_) return t;  // entered across the hull
+    if (corner(base) == n_ || corner(base + 1) == n_ || corner(base + 2) == n_) return t;  // entered across the hull
     int zero = -1, zeros = 0;
     bool moved = false;
     for (int k = 0; k < 3; ++k) {
       const int e = base + k;
       if (e == came_through) continue;
-      const int o = orient(at(e), at(nextEdge(e)), p);
+      const int o = orient(corner(e), corner(nextEdge(e)), p);
       if (o < 0) {
-        came_through = th_[static_cast<std::size_t>(e)];
+        came_through = twin(e);
         t = came_through / 3;
         moved = true;
         break;
@@ -266,15 +251,17 @@ bool PlanarDelaunay::build(const double* x, const double* y, int n) {
   // inserted in each cell; the walk to the next point in that cell starts there. The
   // cell is at least 1/m of the larger extent, so a thin strip of points gets at most
   // about 3m cells.
+  // (Extents beyond the double range, from coordinates near it, give one cell.)
   const double wanted = std::max(1.0, m / 8.0), w = x1 - x0, h = y1 - y0;
   const double cell = std::max({std::sqrt(w * h / wanted), std::max(w, h) / m, 1e-12});
-  const auto gw = static_cast<std::size_t>(w / cell) + 1, gh = static_cast<std::size_t>(h / cell) + 1;
-  grid_.assign(gw * gh, -1);
-  const auto cellOf = [&](int p) {
-    const auto cx = std::min(gw - 1, static_cast<std::size_t>((x[p] - x0) / cell));
-    const auto cy = std::min(gh - 1, static_cast<std::size_t>((y[p] - y0) / cell));
-    return cy * gw + cx;
+  const auto cellIndex = [&](double offset, std::size_t cells) -> std::size_t {
+    const double q = offset / cell;  // NaN when the extent overflowed
+    return q >= 0 && q < static_cast<double>(cells) ? static_cast<std::size_t>(q) : q >= 0 ? cells - 1 : 0;
   };
+  const std::size_t limit = static_cast<std::size_t>(m) + 1;
+  const std::size_t gw = cellIndex(w, limit) + 1, gh = cellIndex(h, limit) + 1;
+  grid_.assign(gw * gh, -1);
+  const auto cellOf = [&](int p) { return cellIndex(y[p] - y0, gh) * gw + cellIndex(x[p] - x0, gw); };
 
   // The first triangle: the first point, the first point apart from it, the first point
   // off their line. Points passed over on the way are inserted later.

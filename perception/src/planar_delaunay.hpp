@@ -30,6 +30,13 @@ class PlanarDelaunay {
   int orient(int a, int b, int p) const;
   bool mustFlip(int e) const;
   int addTriangle(int a, int b, int c);
+  int corner(int h) const { return tv_[static_cast<std::size_t>(h)]; }  // where half-edge h starts
+  int twin(int h) const { return th_[static_cast<std::size_t>(h)]; }
+  void setCorners(int base, int a, int b, int c) {
+    tv_[static_cast<std::size_t>(base)] = a;
+    tv_[static_cast<std::size_t>(base + 1)] = b;
+    tv_[static_cast<std::size_t>(base + 2)] = c;
+  }
   void link(int e, int f) {
     th_[static_cast<std::size_t>(e)] = f;
     th_[static_cast<std::size_t>(f)] = e;
