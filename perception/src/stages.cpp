@@ -219,11 +219,20 @@ Eigen::Vector4f leastSquaresPlane(const std::vector<Eigen::Vector3f>& points, co
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (int i : idx) mean += points[static_cast<std::size_t>(i)].cast<double>();
   mean /= static_cast<double>(std::max<std::size_t>(1, idx.size()));
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  // The six distinct sums of the covariance (each summed in the same order, so the
+  // result is what the full outer product d * d^T gave, to the bit, at 2/3 the work).
+  double xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0;
   for (int i : idx) {
     const Eigen::Vector3d d = points[static_cast<std::size_t>(i)].cast<double>() - mean;
-    cov += d * d.transpose();
+    xx += d.x() * d.x();
+    xy += d.x() * d.y();
+    xz += d.x() * d.z();
+    yy += d.y() * d.y();
+    yz += d.y() * d.z();
+    zz += d.z() * d.z();
   }
+  Eigen::Matrix3d cov;
+  cov << xx, xy, xz, xy, yy, yz, xz, yz, zz;
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
   es.computeDirect(cov / static_cast<double>(std::max<std::size_t>(1, idx.size())));
   const Eigen::Vector3d n = es.eigenvectors().col(0).normalized();
