@@ -39,6 +39,26 @@ inline void prefetchRow(const KnnGraph& g, const std::vector<int>& points, std::
   __builtin_prefetch(g.indices.data() + base);
 }
 
+// Sum of the outer products d * d^T of a sequence of vectors: its six distinct entries,
+// each summed in the order of the sequence, so the matrix is the one summing the full
+// products gives, to the bit, for 2/3 of the work.
+struct OuterSum {
+  double xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0;
+  void add(const Eigen::Vector3d& d) {
+    xx += d.x() * d.x();
+    xy += d.x() * d.y();
+    xz += d.x() * d.z();
+    yy += d.y() * d.y();
+    yz += d.y() * d.z();
+    zz += d.z() * d.z();
+  }
+  [[nodiscard]] Eigen::Matrix3d matrix() const {
+    Eigen::Matrix3d m;
+    m << xx, xy, xz, xy, yy, yz, xz, yz, zz;
+    return m;
+  }
+};
+
 }  // namespace
 
 std::vector<Eigen::Vector3f> voxelReduce(const std::vector<Eigen::Vector3f>& points, float voxel_m,
@@ -219,22 +239,10 @@ Eigen::Vector4f leastSquaresPlane(const std::vector<Eigen::Vector3f>& points, co
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (int i : idx) mean += points[static_cast<std::size_t>(i)].cast<double>();
   mean /= static_cast<double>(std::max<std::size_t>(1, idx.size()));
-  // The six distinct sums of the covariance (each summed in the same order, so the
-  // result is what the full outer product d * d^T gave, to the bit, at 2/3 the work).
-  double xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0;
-  for (int i : idx) {
-    const Eigen::Vector3d d = points[static_cast<std::size_t>(i)].cast<double>() - mean;
-    xx += d.x() * d.x();
-    xy += d.x() * d.y();
-    xz += d.x() * d.z();
-    yy += d.y() * d.y();
-    yz += d.y() * d.z();
-    zz += d.z() * d.z();
-  }
-  Eigen::Matrix3d cov;
-  cov << xx, xy, xz, xy, yy, yz, xz, yz, zz;
+  OuterSum cov;
+  for (int i : idx) cov.add(points[static_cast<std::size_t>(i)].cast<double>() - mean);
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-  es.computeDirect(cov / static_cast<double>(std::max<std::size_t>(1, idx.size())));
+  es.computeDirect(cov.matrix() / static_cast<double>(std::max<std::size_t>(1, idx.size())));
   const Eigen::Vector3d n = es.eigenvectors().col(0).normalized();
   if (rms) *rms = std::sqrt(std::max(0.0, es.eigenvalues()(0)));
   Eigen::Vector4f plane;
@@ -463,19 +471,19 @@ namespace {
 // First and second moments of a point set, for its PCA.
 struct PointMoments {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+  OuterSum outer;
   std::size_t n = 0;
   void add(const Eigen::Vector3f& p) {
     const Eigen::Vector3d q = p.cast<double>();
     sum += q;
-    outer += q * q.transpose();
+    outer.add(q);
     ++n;
   }
   // Eigenvalues ascending, eigenvectors in columns (col(0): the plane normal).
   [[nodiscard]] Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen() const {
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
     const Eigen::Vector3d mean = sum / static_cast<double>(std::max<std::size_t>(n, 1));
-    es.computeDirect(outer / static_cast<double>(std::max<std::size_t>(n, 1)) - mean * mean.transpose());
+    es.computeDirect(outer.matrix() / static_cast<double>(std::max<std::size_t>(n, 1)) - mean * mean.transpose());
     return es;
   }
   // Extent across the set's main direction: the width of a uniform strip is sqrt(12)
