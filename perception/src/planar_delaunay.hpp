@@ -8,13 +8,13 @@ namespace mobmap::perception::detail {
 
 /// Incremental Delaunay triangulation (Lawson flips). Points go in by rounds of growing
 /// density, each located by a walk from a triangle near it (a coarse grid keeps one per
-/// cell), so any input order is fine and no sort is needed. Like
-/// CGAL's Delaunay_triangulation_2 it closes the plane with an infinite vertex (index n),
-/// so points outside the hull need no special case; its predicates are exact (a
+/// cell), so any input order is fine and no sort is needed. Like CGAL's
+/// Delaunay_triangulation_2 it closes the plane with an infinite vertex (index n), so
+/// points outside the hull need no special case. Its predicates are exact: a
 /// floating-point filter with Shewchuk's error bounds, CGAL's exact predicates when the
-/// filter cannot decide). Duplicate points are skipped. For points with no four on a
+/// filter cannot decide. Duplicate points are skipped. For points with no four on a
 /// circle the result is the unique Delaunay triangulation, CGAL's; with cocircular points
-/// which diagonal is drawn may depend on the order of flips.
+/// which diagonal is drawn may depend on the order of insertion.
 class PlanarDelaunay {
  public:
   /// Triangulates points (x[i], y[i]), i < n; points with a non-finite coordinate are
