@@ -38,10 +38,12 @@ std::vector<Eigen::Vector3f> randomCloud(int n, unsigned seed) {
 // give the brute-force graph exactly.
 std::vector<Simd> simdChoices() {
   std::vector<Simd> out{Simd::kPortable};
-  if (simdSupported(Simd::kAvx512)) {
-    out.push_back(Simd::kAvx512);
-  } else {
-    std::printf("note: this CPU has no AVX-512; only the portable kernels are tested\n");
+  for (Simd simd : {Simd::kAvx2, Simd::kAvx512}) {
+    if (simdSupported(simd)) {
+      out.push_back(simd);
+    } else {
+      std::printf("note: this CPU has no %s; its kernels are not tested here\n", toString(simd));
+    }
   }
   return out;
 }
@@ -98,11 +100,18 @@ TEST(Neighbours, SparseAndDenseRegionsTakeEveryBranchOfTheSearch) {
       }
     }
   }
-  if (simdSupported(Simd::kAvx512)) {
-    EXPECT_EQ(resolveSimd(Simd::kAvx512, "test"), Simd::kAvx512);
-  } else {
-    EXPECT_THROW(buildKnnGraph(pts, 4, 0.02f, 1.f, Simd::kAvx512), std::invalid_argument);
+  for (Simd simd : {Simd::kAvx2, Simd::kAvx512}) {
+    if (simdSupported(simd)) {
+      EXPECT_EQ(resolveSimd(simd, "test"), simd);
+    } else {
+      EXPECT_THROW(buildKnnGraph(pts, 4, 0.02f, 1.f, simd), std::invalid_argument);
+    }
   }
+  // kAuto takes the widest: AVX-512 where there is, else AVX2.
+  const Simd best = simdSupported(Simd::kAvx512) ? Simd::kAvx512
+                    : simdSupported(Simd::kAvx2) ? Simd::kAvx2
+                                                 : Simd::kPortable;
+  EXPECT_EQ(resolveSimd(Simd::kAuto, "test"), best);
 }
 
 TEST(Neighbours, GridKnnEqualsBruteForceOnALatticeFullOfTies) {

@@ -264,12 +264,25 @@ class GridSearch {
   std::vector<std::uint8_t> band_of_;
 };
 
-#if MOBMAP_AVX512_KERNELS
+#if MOBMAP_X86_KERNELS
+// The vector kernels SortedCellSearch runs on (simd_kernels.hpp).
+struct Avx512Kernels {
+  static constexpr auto distancesAndCounts = &detail::avx512::distancesAndCounts;
+  static constexpr auto compactKeys = &detail::avx512::compactKeys;
+  static constexpr auto rankSmallest = &detail::avx512::rankSmallest;
+};
+struct Avx2Kernels {
+  static constexpr auto distancesAndCounts = &detail::avx2::distancesAndCounts;
+  static constexpr auto compactKeys = &detail::avx2::compactKeys;
+  static constexpr auto rankSmallest = &detail::avx2::rankSmallest;
+};
+
 // The same exact queries as GridSearch, with the points sorted by cell into arrays of
 // coordinates, so a cell's block is a few contiguous copies, and the distance, limit
-// and selection loops in AVX-512 (simd_avx512.cpp). Same graph, bit for bit: the
+// and selection loops in AVX-512 or AVX2 (`Kernels`). Same graph, bit for bit: the
 // distances are the same operations in the same order, and keys order by (distance,
 // index) whatever the order candidates are found in.
+template <typename Kernels>
 class SortedCellSearch {
  public:
   SortedCellSearch(const std::vector<Eigen::Vector3f>& points, int k, float cell_m, float max_radius_m)
@@ -411,19 +424,19 @@ class SortedCellSearch {
   // Distances from sorted point s to the block; count[q] excludes the point itself.
   void distances(Block& b, int s, const float limit[4], int count[4]) const {
     const auto p = static_cast<std::size_t>(s);
-    detail::avx512::distancesAndCounts(b.x.data(), b.y.data(), b.z.data(), b.n, x_[p], y_[p], z_[p], limit,
-                                       b.d2.data(), count);
+    Kernels::distancesAndCounts(b.x.data(), b.y.data(), b.z.data(), b.n, x_[p], y_[p], z_[p], limit, b.d2.data(),
+                                count);
     for (int q = 0; q < 4; ++q) --count[q];  // the point itself, at distance 0
   }
 
   // The k nearest of the block's points within `limit` (other than `self`) into row `row`.
   std::size_t select(const Block& b, int self, float limit, KnnGraph& g, std::size_t row) {
     if (keys_.size() < b.n + detail::kRankMaxKeys) keys_.resize(b.n + detail::kRankMaxKeys);
-    const std::size_t m = detail::avx512::compactKeys(b.d2.data(), b.id.data(), b.n, self, limit, keys_.data());
+    const std::size_t m = Kernels::compactKeys(b.d2.data(), b.id.data(), b.n, self, limit, keys_.data());
     const std::size_t base = row * k_;
     std::size_t n = 0;
     if (m <= detail::kRankMaxKeys) {
-      n = detail::avx512::rankSmallest(keys_.data(), m, k_, &g.sq_dist[base], &g.indices[base]);
+      n = Kernels::rankSmallest(keys_.data(), m, k_, &g.sq_dist[base], &g.indices[base]);
       g.count[row] = static_cast<int>(n);
     } else {
       n = selectSmallestBanded(keys_.data(), m, k_, limit, scratch_, band_of_);
@@ -451,9 +464,14 @@ class SortedCellSearch {
 template <typename Want, typename RowOf>
 void searchInto(KnnGraph& g, const std::vector<Eigen::Vector3f>& points, int k, float cell_m, float max_radius_m,
                 Simd simd, Want want, RowOf row_of) {
-#if MOBMAP_AVX512_KERNELS
+#if MOBMAP_X86_KERNELS
   if (simd == Simd::kAvx512) {
-    SortedCellSearch search(points, k, cell_m, max_radius_m);
+    SortedCellSearch<Avx512Kernels> search(points, k, cell_m, max_radius_m);
+    search.run(g, want, row_of);
+    return;
+  }
+  if (simd == Simd::kAvx2) {
+    SortedCellSearch<Avx2Kernels> search(points, k, cell_m, max_radius_m);
     search.run(g, want, row_of);
     return;
   }

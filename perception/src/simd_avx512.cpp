@@ -3,7 +3,7 @@
 // attribute, so the rest of the library stays baseline x86-64.
 #include "simd_kernels.hpp"
 
-#if MOBMAP_AVX512_KERNELS
+#if MOBMAP_X86_KERNELS
 
 // GCC 12's avx512fintrin.h fills the merge operand of unmasked intrinsics with a
 // deliberately uninitialised value, which -Wmaybe-uninitialized reports once they are
@@ -284,4 +284,4 @@ MOBMAP_TARGET_AVX512 unsigned localPlanes8(const float* points, const float sums
 
 }  // namespace mobmap::perception::detail::avx512
 
-#endif  // MOBMAP_AVX512_KERNELS
+#endif  // MOBMAP_X86_KERNELS

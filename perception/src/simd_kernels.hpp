@@ -7,9 +7,9 @@
 #include <cstdint>
 
 #if (defined(__x86_64__) || defined(_M_X64)) && (defined(__GNUC__) || defined(__clang__))
-#define MOBMAP_AVX512_KERNELS 1
+#define MOBMAP_X86_KERNELS 1
 #else
-#define MOBMAP_AVX512_KERNELS 0
+#define MOBMAP_X86_KERNELS 0
 #endif
 
 namespace mobmap::perception::detail {
@@ -19,7 +19,7 @@ namespace mobmap::perception::detail {
 /// floats) above the point index, so keys order by (distance, index) and are distinct.
 inline constexpr std::size_t kRankMaxKeys = 64;
 
-#if MOBMAP_AVX512_KERNELS
+#if MOBMAP_X86_KERNELS
 namespace avx512 {
 
 /// Block of candidate points as structure of arrays, padded with NaN coordinates (and
@@ -64,6 +64,27 @@ unsigned localPlanes8(const float* points, const float sums[9 * 8], const int* c
                       double moments[9 * 8]);
 
 }  // namespace avx512
+
+/// The same functions, with the same contracts and results, in AVX2 (simd_avx2.cpp):
+/// eight floats or four 64-bit keys per vector, masks as vectors. rankSmallest ranks
+/// the keys' distance bits as signed 32-bit integers, eight per vector, and the whole
+/// keys as signed 64-bit ones, four per vector, when two distances are equal (both
+/// order as the unsigned keys do: a squared distance's sign bit is 0).
+namespace avx2 {
+
+void distancesAndCounts(const float* x, const float* y, const float* z, std::size_t n, float px, float py, float pz,
+                        const float limit[4], float* d2, int count[4]);
+std::size_t compactKeys(const float* d2, const int* index, std::size_t n, int self, float limit, std::uint64_t* keys);
+std::size_t rankSmallest(std::uint64_t* keys, std::size_t m, std::size_t k, float* sq_dist, int* index);
+/// As avx512::offsetSums8; `n_points` is the number of points (x, y, z triples) in
+/// `points`, so that no load reads past the last.
+void offsetSums8(const float* points, std::size_t n_points, const int* indices, std::size_t k, const int* counts,
+                 std::size_t first, int lanes, float sums[9 * 8]);
+unsigned localPlanes8(const float* points, const float sums[9 * 8], const int* counts, std::size_t first, int lanes,
+                      const float* near, const float viewpoint[3], float* normals, float* curvature, float* projected,
+                      double moments[9 * 8]);
+
+}  // namespace avx2
 #endif
 
 }  // namespace mobmap::perception::detail

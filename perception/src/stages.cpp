@@ -147,20 +147,29 @@ void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph&
   normals.assign(n, Eigen::Vector3f::Zero());
   curvature.assign(n, 1.f);
   if (projected) *projected = points;
-#if MOBMAP_AVX512_KERNELS
-  if (simd == Simd::kAvx512) {
+#if MOBMAP_X86_KERNELS
+  if (simd == Simd::kAvx512 || simd == Simd::kAvx2) {
     // Eight points at a time; the lanes the kernel leaves (the closed-form solver) are
     // finished here with the same arithmetic as the portable loop below.
     static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "points are read as x, y, z triples");
-    double moments[9 * 8];
-    float sums[9 * 8];
+    const float* xyz = points.data()->data();
+    const auto k = static_cast<std::size_t>(g.k);
+    double moments[9 * 8] = {};
+    float sums[9 * 8] = {};
     for (std::size_t first = 0; first < n; first += 8) {
       const int lanes = static_cast<int>(std::min<std::size_t>(8, n - first));
-      detail::avx512::offsetSums8(points.data()->data(), g.indices.data(), static_cast<std::size_t>(g.k),
-                                  g.count.data(), first, lanes, sums);
-      const unsigned done = detail::avx512::localPlanes8(
-          points.data()->data(), sums, g.count.data(), first, lanes, near ? near->data()->data() : nullptr,
-          viewpoint.data(), normals.data()->data(), curvature.data(), projected ? projected->data()->data() : nullptr, moments);
+      const float* start = near ? near->data()->data() : nullptr;
+      float* proj = projected ? projected->data()->data() : nullptr;
+      unsigned done = 0;
+      if (simd == Simd::kAvx512) {
+        detail::avx512::offsetSums8(xyz, g.indices.data(), k, g.count.data(), first, lanes, sums);
+        done = detail::avx512::localPlanes8(xyz, sums, g.count.data(), first, lanes, start, viewpoint.data(),
+                                            normals.data()->data(), curvature.data(), proj, moments);
+      } else {
+        detail::avx2::offsetSums8(xyz, n, g.indices.data(), k, g.count.data(), first, lanes, sums);
+        done = detail::avx2::localPlanes8(xyz, sums, g.count.data(), first, lanes, start, viewpoint.data(),
+                                          normals.data()->data(), curvature.data(), proj, moments);
+      }
       for (int l = 0; l < lanes; ++l) {
         if (done >> l & 1u) continue;
         const std::size_t i = first + static_cast<std::size_t>(l);

@@ -251,6 +251,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "cannot write %s\n", dump_path.c_str());
     return 1;
   }
+  std::printf("(a)'s vector kernels on this CPU: %s\n", perception::toString(perception::bestSimd()));
   std::printf("%-40s %10s %10s %8s\n", "frame (VGA)", "(a) ms", "(b) ms", "(b)/(a)");
   std::vector<double> a_all, b_all, ratio;
   std::vector<std::vector<double>> b_stages(6);

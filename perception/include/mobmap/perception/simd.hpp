@@ -12,12 +12,13 @@ enum class Simd {
   kAuto,      ///< the widest the CPU and the operating system support
   kPortable,  ///< plain C++, any CPU
   kAvx512,    ///< x86-64 AVX-512 F/BW/DQ/VL (Intel Xeon since Skylake-SP, AMD since Zen 4)
+  kAvx2,      ///< x86-64 AVX2 (Intel since Haswell, AMD since Excavator and every Zen)
 };
 
 /// Whether `simd` can run on this machine (kAuto and kPortable always can).
 [[nodiscard]] bool simdSupported(Simd simd);
 
-/// What kAuto means on this machine.
+/// What kAuto means on this machine: AVX-512, else AVX2, else portable.
 [[nodiscard]] Simd bestSimd();
 
 /// kAuto resolved; throws std::invalid_argument naming `caller` if `simd` cannot run here.
