@@ -96,11 +96,6 @@ MOBMAP_TARGET_AVX2 inline __m128 loadPoint(const float* points, std::size_t i, s
 
 MOBMAP_TARGET_AVX2 inline __m256d absPd(__m256d v) { return _mm256_andnot_pd(_mm256_set1_pd(-0.0), v); }
 
-// Field q of the four lanes from `off` of the sums (sums[q * 8 + lane]), in double.
-MOBMAP_TARGET_AVX2 inline __m256d sumField(const float sums[9 * 8], int q, int off) {
-  return _mm256_cvtps_pd(_mm_loadu_ps(sums + 8 * q + off));
-}
-
 // A lane mask as a vector: all ones in the 64-bit lanes whose bit is set.
 MOBMAP_TARGET_AVX2 inline __m256d maskOf(unsigned bits) {
   return _mm256_castsi256_pd(
@@ -111,144 +106,50 @@ MOBMAP_TARGET_AVX2 inline __m256i compressLanes(unsigned mask) {
   return _mm256_load_si256(reinterpret_cast<const __m256i*>(kCompress.lanes[mask]));
 }
 
-// localPlanes8 for the lanes first .. first + lanes - 1 (lanes <= 4) of a group of
-// eight starting at group_first; `half` (0 or 1) says which four of the group's lanes
-// these are, for the sums and moments layout. Returns the done-or-few mask of these
-// lanes (bit l for lane first + l).
-MOBMAP_TARGET_AVX2 unsigned localPlanes4(const float* points, const float sums[9 * 8], const int* counts,
-                                         std::size_t first, int lanes, int half, const float* near,
-                                         const float viewpoint[3], float* normals, float* curvature,
-                                         float* projected, double moments[9 * 8]) {
-  const int off = 4 * half;
-  alignas(16) float px_a[4] = {0, 0, 0, 0}, py_a[4] = {0, 0, 0, 0}, pz_a[4] = {0, 0, 0, 0};
-  alignas(16) float nx_a[4] = {0, 0, 0, 0}, ny_a[4] = {0, 0, 0, 0}, nz_a[4] = {0, 0, 0, 0};
-  alignas(16) std::int32_t count_a[4] = {0, 0, 0, 0};
-  unsigned live = 0, planar_bits = 0;
-  for (int l = 0; l < lanes; ++l) {
-    const std::size_t i = first + static_cast<std::size_t>(l);
-    px_a[l] = points[3 * i], py_a[l] = points[3 * i + 1], pz_a[l] = points[3 * i + 2];
-    count_a[l] = counts[i];
-    live |= 1u << l;
-    if (counts[i] >= 2) {
-      planar_bits |= 1u << l;
-      if (near) nx_a[l] = near[3 * i], ny_a[l] = near[3 * i + 1], nz_a[l] = near[3 * i + 2];
-    }
-  }
-  const __m128 px = _mm_load_ps(px_a), py = _mm_load_ps(py_a), pz = _mm_load_ps(pz_a);
-  const __m256d planar = maskOf(planar_bits);
+// Two vectors of four doubles: lanes 0-3 and 4-7 of a group of eight. The plane
+// kernel works on both halves in every step, so two independent chains of divisions
+// and square roots are in flight (one half at a time waits on their latency).
+struct Pair {
+  __m256d h[2];
+};
 
-  // Moments in double (momentsOf).
-  const __m256d m = _mm256_add_pd(_mm256_cvtepi32_pd(_mm_load_si128(reinterpret_cast<const __m128i*>(count_a))),
-                                  _mm256_set1_pd(1.0));
-  const __m256d mx = _mm256_div_pd(sumField(sums, 0, off), m), my = _mm256_div_pd(sumField(sums, 1, off), m), mz = _mm256_div_pd(sumField(sums, 2, off), m);
-  const __m256d cxx = _mm256_sub_pd(_mm256_div_pd(sumField(sums, 3, off), m), _mm256_mul_pd(mx, mx));
-  const __m256d cxy = _mm256_sub_pd(_mm256_div_pd(sumField(sums, 4, off), m), _mm256_mul_pd(mx, my));
-  const __m256d cxz = _mm256_sub_pd(_mm256_div_pd(sumField(sums, 5, off), m), _mm256_mul_pd(mx, mz));
-  const __m256d cyy = _mm256_sub_pd(_mm256_div_pd(sumField(sums, 6, off), m), _mm256_mul_pd(my, my));
-  const __m256d cyz = _mm256_sub_pd(_mm256_div_pd(sumField(sums, 7, off), m), _mm256_mul_pd(my, mz));
-  const __m256d czz = _mm256_sub_pd(_mm256_div_pd(sumField(sums, 8, off), m), _mm256_mul_pd(mz, mz));
-
-  // Inverse iteration from `near` (smallestEigenvectorNear), the four lanes in step.
-  __m256d done = _mm256_setzero_pd();
-  __m256d nx = _mm256_setzero_pd(), ny = nx, nz = nx, curv = _mm256_set1_pd(1.0);
-  if (near) {
-    const __m256d x0s = _mm256_cvtps_pd(_mm_load_ps(nx_a)), x1s = _mm256_cvtps_pd(_mm_load_ps(ny_a));
-    const __m256d x2s = _mm256_cvtps_pd(_mm_load_ps(nz_a));
-    const __m256d start2 =
-        _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(x0s, x0s), _mm256_mul_pd(x1s, x1s)), _mm256_mul_pd(x2s, x2s));
-    __m256d active = _mm256_and_pd(planar, _mm256_cmp_pd(start2, _mm256_set1_pd(0.25), _CMP_NLT_UQ));
-    const __m256d a00 = _mm256_sub_pd(_mm256_mul_pd(cyy, czz), _mm256_mul_pd(cyz, cyz));
-    const __m256d a11 = _mm256_sub_pd(_mm256_mul_pd(cxx, czz), _mm256_mul_pd(cxz, cxz));
-    const __m256d a22 = _mm256_sub_pd(_mm256_mul_pd(cxx, cyy), _mm256_mul_pd(cxy, cxy));
-    const __m256d a01 = _mm256_sub_pd(_mm256_mul_pd(cxz, cyz), _mm256_mul_pd(cxy, czz));
-    const __m256d a02 = _mm256_sub_pd(_mm256_mul_pd(cxy, cyz), _mm256_mul_pd(cxz, cyy));
-    const __m256d a12 = _mm256_sub_pd(_mm256_mul_pd(cxy, cxz), _mm256_mul_pd(cxx, cyz));
-    const __m256d scale = _mm256_max_pd(_mm256_max_pd(_mm256_max_pd(absPd(a00), absPd(a11)),
-                                                      _mm256_max_pd(absPd(a22), absPd(a01))),
-                                        _mm256_max_pd(absPd(a02), absPd(a12)));
-    const __m256d floor = _mm256_mul_pd(_mm256_set1_pd(1e-30), scale);
-    const __m256d inf = _mm256_set1_pd(std::numeric_limits<double>::infinity());
-    __m256d x0 = x0s, x1 = x1s, x2 = x2s;
-    for (int step = 0; step < 8 && _mm256_movemask_pd(active); ++step) {
-      const __m256d y0 =
-          _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(a00, x0), _mm256_mul_pd(a01, x1)), _mm256_mul_pd(a02, x2));
-      const __m256d y1 =
-          _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(a01, x0), _mm256_mul_pd(a11, x1)), _mm256_mul_pd(a12, x2));
-      const __m256d y2 =
-          _mm256_add_pd(_mm256_mul_pd(a02, x0), _mm256_add_pd(_mm256_mul_pd(a12, x1), _mm256_mul_pd(a22, x2)));
-      const __m256d norm = _mm256_sqrt_pd(
-          _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(y0, y0), _mm256_mul_pd(y1, y1)), _mm256_mul_pd(y2, y2)));
-      // !(norm > floor) || !isfinite(norm): such lanes go to the exact solver.
-      active = _mm256_and_pd(active, _mm256_and_pd(_mm256_cmp_pd(norm, floor, _CMP_GT_OQ),
-                                                   _mm256_cmp_pd(norm, inf, _CMP_LT_OQ)));
-      const __m256d n0 = _mm256_div_pd(y0, norm), n1 = _mm256_div_pd(y1, norm), n2 = _mm256_div_pd(y2, norm);
-      const __m256d d0 = _mm256_sub_pd(n0, x0), d1 = _mm256_sub_pd(n1, x1), d2 = _mm256_sub_pd(n2, x2);
-      const __m256d moved = _mm256_sqrt_pd(
-          _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(d0, d0), _mm256_mul_pd(d1, d1)), _mm256_mul_pd(d2, d2)));
-      x0 = _mm256_blendv_pd(x0, n0, active), x1 = _mm256_blendv_pd(x1, n1, active);
-      x2 = _mm256_blendv_pd(x2, n2, active);
-      const __m256d converged = _mm256_and_pd(active, _mm256_cmp_pd(moved, _mm256_set1_pd(1e-5), _CMP_LT_OQ));
-      if (_mm256_movemask_pd(converged)) {
-        const __m256d total = _mm256_add_pd(cxx, _mm256_add_pd(cyy, czz));
-        const __m256d cx0 =
-            _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(cxx, x0), _mm256_mul_pd(cxy, x1)), _mm256_mul_pd(cxz, x2));
-        const __m256d cx1 =
-            _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(cxy, x0), _mm256_mul_pd(cyy, x1)), _mm256_mul_pd(cyz, x2));
-        const __m256d cx2 =
-            _mm256_add_pd(_mm256_mul_pd(cxz, x0), _mm256_add_pd(_mm256_mul_pd(cyz, x1), _mm256_mul_pd(czz, x2)));
-        const __m256d rayleigh =
-            _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(x0, cx0), _mm256_mul_pd(x1, cx1)), _mm256_mul_pd(x2, cx2));
-        // std::max(0.0, v): 0 unless 0 < v (so a NaN gives 0), as vmaxpd(v, 0) does.
-        const __m256d lambda0 = _mm256_max_pd(rayleigh, _mm256_setzero_pd());
-        const __m256d plane = _mm256_and_pd(
-            converged, _mm256_and_pd(_mm256_cmp_pd(total, _mm256_setzero_pd(), _CMP_GT_OQ),
-                                     _mm256_cmp_pd(lambda0, _mm256_mul_pd(_mm256_set1_pd(0.25), total), _CMP_NGT_UQ)));
-        nx = _mm256_blendv_pd(nx, x0, plane), ny = _mm256_blendv_pd(ny, x1, plane);
-        nz = _mm256_blendv_pd(nz, x2, plane);
-        curv = _mm256_blendv_pd(curv, _mm256_div_pd(lambda0, total), plane);
-        done = _mm256_or_pd(done, plane);
-        active = _mm256_andnot_pd(converged, active);
-      }
-    }
+#define MOBMAP_PAIR_OP(name, expr)                                       \
+  MOBMAP_TARGET_AVX2 inline Pair name(const Pair& a, const Pair& b) {    \
+    return {{expr(a.h[0], b.h[0]), expr(a.h[1], b.h[1])}};              \
   }
+MOBMAP_PAIR_OP(add, _mm256_add_pd)
+MOBMAP_PAIR_OP(sub, _mm256_sub_pd)
+MOBMAP_PAIR_OP(mul, _mm256_mul_pd)
+MOBMAP_PAIR_OP(div, _mm256_div_pd)
+MOBMAP_PAIR_OP(max, _mm256_max_pd)
+MOBMAP_PAIR_OP(bitAnd, _mm256_and_pd)
+MOBMAP_PAIR_OP(bitOr, _mm256_or_pd)
+MOBMAP_PAIR_OP(bitAndNot, _mm256_andnot_pd)  // ~a & b
+#undef MOBMAP_PAIR_OP
 
-  const auto done_bits = static_cast<unsigned>(_mm256_movemask_pd(done));
-  if (done_bits) {
-    // orientedNormal: turned towards the viewpoint, then normalised, in single precision.
-    const __m256d vx = _mm256_cvtps_pd(_mm_sub_ps(_mm_set1_ps(viewpoint[0]), px));
-    const __m256d vy = _mm256_cvtps_pd(_mm_sub_ps(_mm_set1_ps(viewpoint[1]), py));
-    const __m256d vz = _mm256_cvtps_pd(_mm_sub_ps(_mm_set1_ps(viewpoint[2]), pz));
-    const __m256d facing =
-        _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(nx, vx), _mm256_mul_pd(ny, vy)), _mm256_mul_pd(nz, vz));
-    const __m256d sign = _mm256_blendv_pd(_mm256_set1_pd(1.0), _mm256_set1_pd(-1.0),
-                                          _mm256_cmp_pd(facing, _mm256_setzero_pd(), _CMP_LT_OQ));
-    const __m256d ox = _mm256_mul_pd(nx, sign), oy = _mm256_mul_pd(ny, sign), oz = _mm256_mul_pd(nz, sign);
-    const __m256d len = _mm256_sqrt_pd(
-        _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(ox, ox), _mm256_mul_pd(oy, oy)), _mm256_mul_pd(oz, oz)));
-    alignas(16) float out_n[3][4], out_c[4], out_p[3][4];
-    _mm_store_ps(out_n[0], _mm256_cvtpd_ps(_mm256_div_pd(ox, len)));
-    _mm_store_ps(out_n[1], _mm256_cvtpd_ps(_mm256_div_pd(oy, len)));
-    _mm_store_ps(out_n[2], _mm256_cvtpd_ps(_mm256_div_pd(oz, len)));
-    _mm_store_ps(out_c, _mm256_cvtpd_ps(curv));
-    // projectedPoint, with the unturned normal.
-    const __m256d t = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(nx, mx), _mm256_mul_pd(ny, my)), _mm256_mul_pd(nz, mz));
-    _mm_store_ps(out_p[0], _mm256_cvtpd_ps(_mm256_add_pd(_mm256_cvtps_pd(px), _mm256_mul_pd(nx, t))));
-    _mm_store_ps(out_p[1], _mm256_cvtpd_ps(_mm256_add_pd(_mm256_cvtps_pd(py), _mm256_mul_pd(ny, t))));
-    _mm_store_ps(out_p[2], _mm256_cvtpd_ps(_mm256_add_pd(_mm256_cvtps_pd(pz), _mm256_mul_pd(nz, t))));
-    for (int l = 0; l < lanes; ++l) {
-      if (!(done_bits >> l & 1u)) continue;
-      const std::size_t i = first + static_cast<std::size_t>(l);
-      for (int a = 0; a < 3; ++a) normals[3 * i + static_cast<std::size_t>(a)] = out_n[a][l];
-      curvature[i] = out_c[l];
-      if (projected) {
-        for (int a = 0; a < 3; ++a) projected[3 * i + static_cast<std::size_t>(a)] = out_p[a][l];
-      }
-    }
-  }
-  const __m256d fields[9] = {mx, my, mz, cxx, cxy, cxz, cyy, cyz, czz};
-  for (int q = 0; q < 9; ++q) _mm256_storeu_pd(moments + 8 * q + off, fields[q]);
-  // Lanes with under 2 neighbours keep what the caller set: they count as done.
-  return (done_bits | (live & ~planar_bits)) & live;
+MOBMAP_TARGET_AVX2 inline Pair splat(double v) { return {{_mm256_set1_pd(v), _mm256_set1_pd(v)}}; }
+MOBMAP_TARGET_AVX2 inline Pair sqrt(const Pair& a) { return {{_mm256_sqrt_pd(a.h[0]), _mm256_sqrt_pd(a.h[1])}}; }
+MOBMAP_TARGET_AVX2 inline Pair abs(const Pair& a) { return {{absPd(a.h[0]), absPd(a.h[1])}}; }
+// b where the mask is set, a elsewhere.
+MOBMAP_TARGET_AVX2 inline Pair select(const Pair& a, const Pair& b, const Pair& mask) {
+  return {{_mm256_blendv_pd(a.h[0], b.h[0], mask.h[0]), _mm256_blendv_pd(a.h[1], b.h[1], mask.h[1])}};
+}
+template <int kPredicate>
+MOBMAP_TARGET_AVX2 inline Pair compare(const Pair& a, const Pair& b) {
+  return {{_mm256_cmp_pd(a.h[0], b.h[0], kPredicate), _mm256_cmp_pd(a.h[1], b.h[1], kPredicate)}};
+}
+MOBMAP_TARGET_AVX2 inline unsigned bitsOf(const Pair& mask) {
+  return static_cast<unsigned>(_mm256_movemask_pd(mask.h[0])) |
+         static_cast<unsigned>(_mm256_movemask_pd(mask.h[1])) << 4;
+}
+MOBMAP_TARGET_AVX2 inline Pair maskOf8(unsigned bits) { return {{maskOf(bits & 15u), maskOf(bits >> 4)}}; }
+// Eight floats as doubles.
+MOBMAP_TARGET_AVX2 inline Pair widen(const float* v) {
+  return {{_mm256_cvtps_pd(_mm_loadu_ps(v)), _mm256_cvtps_pd(_mm_loadu_ps(v + 4))}};
+}
+MOBMAP_TARGET_AVX2 inline void narrow(const Pair& a, float* out) {
+  _mm_storeu_ps(out, _mm256_cvtpd_ps(a.h[0]));
+  _mm_storeu_ps(out + 4, _mm256_cvtpd_ps(a.h[1]));
 }
 
 }  // namespace
@@ -412,14 +313,119 @@ MOBMAP_TARGET_AVX2 void offsetSums8(const float* points, std::size_t n_points, c
 MOBMAP_TARGET_AVX2 unsigned localPlanes8(const float* points, const float sums[9 * 8], const int* counts,
                                          std::size_t first, int lanes, const float* near, const float viewpoint[3],
                                          float* normals, float* curvature, float* projected, double moments[9 * 8]) {
-  unsigned done = localPlanes4(points, sums, counts, first, std::min(lanes, 4), 0, near, viewpoint, normals, curvature,
-                               projected, moments);
-  if (lanes > 4) {
-    done |= localPlanes4(points, sums, counts, first + 4, lanes - 4, 1, near, viewpoint, normals, curvature, projected,
-                         moments)
-            << 4;
+  float px_a[8] = {}, py_a[8] = {}, pz_a[8] = {}, sx_a[8] = {}, sy_a[8] = {}, sz_a[8] = {};
+  alignas(16) std::int32_t count_a[8] = {};
+  unsigned live = 0, planar_bits = 0;
+  for (int l = 0; l < lanes; ++l) {
+    const std::size_t i = first + static_cast<std::size_t>(l);
+    px_a[l] = points[3 * i], py_a[l] = points[3 * i + 1], pz_a[l] = points[3 * i + 2];
+    count_a[l] = counts[i];
+    live |= 1u << l;
+    if (counts[i] >= 2) {
+      planar_bits |= 1u << l;
+      if (near) sx_a[l] = near[3 * i], sy_a[l] = near[3 * i + 1], sz_a[l] = near[3 * i + 2];
+    }
   }
-  return done;
+  const Pair planar = maskOf8(planar_bits);
+
+  // Moments in double (momentsOf).
+  const Pair m = add(Pair{{_mm256_cvtepi32_pd(_mm_load_si128(reinterpret_cast<const __m128i*>(count_a))),
+                           _mm256_cvtepi32_pd(_mm_load_si128(reinterpret_cast<const __m128i*>(count_a + 4)))}},
+                     splat(1.0));
+  const Pair mx = div(widen(sums), m), my = div(widen(sums + 8), m), mz = div(widen(sums + 16), m);
+  const Pair cxx = sub(div(widen(sums + 24), m), mul(mx, mx));
+  const Pair cxy = sub(div(widen(sums + 32), m), mul(mx, my));
+  const Pair cxz = sub(div(widen(sums + 40), m), mul(mx, mz));
+  const Pair cyy = sub(div(widen(sums + 48), m), mul(my, my));
+  const Pair cyz = sub(div(widen(sums + 56), m), mul(my, mz));
+  const Pair czz = sub(div(widen(sums + 64), m), mul(mz, mz));
+
+  // Inverse iteration from `near` (smallestEigenvectorNear), the eight lanes in step.
+  const Pair zero = splat(0.0);
+  Pair done = zero, nx = zero, ny = zero, nz = zero, curv = splat(1.0);
+  if (near) {
+    const Pair x0s = widen(sx_a), x1s = widen(sy_a), x2s = widen(sz_a);
+    const Pair start2 = add(add(mul(x0s, x0s), mul(x1s, x1s)), mul(x2s, x2s));
+    Pair active = bitAnd(planar, compare<_CMP_NLT_UQ>(start2, splat(0.25)));
+    const Pair a00 = sub(mul(cyy, czz), mul(cyz, cyz));
+    const Pair a11 = sub(mul(cxx, czz), mul(cxz, cxz));
+    const Pair a22 = sub(mul(cxx, cyy), mul(cxy, cxy));
+    const Pair a01 = sub(mul(cxz, cyz), mul(cxy, czz));
+    const Pair a02 = sub(mul(cxy, cyz), mul(cxz, cyy));
+    const Pair a12 = sub(mul(cxy, cxz), mul(cxx, cyz));
+    const Pair scale = max(max(max(abs(a00), abs(a11)), max(abs(a22), abs(a01))), max(abs(a02), abs(a12)));
+    const Pair floor = mul(splat(1e-30), scale);
+    const Pair inf = splat(std::numeric_limits<double>::infinity());
+    Pair x0 = x0s, x1 = x1s, x2 = x2s;
+    for (int step = 0; step < 8 && bitsOf(active); ++step) {
+      const Pair y0 = add(add(mul(a00, x0), mul(a01, x1)), mul(a02, x2));
+      const Pair y1 = add(add(mul(a01, x0), mul(a11, x1)), mul(a12, x2));
+      const Pair y2 = add(mul(a02, x0), add(mul(a12, x1), mul(a22, x2)));
+      const Pair norm = sqrt(add(add(mul(y0, y0), mul(y1, y1)), mul(y2, y2)));
+      // !(norm > floor) || !isfinite(norm): such lanes go to the exact solver.
+      active = bitAnd(active, bitAnd(compare<_CMP_GT_OQ>(norm, floor), compare<_CMP_LT_OQ>(norm, inf)));
+      const Pair n0 = div(y0, norm), n1 = div(y1, norm), n2 = div(y2, norm);
+      const Pair d0 = sub(n0, x0), d1 = sub(n1, x1), d2 = sub(n2, x2);
+      const Pair moved = sqrt(add(add(mul(d0, d0), mul(d1, d1)), mul(d2, d2)));
+      x0 = select(x0, n0, active), x1 = select(x1, n1, active), x2 = select(x2, n2, active);
+      const Pair converged = bitAnd(active, compare<_CMP_LT_OQ>(moved, splat(1e-5)));
+      if (bitsOf(converged)) {
+        const Pair total = add(cxx, add(cyy, czz));
+        const Pair cx0 = add(add(mul(cxx, x0), mul(cxy, x1)), mul(cxz, x2));
+        const Pair cx1 = add(add(mul(cxy, x0), mul(cyy, x1)), mul(cyz, x2));
+        const Pair cx2 = add(mul(cxz, x0), add(mul(cyz, x1), mul(czz, x2)));
+        const Pair rayleigh = add(add(mul(x0, cx0), mul(x1, cx1)), mul(x2, cx2));
+        // std::max(0.0, v): 0 unless 0 < v (so a NaN gives 0), as vmaxpd(v, 0) does.
+        const Pair lambda0 = max(rayleigh, zero);
+        const Pair plane = bitAnd(converged, bitAnd(compare<_CMP_GT_OQ>(total, zero),
+                                                    compare<_CMP_NGT_UQ>(lambda0, mul(splat(0.25), total))));
+        nx = select(nx, x0, plane), ny = select(ny, x1, plane), nz = select(nz, x2, plane);
+        curv = select(curv, div(lambda0, total), plane);
+        done = bitOr(done, plane);
+        active = bitAndNot(converged, active);
+      }
+    }
+  }
+
+  const unsigned done_bits = bitsOf(done);
+  if (done_bits) {
+    // orientedNormal: turned towards the viewpoint (the difference in single
+    // precision), then normalised.
+    float vx_a[8], vy_a[8], vz_a[8];
+    for (int l = 0; l < 8; ++l) {
+      vx_a[l] = viewpoint[0] - px_a[l], vy_a[l] = viewpoint[1] - py_a[l], vz_a[l] = viewpoint[2] - pz_a[l];
+    }
+    const Pair facing = add(add(mul(nx, widen(vx_a)), mul(ny, widen(vy_a))), mul(nz, widen(vz_a)));
+    const Pair sign = select(splat(1.0), splat(-1.0), compare<_CMP_LT_OQ>(facing, zero));
+    const Pair ox = mul(nx, sign), oy = mul(ny, sign), oz = mul(nz, sign);
+    const Pair len = sqrt(add(add(mul(ox, ox), mul(oy, oy)), mul(oz, oz)));
+    float out_n[3][8], out_c[8], out_p[3][8];
+    narrow(div(ox, len), out_n[0]);
+    narrow(div(oy, len), out_n[1]);
+    narrow(div(oz, len), out_n[2]);
+    narrow(curv, out_c);
+    // projectedPoint, with the unturned normal.
+    const Pair t = add(add(mul(nx, mx), mul(ny, my)), mul(nz, mz));
+    narrow(add(widen(px_a), mul(nx, t)), out_p[0]);
+    narrow(add(widen(py_a), mul(ny, t)), out_p[1]);
+    narrow(add(widen(pz_a), mul(nz, t)), out_p[2]);
+    for (int l = 0; l < lanes; ++l) {
+      if (!(done_bits >> l & 1u)) continue;
+      const std::size_t i = first + static_cast<std::size_t>(l);
+      for (int a = 0; a < 3; ++a) normals[3 * i + static_cast<std::size_t>(a)] = out_n[a][l];
+      curvature[i] = out_c[l];
+      if (projected) {
+        for (int a = 0; a < 3; ++a) projected[3 * i + static_cast<std::size_t>(a)] = out_p[a][l];
+      }
+    }
+  }
+  const Pair fields[9] = {mx, my, mz, cxx, cxy, cxz, cyy, cyz, czz};
+  for (int q = 0; q < 9; ++q) {
+    _mm256_storeu_pd(moments + 8 * q, fields[q].h[0]);
+    _mm256_storeu_pd(moments + 8 * q + 4, fields[q].h[1]);
+  }
+  // Lanes with under 2 neighbours keep what the caller set: they count as done.
+  return (done_bits | (live & ~planar_bits)) & live;
 }
 
 }  // namespace mobmap::perception::detail::avx2
