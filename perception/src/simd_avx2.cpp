@@ -273,38 +273,42 @@ MOBMAP_TARGET_AVX2 void offsetSums8(const float* points, std::size_t n_points, c
   // exactly); the products lhs * rhs are dx*dx dx*dy dx*dz dy*dy dy*dz dz*dz.
   const __m256i lhs_idx = _mm256_setr_epi32(0, 0, 0, 1, 1, 2, 3, 3);
   const __m256i rhs_idx = _mm256_setr_epi32(0, 1, 2, 1, 2, 2, 3, 3);
-  __m128 linear[8], centre[8];
-  __m256 products[8];
-  int c[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-  int most = 0;
-  for (int l = 0; l < 8; ++l) {
-    linear[l] = _mm_setzero_ps();
-    products[l] = _mm256_setzero_ps();
-    centre[l] = _mm_setzero_ps();
-    if (l >= lanes) continue;
-    const std::size_t i = first + static_cast<std::size_t>(l);
-    centre[l] = loadPoint(points, i, n_points);
-    c[l] = counts[i];
-    most = std::max(most, c[l]);
-  }
-  for (int j = 0; j < most; ++j) {
-    for (int l = 0; l < 8; ++l) {
-      if (j >= c[l]) continue;
-      const std::size_t i = first + static_cast<std::size_t>(l);
-      const auto nb = static_cast<std::size_t>(indices[i * k + static_cast<std::size_t>(j)]);
-      const __m128 d = _mm_sub_ps(loadPoint(points, nb, n_points), centre[l]);
-      linear[l] = _mm_add_ps(linear[l], d);
-      const __m256 wide = _mm256_castps128_ps256(d);
-      products[l] = _mm256_add_ps(products[l], _mm256_mul_ps(_mm256_permutevar8x32_ps(wide, lhs_idx),
-                                                             _mm256_permutevar8x32_ps(wide, rhs_idx)));
+  // Four points' chains at a time: their sums and centres fill 12 of the 16 vector
+  // registers (eight at a time spilled the sums to the stack).
+  for (int group = 0; group < lanes; group += 4) {
+    __m128 linear[4], centre[4];
+    __m256 products[4];
+    int c[4] = {0, 0, 0, 0};
+    int most = 0;
+    for (int l = 0; l < 4; ++l) {
+      linear[l] = _mm_setzero_ps();
+      products[l] = _mm256_setzero_ps();
+      centre[l] = _mm_setzero_ps();
+      if (group + l >= lanes) continue;
+      const std::size_t i = first + static_cast<std::size_t>(group + l);
+      centre[l] = loadPoint(points, i, n_points);
+      c[l] = counts[i];
+      most = std::max(most, c[l]);
     }
-  }
-  for (int l = 0; l < lanes; ++l) {
-    alignas(32) float lin[4], prod[8];
-    _mm_store_ps(lin, linear[l]);
-    _mm256_store_ps(prod, products[l]);
-    for (int q = 0; q < 3; ++q) sums[8 * q + l] = lin[q];
-    for (int q = 0; q < 6; ++q) sums[8 * (q + 3) + l] = prod[q];
+    for (int j = 0; j < most; ++j) {
+      for (int l = 0; l < 4; ++l) {
+        if (j >= c[l]) continue;
+        const std::size_t i = first + static_cast<std::size_t>(group + l);
+        const auto nb = static_cast<std::size_t>(indices[i * k + static_cast<std::size_t>(j)]);
+        const __m128 d = _mm_sub_ps(loadPoint(points, nb, n_points), centre[l]);
+        linear[l] = _mm_add_ps(linear[l], d);
+        const __m256 wide = _mm256_castps128_ps256(d);
+        products[l] = _mm256_add_ps(products[l], _mm256_mul_ps(_mm256_permutevar8x32_ps(wide, lhs_idx),
+                                                               _mm256_permutevar8x32_ps(wide, rhs_idx)));
+      }
+    }
+    for (int l = 0; l < 4 && group + l < lanes; ++l) {
+      alignas(32) float lin[4], prod[8];
+      _mm_store_ps(lin, linear[l]);
+      _mm256_store_ps(prod, products[l]);
+      for (int q = 0; q < 3; ++q) sums[8 * q + group + l] = lin[q];
+      for (int q = 0; q < 6; ++q) sums[8 * (q + 3) + group + l] = prod[q];
+    }
   }
 }
 
