@@ -152,23 +152,25 @@ void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph&
     // Eight points at a time; the lanes the kernel leaves (the closed-form solver) are
     // finished here with the same arithmetic as the portable loop below.
     static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "points are read as x, y, z triples");
-    const float* xyz = points.data()->data();
+    // (Cast, not ->data(): an empty vector's data() may be null.)
+    const auto* xyz = reinterpret_cast<const float*>(points.data());
+    const auto* start = near ? reinterpret_cast<const float*>(near->data()) : nullptr;
+    auto* proj = projected ? reinterpret_cast<float*>(projected->data()) : nullptr;
+    auto* normal_xyz = reinterpret_cast<float*>(normals.data());
     const auto k = static_cast<std::size_t>(g.k);
     double moments[9 * 8] = {};
     float sums[9 * 8] = {};
     for (std::size_t first = 0; first < n; first += 8) {
       const int lanes = static_cast<int>(std::min<std::size_t>(8, n - first));
-      const float* start = near ? near->data()->data() : nullptr;
-      float* proj = projected ? projected->data()->data() : nullptr;
       unsigned done = 0;
       if (simd == Simd::kAvx512) {
         detail::avx512::offsetSums8(xyz, g.indices.data(), k, g.count.data(), first, lanes, sums);
         done = detail::avx512::localPlanes8(xyz, sums, g.count.data(), first, lanes, start, viewpoint.data(),
-                                            normals.data()->data(), curvature.data(), proj, moments);
+                                            normal_xyz, curvature.data(), proj, moments);
       } else {
         detail::avx2::offsetSums8(xyz, n, g.indices.data(), k, g.count.data(), first, lanes, sums);
         done = detail::avx2::localPlanes8(xyz, sums, g.count.data(), first, lanes, start, viewpoint.data(),
-                                          normals.data()->data(), curvature.data(), proj, moments);
+                                          normal_xyz, curvature.data(), proj, moments);
       }
       for (int l = 0; l < lanes; ++l) {
         if (done >> l & 1u) continue;
