@@ -411,15 +411,7 @@ MOBMAP_TARGET_AVX2 unsigned localPlanes8(const float* points, const float sums[9
     narrow(add(widen(px_a), mul(nx, t)), out_p[0]);
     narrow(add(widen(py_a), mul(ny, t)), out_p[1]);
     narrow(add(widen(pz_a), mul(nz, t)), out_p[2]);
-    for (int l = 0; l < lanes; ++l) {
-      if (!(done_bits >> l & 1u)) continue;
-      const std::size_t i = first + static_cast<std::size_t>(l);
-      for (int a = 0; a < 3; ++a) normals[3 * i + static_cast<std::size_t>(a)] = out_n[a][l];
-      curvature[i] = out_c[l];
-      if (projected) {
-        for (int a = 0; a < 3; ++a) projected[3 * i + static_cast<std::size_t>(a)] = out_p[a][l];
-      }
-    }
+    storeDoneLanes(done_bits, lanes, first, out_n, out_c, out_p, normals, curvature, projected);
   }
   const Pair fields[9] = {mx, my, mz, cxx, cxy, cxz, cyy, cyz, czz};
   for (int q = 0; q < 9; ++q) {

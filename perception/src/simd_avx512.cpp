@@ -268,15 +268,7 @@ MOBMAP_TARGET_AVX512 unsigned localPlanes8(const float* points, const float sums
     _mm256_store_ps(out_p[1], _mm512_cvtpd_ps(_mm512_add_pd(_mm512_cvtps_pd(py), _mm512_mul_pd(ny, t))));
     _mm256_store_ps(out_p[2], _mm512_cvtpd_ps(_mm512_add_pd(_mm512_cvtps_pd(pz), _mm512_mul_pd(nz, t))));
   }
-  for (int l = 0; l < lanes; ++l) {
-    if (!(done >> l & 1u)) continue;
-    const std::size_t i = first + static_cast<std::size_t>(l);
-    for (int a = 0; a < 3; ++a) normals[3 * i + static_cast<std::size_t>(a)] = out_n[a][l];
-    curvature[i] = out_c[l];
-    if (projected) {
-      for (int a = 0; a < 3; ++a) projected[3 * i + static_cast<std::size_t>(a)] = out_p[a][l];
-    }
-  }
+  storeDoneLanes(done, lanes, first, out_n, out_c, out_p, normals, curvature, projected);
   const __m512d fields[9] = {mx, my, mz, cxx, cxy, cxz, cyy, cyz, czz};
   for (int q = 0; q < 9; ++q) _mm512_storeu_pd(moments + 8 * q, fields[q]);
   return static_cast<unsigned>(done | few);

@@ -20,6 +20,23 @@ namespace mobmap::perception::detail {
 inline constexpr std::size_t kRankMaxKeys = 64;
 
 #if MOBMAP_X86_KERNELS
+/// The localPlanes8 kernels' last step: for each lane l < lanes whose bit is set in
+/// `done`, copies its normal (out_n[axis][l]), curvature and, if `projected` is not
+/// null, projected point to point first + l of the output arrays.
+inline void storeDoneLanes(unsigned done, int lanes, std::size_t first, const float out_n[3][8],
+                           const float out_c[8], const float out_p[3][8], float* normals, float* curvature,
+                           float* projected) {
+  for (int l = 0; l < lanes; ++l) {
+    if (!(done >> l & 1u)) continue;
+    const std::size_t i = first + static_cast<std::size_t>(l);
+    for (int a = 0; a < 3; ++a) normals[3 * i + static_cast<std::size_t>(a)] = out_n[a][l];
+    curvature[i] = out_c[l];
+    if (projected) {
+      for (int a = 0; a < 3; ++a) projected[3 * i + static_cast<std::size_t>(a)] = out_p[a][l];
+    }
+  }
+}
+
 namespace avx512 {
 
 /// Block of candidate points as structure of arrays, padded with NaN coordinates (and
