@@ -139,149 +139,56 @@ void checkArguments(int k, float cell_m, float max_radius_m) {
   }
 }
 
-// Exact kNN queries against a bucketed cloud. Queries are answered cell by cell so
-// the 3x3x3 block of candidates is gathered once per cell, not once per point.
-class GridSearch {
- public:
-  GridSearch(const std::vector<Eigen::Vector3f>& points, int k, float cell_m, float max_radius_m)
-      : points_(points),
-        buckets_(points, cell_m),
-        k_(static_cast<std::size_t>(k)),
-        cell_(cell_m),
-        max_r2_(max_radius_m * max_radius_m),
-        max_ring_(std::max(1, static_cast<int>(std::ceil(max_radius_m / cell_m)))),
-        tight2_(0.9f * 0.9f * cell_m * cell_m) {}
-
-  // Answers the query for every point i with want(i), storing into row row_of(i) of g.
-  template <typename Want, typename RowOf>
-  void run(KnnGraph& g, Want want, RowOf row_of) {
-    for (std::size_t c = 0; c < buckets_.cells.size(); ++c) {
-      bool any = false;
-      for (int s = buckets_.start[c]; s < buckets_.start[c + 1] && !any; ++s) {
-        any = want(buckets_.order[static_cast<std::size_t>(s)]);
-      }
-      if (!any) continue;
-      const Eigen::Vector3i cc = buckets_.cells[c];
-      gather(cc, 1, block_);
-      float last_kth2 = 0.f;  // k-th squared distance of the previous point in this cell
-      for (int s = buckets_.start[c]; s < buckets_.start[c + 1]; ++s) {
-        const int i = buckets_.order[static_cast<std::size_t>(s)];
-        if (!want(i)) continue;
-        const Eigen::Vector3f p = points_[static_cast<std::size_t>(i)];
-        // Within ring r the block holds every point closer than r * cell: if k of
-        // the candidates lie that close they are the k nearest.
-        // First try a tighter radius (most surface points have k neighbours well
-        // inside it, and fewer candidates make the selection cheaper), then the
-        // whole guaranteed radius of the block, then wider rings.
-        distances(p, block_);
-        // Neighbouring points see the same density: a radius just above the previous
-        // point's k-th distance usually holds k candidates, and fewer candidates make
-        // the selection cheaper. Any radius within the block's guarantee is exact.
-        const float guess2 = 1.2f * last_kth2;
-        const bool guessed = guess2 > 0.f && guess2 < tight2_;
-        if (guessed) collect(i, block_, std::min(guess2, max_r2_));
-        if (!guessed || n_keys_ < k_) collect(i, block_, std::min(tight2_, max_r2_));
-        if (n_keys_ < k_ && tight2_ < max_r2_) collect(i, block_, std::min(cell_ * cell_, max_r2_));
-        int ring = 1;
-        while (n_keys_ < k_ && ring < max_ring_) {
-          ++ring;
-          // Ring r adds only its shell of cells to the ring r - 1 block.
-          if (ring == 2) wide_.idx = block_.idx;
-          gather(cc, ring, wide_, /*shell_only=*/true);
-          distances(p, wide_);
-          const float r = static_cast<float>(ring) * cell_;
-          collect(i, wide_, std::min(r * r, max_r2_));
-        }
-        n_keys_ = selectSmallestBanded(keys_.data(), n_keys_, k_, limit2_, scratch_, band_of_);
-        if (n_keys_ == k_ && ring == 1) last_kth2 = keyDistance(keys_[k_ - 1]);
-        storeKeys(g, static_cast<std::size_t>(row_of(i)), keys_.data(), n_keys_);
-      }
+// Plain loops with SortedCellSearch's kernel interface, for any CPU (the compiler
+// vectorises the distance pass with what the target has). They have no ranking: the
+// k nearest are always selected by bands (selectSmallestBanded).
+struct PortableKernels {
+  static constexpr bool kRanks = false;
+  static void distancesAndCounts(const float* x, const float* y, const float* z, std::size_t n, float px, float py,
+                                 float pz, const float limit[4], float* d2, int count[4]) {
+    int c0 = 0, c1 = 0, c2 = 0, c3 = 0;
+    const float l0 = limit[0], l1 = limit[1], l2 = limit[2], l3 = limit[3];
+    for (std::size_t j = 0; j < n; ++j) {
+      const float d = sqDist(x[j], y[j], z[j], px, py, pz);
+      d2[j] = d;
+      c0 += d <= l0, c1 += d <= l1, c2 += d <= l2, c3 += d <= l3;  // NaN padding: never
     }
+    count[0] = c0, count[1] = c1, count[2] = c2, count[3] = c3;
   }
-
- private:
-  struct Block {
-    std::vector<int> idx;
-    std::vector<float> x, y, z, d2;
-  };
-  // The cells within `ring` of cc (Chebyshev distance); with shell_only, appends those
-  // at exactly `ring` to what b holds.
-  void gather(const Eigen::Vector3i& cc, int ring, Block& b, bool shell_only = false) const {
-    std::vector<int>& idx = b.idx;
-    if (!shell_only) idx.clear();
-    detail::forEachCellWithin(cc, ring, shell_only, [&](int x, int y, int z) {
-      const int nb = buckets_.find(x, y, z);
-      if (nb < 0) return;
-      idx.insert(idx.end(), buckets_.order.begin() + buckets_.start[static_cast<std::size_t>(nb)],
-                 buckets_.order.begin() + buckets_.start[static_cast<std::size_t>(nb) + 1]);
-    });
-    b.x.resize(idx.size());
-    b.y.resize(idx.size());
-    b.z.resize(idx.size());
-    b.d2.resize(idx.size());
-    for (std::size_t j = 0; j < idx.size(); ++j) {
-      const Eigen::Vector3f& q = points_[static_cast<std::size_t>(idx[j])];
-      b.x[j] = q.x(), b.y[j] = q.y(), b.z[j] = q.z();
+  static std::size_t compactKeys(const float* d2, const int* index, std::size_t n, int self, float limit,
+                                 std::uint64_t* keys) {
+    std::size_t out = 0;
+    for (std::size_t j = 0; j < n; ++j) {
+      keys[out] = packKey(d2[j], index[j]);
+      out += static_cast<std::size_t>((d2[j] <= limit) & (index[j] != self));
     }
+    return out;
   }
-  // Distances from p to the whole block (a loop the compiler vectorises).
-  static void distances(const Eigen::Vector3f& p, Block& b) {
-    const float px = p.x(), py = p.y(), pz = p.z();
-    const float* x = b.x.data();
-    const float* y = b.y.data();
-    const float* z = b.z.data();
-    float* d2 = b.d2.data();
-    const std::size_t m = b.idx.size();
-    for (std::size_t j = 0; j < m; ++j) d2[j] = sqDist(x[j], y[j], z[j], px, py, pz);
-  }
-  // Branch-free compaction: every key is written, and the write position advances
-  // only for keys inside the limit (about a quarter of the block, in no predictable
-  // pattern, so a branch per candidate would mispredict often).
-  void collect(int self, const Block& b, float limit2) {
-    const std::size_t m = b.idx.size();
-    if (keys_.size() < m) keys_.resize(m);  // grows to the largest block, once
-    std::uint64_t* out = keys_.data();
-    std::size_t n = 0;
-    for (std::size_t j = 0; j < m; ++j) {
-      out[n] = packKey(b.d2[j], b.idx[j]);
-      n += static_cast<std::size_t>((b.d2[j] <= limit2) & (b.idx[j] != self));
-    }
-    n_keys_ = n;
-    limit2_ = limit2;
-  }
-
-  const std::vector<Eigen::Vector3f>& points_;
-  detail::CellBuckets buckets_;
-  std::size_t k_;
-  float cell_, max_r2_;
-  int max_ring_;
-  float tight2_;
-  Block block_, wide_;
-  std::vector<std::uint64_t> keys_;  // candidate buffer; the first n_keys_ are live
-  std::size_t n_keys_ = 0;
-  float limit2_ = 0.f;  // every live key's squared distance is at most this
-  std::vector<std::uint64_t> scratch_;
-  std::vector<std::uint8_t> band_of_;
 };
 
 #if MOBMAP_X86_KERNELS
 // The vector kernels SortedCellSearch runs on (simd_kernels.hpp).
 struct Avx512Kernels {
+  static constexpr bool kRanks = true;
   static constexpr auto distancesAndCounts = &detail::avx512::distancesAndCounts;
   static constexpr auto compactKeys = &detail::avx512::compactKeys;
   static constexpr auto rankSmallest = &detail::avx512::rankSmallest;
 };
 struct Avx2Kernels {
+  static constexpr bool kRanks = true;
   static constexpr auto distancesAndCounts = &detail::avx2::distancesAndCounts;
   static constexpr auto compactKeys = &detail::avx2::compactKeys;
   static constexpr auto rankSmallest = &detail::avx2::rankSmallest;
 };
+#endif
 
-// The same exact queries as GridSearch, with the points sorted by cell into arrays of
-// coordinates, so a cell's block is a few contiguous copies, and the distance, limit
-// and selection loops in AVX-512 or AVX2 (`Kernels`). Same graph, bit for bit: the
-// distances are the same operations in the same order, and keys order by (distance,
-// index) whatever the order candidates are found in.
+// Exact kNN queries against a bucketed cloud, answered cell by cell so that the 3x3x3
+// block of candidates is gathered once per cell, not once per point. The points are
+// sorted by cell into arrays of coordinates, so a cell's block is a few contiguous
+// copies; the distance, limit and selection loops are the `Kernels` (portable, AVX2
+// or AVX-512). Same graph, bit for bit, with each: the distances are the same
+// operations in the same order, and keys order by (distance, index) whatever the
+// order candidates are found in.
 template <typename Kernels>
 class SortedCellSearch {
  public:
@@ -435,10 +342,15 @@ class SortedCellSearch {
     const std::size_t m = Kernels::compactKeys(b.d2.data(), b.id.data(), b.n, self, limit, keys_.data());
     const std::size_t base = row * k_;
     std::size_t n = 0;
-    if (m <= detail::kRankMaxKeys) {
-      n = Kernels::rankSmallest(keys_.data(), m, k_, &g.sq_dist[base], &g.indices[base]);
-      g.count[row] = static_cast<int>(n);
-    } else {
+    bool ranked = false;
+    if constexpr (Kernels::kRanks) {
+      if (m <= detail::kRankMaxKeys) {
+        n = Kernels::rankSmallest(keys_.data(), m, k_, &g.sq_dist[base], &g.indices[base]);
+        g.count[row] = static_cast<int>(n);
+        ranked = true;
+      }
+    }
+    if (!ranked) {
       n = selectSmallestBanded(keys_.data(), m, k_, limit, scratch_, band_of_);
       storeKeys(g, row, keys_.data(), n);
     }
@@ -458,7 +370,6 @@ class SortedCellSearch {
   std::vector<std::uint64_t> keys_, scratch_;
   std::vector<std::uint8_t> band_of_;
 };
-#endif
 
 // Runs `search.run(g, want, row_of)` with the search the chosen instruction set uses.
 template <typename Want, typename RowOf>
@@ -477,7 +388,7 @@ void searchInto(KnnGraph& g, const std::vector<Eigen::Vector3f>& points, int k, 
   }
 #endif
   (void)simd;
-  GridSearch search(points, k, cell_m, max_radius_m);
+  SortedCellSearch<PortableKernels> search(points, k, cell_m, max_radius_m);
   search.run(g, want, row_of);
 }
 
