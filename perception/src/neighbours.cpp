@@ -341,19 +341,15 @@ class SortedCellSearch {
     if (keys_.size() < b.n + detail::kRankMaxKeys) keys_.resize(b.n + detail::kRankMaxKeys);
     const std::size_t m = Kernels::compactKeys(b.d2.data(), b.id.data(), b.n, self, limit, keys_.data());
     const std::size_t base = row * k_;
-    std::size_t n = 0;
-    bool ranked = false;
     if constexpr (Kernels::kRanks) {
       if (m <= detail::kRankMaxKeys) {
-        n = Kernels::rankSmallest(keys_.data(), m, k_, &g.sq_dist[base], &g.indices[base]);
+        const std::size_t n = Kernels::rankSmallest(keys_.data(), m, k_, &g.sq_dist[base], &g.indices[base]);
         g.count[row] = static_cast<int>(n);
-        ranked = true;
+        return n;
       }
     }
-    if (!ranked) {
-      n = selectSmallestBanded(keys_.data(), m, k_, limit, scratch_, band_of_);
-      storeKeys(g, row, keys_.data(), n);
-    }
+    const std::size_t n = selectSmallestBanded(keys_.data(), m, k_, limit, scratch_, band_of_);
+    storeKeys(g, row, keys_.data(), n);
     return n;
   }
 

@@ -206,9 +206,6 @@ MOBMAP_TARGET_AVX2 std::size_t compactKeys(const float* d2, const int* index, st
 
 MOBMAP_TARGET_AVX2 std::size_t rankSmallest(std::uint64_t* keys, std::size_t m, std::size_t k, float* sq_dist,
                                             int* index) {
-  const std::size_t vectors = (m + 3) / 4;
-  // Above every real key (whose top bit is 0), never ranked in.
-  for (std::size_t j = m; j < vectors * 4; ++j) keys[j] = static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max());
   const std::size_t out = std::min(k, m);
   alignas(32) std::uint64_t sorted[kRankMaxKeys];
   // First by distance alone, eight 32-bit distances per vector: when no two distances
@@ -238,6 +235,9 @@ MOBMAP_TARGET_AVX2 std::size_t rankSmallest(std::uint64_t* keys, std::size_t m, 
     // centroids often repeat a distance): rank the whole keys, four per vector. A
     // scalar pass ordering only the tied keys by index was slower (28.3 against 26.2
     // ms of denoising per frame).
+    const std::size_t vectors = (m + 3) / 4;
+    // Above every real key (whose top bit is 0), never ranked in.
+    for (std::size_t j = m; j < vectors * 4; ++j) keys[j] = static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max());
     alignas(32) std::int64_t ranks[kRankMaxKeys];
     for (std::size_t v = 0; v < vectors; v += 4) {
       switch (std::min<std::size_t>(4, vectors - v)) {

@@ -119,18 +119,16 @@ inline void forEachCellWithin(const Eigen::Vector3i& cc, int ring, bool shell_on
 }
 
 /// Points bucketed by cell: cell c holds order[start[c] .. start[c+1]).
+/// (The kNN search moves the arrays out and looks cells up in `index` itself.)
 struct CellBuckets {
-  float cell = 0.f;
   std::vector<Eigen::Vector3i> cells;  ///< coordinate of each non-empty cell
   std::vector<int> start;              ///< size cells.size() + 1
   std::vector<int> order;              ///< point indices grouped by cell
-  std::vector<int> cell_of_point;
-  CellHash index{1};
+  CellHash index{1};                   ///< cellKey -> cell number
 
-  CellBuckets(const std::vector<Eigen::Vector3f>& points, float cell_m)
-      : cell(cell_m), index(points.size() / 2 + 16) {
+  CellBuckets(const std::vector<Eigen::Vector3f>& points, float cell_m) : index(points.size() / 2 + 16) {
     const float inv = 1.f / cell_m;
-    cell_of_point.resize(points.size());
+    std::vector<int> cell_of_point(points.size());
     std::vector<int> counts;
     const std::vector<std::uint64_t> keys = cellKeys(points, inv);
     for (std::size_t i = 0; i < points.size(); ++i) {
@@ -151,7 +149,6 @@ struct CellBuckets {
       order[static_cast<std::size_t>(fill[static_cast<std::size_t>(cell_of_point[i])]++)] = static_cast<int>(i);
     }
   }
-  [[nodiscard]] int find(int x, int y, int z) const { return index.find(cellKey(x, y, z)); }
 };
 
 }  // namespace mobmap::perception::detail
