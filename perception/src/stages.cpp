@@ -439,12 +439,11 @@ std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
   // of the label then rejects a neighbour.
   std::vector<int> label(n);
   for (std::size_t i = 0; i < n; ++i) label[i] = eligible[i] ? -1 : -3;
-  std::vector<int> members;
+  // The queue ends up holding the region's members, in the order they were reached.
   std::vector<int> queue;
   int next = 0;
   for (std::size_t seed = 0; seed < n; ++seed) {
     if (label[seed] != -1) continue;
-    members.clear();
     queue.clear();
     queue.push_back(static_cast<int>(seed));
     label[seed] = next;
@@ -453,7 +452,6 @@ std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
     for (std::size_t head = 0; head < queue.size(); ++head) {
       const int i = queue[head];
       prefetchRow(g, queue, head + 6);
-      members.push_back(i);
       if (gate) {
         normal_sum += (*normals)[static_cast<std::size_t>(i)];
         mean_dir = normal_sum.normalized();
@@ -466,8 +464,8 @@ std::vector<int> growRegions(const std::vector<Eigen::Vector3f>& points,
         queue.push_back(static_cast<int>(nb));
       });
     }
-    if (static_cast<int>(members.size()) < min_points) {
-      for (int i : members) label[static_cast<std::size_t>(i)] = -2;  // visited, too small
+    if (static_cast<int>(queue.size()) < min_points) {
+      for (int i : queue) label[static_cast<std::size_t>(i)] = -2;  // visited, too small
     } else {
       ++next;
     }
