@@ -21,6 +21,7 @@
 #include <memory>
 #include <random>
 #include <set>
+#include <sstream>
 #include <thread>
 #include <tuple>
 
@@ -139,6 +140,76 @@ TEST(MobilityOcTree, PrunesOnlyIdenticalChildrenAndKeepsTheMinimumAbove) {
   const MobilityOcTreeNode* parent = tree.search(child_key(0), 15);
   ASSERT_NE(parent, nullptr);
   EXPECT_NEAR(parent->mobility(), 0.1, 1e-4);
+}
+
+// updateLeaf (one descent) against OctoMap's updateNode (search, then descend) on the
+// same random updates: hits and misses over a few voxels so that leaves reach the
+// clamping bounds (the search's early return), with pruning now and then (pruned
+// leaves above the finest level, expanded by the next update). The trees must stay
+// equal to the byte, each update must return the node updateNode returns, and
+// was_occupied must be the voxel's state before the update (its leaf's, or that of the
+// pruned leaf holding it).
+TEST(MobilityOcTree, UpdateLeafEqualsOctomapsUpdateNode) {
+  MobilityOcTree ours(0.02), stock(0.02);
+  for (MobilityOcTree* t : {&ours, &stock}) {
+    t->setProbHit(0.7);
+    t->setProbMiss(0.4);
+    t->setClampingThresMin(0.12);
+    t->setClampingThresMax(0.9);
+  }
+  const octomap::OcTreeKey base = ours.coordToKey(octomap::point3d(0.3f, -0.2f, 0.1f));
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> offset(0, 3);
+  std::bernoulli_distribution hit(0.7);
+  const auto bytes = [](const MobilityOcTree& t) {
+    std::ostringstream out;
+    t.write(out);
+    return out.str();
+  };
+  int early_returns = 0, expanded = 0;
+  for (int step = 0; step < 20000; ++step) {
+    const octomap::OcTreeKey key(static_cast<octomap::key_type>(base[0] + offset(rng)),
+                                 static_cast<octomap::key_type>(base[1] + offset(rng)),
+                                 static_cast<octomap::key_type>(base[2] + offset(rng)));
+    // Later phases lean towards misses, so blocks saturate at both bounds.
+    const bool occupied = step < 10000 ? hit(rng) : !hit(rng);
+    // Where the key's path ends before the update: at the voxel (depth 16), at a
+    // pruned leaf above it, or nowhere (a node with other children: before = null).
+    const MobilityOcTreeNode* before = ours.getRoot();
+    unsigned int depth_before = 0;
+    while (before && depth_before < 16) {
+      const unsigned int pos = octomap::computeChildIdx(key, static_cast<int>(15 - depth_before));
+      if (!ours.nodeChildExists(before, pos)) {
+        if (ours.nodeHasChildren(before)) before = nullptr;
+        break;
+      }
+      before = ours.getNodeChild(before, pos);
+      ++depth_before;
+    }
+    const bool expected_was = before && ours.isNodeOccupied(before);
+    bool was_occupied = !expected_was;
+    MobilityOcTreeNode* a = ours.updateLeaf(key, occupied, &was_occupied);
+    MobilityOcTreeNode* b = stock.updateNode(key, occupied, true);
+    ASSERT_NE(a, nullptr);
+    ASSERT_NE(b, nullptr);
+    EXPECT_EQ(a->getLogOdds(), b->getLogOdds()) << "step " << step;
+    EXPECT_EQ(ours.nodeHasChildren(a), stock.nodeHasChildren(b)) << "step " << step;
+    EXPECT_EQ(was_occupied, expected_was) << "step " << step;
+    if (before && a == before && depth_before < 16) ++early_returns;
+    if (before && depth_before < 16 && a != before) ++expanded;
+    if (step % 500 == 499) {
+      for (MobilityOcTree* t : {&ours, &stock}) {
+        t->updateInnerOccupancy();
+        t->prune();
+      }
+      ASSERT_EQ(bytes(ours), bytes(stock)) << "after step " << step;
+    }
+  }
+  EXPECT_EQ(bytes(ours), bytes(stock));
+  // Both special paths ran: a pruned leaf at a bound returned as it was, and pruned
+  // leaves expanded down to the voxel.
+  EXPECT_GT(early_returns, 0);
+  EXPECT_GT(expanded, 0);
 }
 
 // A small scored "frame": a floor patch (mobility 1) and a wall (0) seen from 1.2 m.

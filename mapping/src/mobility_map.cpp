@@ -104,12 +104,21 @@ void MobilityMap::integrate(const perception::FrameResult& frame, const Eigen::I
 
   // One update per voxel per frame. Where several segments share a voxel the least
   // mobile one wins: the conservative reading of an edge between floor and obstacle.
+  // The voxels in the order the frame's points first reach them, found through an
+  // open-addressing table of indices into that list (a node-based map allocated a
+  // node per voxel).
   struct Hit {
+    octomap::OcTreeKey key;
     int segment = -1;
     double range = 0.0;
   };
-  std::unordered_map<octomap::OcTreeKey, Hit, octomap::OcTreeKey::KeyHash> hits;
-  hits.reserve(frame.points.size());
+  thread_local std::vector<Hit> hits;
+  thread_local std::vector<int> slots;
+  hits.clear();
+  std::size_t capacity = 1024;
+  while (capacity < 2 * frame.points.size()) capacity <<= 1;
+  slots.assign(capacity, -1);
+  const std::size_t mask = capacity - 1;
   const double max_range2 = params_.max_range_m * params_.max_range_m;
   for (std::size_t i = 0; i < frame.points.size(); ++i) {
     const Eigen::Vector3d pc = frame.points[i].cast<double>();
@@ -119,20 +128,28 @@ void MobilityMap::integrate(const perception::FrameResult& frame, const Eigen::I
     if (!tree_->coordToKeyChecked(toOcto(T_map_camera * pc), key)) continue;
     const int seg = frame.segment_of_point.empty() ? -1 : frame.segment_of_point[i];
     const double range = std::sqrt(r2);
-    auto [it, inserted] = hits.try_emplace(key, Hit{seg, range});
-    if (inserted) continue;
-    Hit& h = it->second;
+    const std::uint64_t packed = (static_cast<std::uint64_t>(key[0]) << 32) | (static_cast<std::uint64_t>(key[1]) << 16) | key[2];
+    std::size_t slot = static_cast<std::size_t>((packed * 0x9E3779B97F4A7C15ULL) >> 40) & mask;
+    while (slots[slot] >= 0 && hits[static_cast<std::size_t>(slots[slot])].key != key) slot = (slot + 1) & mask;
+    if (slots[slot] < 0) {
+      slots[slot] = static_cast<int>(hits.size());
+      hits.push_back({key, seg, range});
+      continue;
+    }
+    Hit& h = hits[static_cast<std::size_t>(slots[slot])];
     if (seg >= 0 && (h.segment < 0 || frame.segments[static_cast<std::size_t>(seg)].mobility <
                                           frame.segments[static_cast<std::size_t>(h.segment)].mobility)) {
       h.segment = seg;
     }
     h.range = std::min(h.range, range);
   }
-  for (const auto& [key, h] : hits) {
+  for (const Hit& h : hits) {
+    const octomap::OcTreeKey& key = h.key;
     if (may_be_pruned_) expandPrunedAncestors(key);
-    MobilityOcTreeNode* node = tree_->updateNode(key, true, true);
-    if (!node) continue;
-    if (tree_->isNodeOccupied(node)) addOccupied(key);
+    bool was_occupied = false;
+    MobilityOcTreeNode* node = tree_->updateLeaf(key, true, &was_occupied);
+    // An occupied voxel is listed already (occupied_ holds every occupied leaf's key).
+    if (!was_occupied && tree_->isNodeOccupied(node)) addOccupied(key);
     if (h.segment < 0) continue;
     const auto& s = frame.segments[static_cast<std::size_t>(h.segment)];
     node->fuse(s.mobility, s.variance + params_.range_variance_per_m2 * h.range * h.range, params_.max_weight);
@@ -227,8 +244,8 @@ void MobilityMap::clearSeenThrough(const Eigen::Isometry3d& T_map_camera, const 
     for (const auto& key : keys) visit(key);
   }
   for (const auto& key : seen_through) {
-    MobilityOcTreeNode* node = tree_->updateNode(key, false, true);
-    if (node && !tree_->isNodeOccupied(node)) {
+    MobilityOcTreeNode* node = tree_->updateLeaf(key, false);
+    if (!tree_->isNodeOccupied(node)) {
       removeOccupied(key);
       node->clearMobility();  // no longer a surface: its mobility described what was there
     }

@@ -29,6 +29,46 @@ double dither(std::uint32_t payload, double m) {
 
 }  // namespace
 
+MobilityOcTreeNode* MobilityOcTree::updateLeaf(const octomap::OcTreeKey& key, bool occupied, bool* was_occupied) {
+  if (was_occupied) *was_occupied = false;
+  if (use_change_detection) return updateNode(key, occupied, true);  // its key bookkeeping is OctoMap's
+  const float update = occupied ? prob_hit_log : prob_miss_log;
+  // OctoMap leaves a node as it is when the update cannot move it past the clamp.
+  const auto saturated = [&](const MobilityOcTreeNode* n) {
+    return (update >= 0 && n->getLogOdds() >= clamping_thres_max) || (update <= 0 && n->getLogOdds() <= clamping_thres_min);
+  };
+  bool created = false;
+  if (!root) {
+    root = new MobilityOcTreeNode();
+    ++tree_size;
+    created = true;
+  }
+  MobilityOcTreeNode* node = root;
+  for (unsigned int depth = 0; depth < tree_depth; ++depth) {
+    const unsigned int pos = octomap::computeChildIdx(key, static_cast<int>(tree_depth - 1 - depth));
+    if (!nodeChildExists(node, pos)) {
+      if (!nodeHasChildren(node) && !created) {
+        // A leaf above the finest level (pruned): OctoMap's search ends here and its
+        // early return looks at this node; otherwise it is expanded.
+        if (was_occupied) *was_occupied = isNodeOccupied(node);
+        if (saturated(node)) return node;
+        expandNode(node);
+      } else {
+        // The search would have found nothing (no early return): the path is new from here.
+        createNodeChild(node, pos);
+        created = true;
+      }
+    }
+    node = getNodeChild(node, pos);
+  }
+  if (!created) {
+    if (was_occupied) *was_occupied = isNodeOccupied(node);
+    if (saturated(node)) return node;
+  }
+  updateNodeLogOdds(node, update);
+  return node;
+}
+
 std::uint32_t MobilityOcTreeNode::encodeMobility(double m) {
   return static_cast<std::uint32_t>(std::lround(std::clamp(m, 0.0, 1.0) * kMobilityMax));
 }

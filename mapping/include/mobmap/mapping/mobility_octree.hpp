@@ -98,6 +98,14 @@ class MobilityOcTree : public octomap::OccupancyOcTreeBase<MobilityOcTreeNode> {
   /// (Hides the base's non-virtual method: call it on a MobilityOcTree.)
   void updateInnerOccupancy();
 
+  /// updateNode(key, occupied, lazy_eval = true) in one descent instead of two (OctoMap
+  /// searches the key first, for its early return at the clamping bound, then walks
+  /// down again): the same tree and the same node returned, the search's early return
+  /// included. `was_occupied`, if given, tells whether the voxel was occupied before
+  /// the update: by its own leaf or by the pruned leaf holding it (false for a voxel
+  /// the update creates).
+  MobilityOcTreeNode* updateLeaf(const octomap::OcTreeKey& key, bool occupied, bool* was_occupied = nullptr);
+
   /// Reads node data written by write()/writeData() with every read checked: stops at
   /// the first failed read or after `max_nodes` nodes instead of trusting the stream
   /// (OctoMap's own reader keeps recursing on a truncated file). Returns an empty
