@@ -149,8 +149,9 @@ TEST(MobilityOcTree, PrunesOnlyIdenticalChildrenAndKeepsTheMinimumAbove) {
 // equal to the byte, each update must return the node updateNode returns, and
 // was_occupied must be the voxel's state before the update (its leaf's, or that of the
 // pruned leaf holding it).
-TEST(MobilityOcTree, UpdateLeafEqualsOctomapsUpdateNode) {
+void checkUpdateLeafAgainstUpdateNode(bool with_path) {
   MobilityOcTree ours(0.02), stock(0.02);
+  MobilityOcTree::UpdatePath path;
   for (MobilityOcTree* t : {&ours, &stock}) {
     t->setProbHit(0.7);
     t->setProbMiss(0.4);
@@ -168,7 +169,9 @@ TEST(MobilityOcTree, UpdateLeafEqualsOctomapsUpdateNode) {
   };
   int early_returns = 0, expanded = 0;
   for (int step = 0; step < 20000; ++step) {
-    const octomap::OcTreeKey key(static_cast<octomap::key_type>(base[0] + offset(rng)),
+    // Every seventh key lies in a block far away, so paths part at the top levels too.
+    const int far = step % 7 == 3 ? 1000 : 0;
+    const octomap::OcTreeKey key(static_cast<octomap::key_type>(base[0] + far + offset(rng)),
                                  static_cast<octomap::key_type>(base[1] + offset(rng)),
                                  static_cast<octomap::key_type>(base[2] + offset(rng)));
     // Later phases lean towards misses, so blocks saturate at both bounds.
@@ -188,7 +191,7 @@ TEST(MobilityOcTree, UpdateLeafEqualsOctomapsUpdateNode) {
     }
     const bool expected_was = before && ours.isNodeOccupied(before);
     bool was_occupied = !expected_was;
-    MobilityOcTreeNode* a = ours.updateLeaf(key, occupied, &was_occupied);
+    MobilityOcTreeNode* a = ours.updateLeaf(key, occupied, &was_occupied, with_path ? &path : nullptr);
     MobilityOcTreeNode* b = stock.updateNode(key, occupied, true);
     ASSERT_NE(a, nullptr);
     ASSERT_NE(b, nullptr);
@@ -202,6 +205,7 @@ TEST(MobilityOcTree, UpdateLeafEqualsOctomapsUpdateNode) {
         t->updateInnerOccupancy();
         t->prune();
       }
+      path = MobilityOcTree::UpdatePath();  // pruning deletes nodes a path may hold
       ASSERT_EQ(bytes(ours), bytes(stock)) << "after step " << step;
     }
   }
@@ -211,6 +215,9 @@ TEST(MobilityOcTree, UpdateLeafEqualsOctomapsUpdateNode) {
   EXPECT_GT(early_returns, 0);
   EXPECT_GT(expanded, 0);
 }
+
+TEST(MobilityOcTree, UpdateLeafEqualsOctomapsUpdateNode) { checkUpdateLeafAgainstUpdateNode(false); }
+TEST(MobilityOcTree, UpdateLeafFromThePreviousPathEqualsOctomapsUpdateNode) { checkUpdateLeafAgainstUpdateNode(true); }
 
 // A small scored "frame": a floor patch (mobility 1) and a wall (0) seen from 1.2 m.
 // Surfaces sit mid-voxel (z = 0.01, x = 1.61) so float rounding cannot move them

@@ -29,9 +29,13 @@ double dither(std::uint32_t payload, double m) {
 
 }  // namespace
 
-MobilityOcTreeNode* MobilityOcTree::updateLeaf(const octomap::OcTreeKey& key, bool occupied, bool* was_occupied) {
+MobilityOcTreeNode* MobilityOcTree::updateLeaf(const octomap::OcTreeKey& key, bool occupied, bool* was_occupied,
+                                               UpdatePath* path) {
   if (was_occupied) *was_occupied = false;
-  if (use_change_detection) return updateNode(key, occupied, true);  // its key bookkeeping is OctoMap's
+  if (use_change_detection || tree_depth != 16) {  // change detection keeps OctoMap's key bookkeeping
+    if (path) path->valid = -1;
+    return updateNode(key, occupied, true);
+  }
   const float update = occupied ? prob_hit_log : prob_miss_log;
   // OctoMap leaves a node as it is when the update cannot move it past the clamp.
   const auto saturated = [&](const MobilityOcTreeNode* n) {
@@ -42,16 +46,37 @@ MobilityOcTreeNode* MobilityOcTree::updateLeaf(const octomap::OcTreeKey& key, bo
     root = new MobilityOcTreeNode();
     ++tree_size;
     created = true;
+    if (path) path->valid = -1;
   }
   MobilityOcTreeNode* node = root;
-  for (unsigned int depth = 0; depth < tree_depth; ++depth) {
+  unsigned int depth = 0;
+  if (path && path->valid >= 0) {
+    // The node at depth d is fixed by the top d bits of each key coordinate; every node
+    // of the previous path exists and, above its end, has children, so starting at the
+    // deepest shared one is where OctoMap's walk from the root would arrive.
+    const unsigned int differ = static_cast<unsigned int>((key[0] ^ path->key[0]) | (key[1] ^ path->key[1]) |
+                                                          (key[2] ^ path->key[2]));
+    const int shared = differ == 0 ? 16 : __builtin_clz(differ) - 16;
+    depth = static_cast<unsigned int>(std::min(shared, path->valid));
+    node = path->nodes[depth];
+  }
+  const auto remember = [&](unsigned int reached) {
+    if (!path) return;
+    path->nodes[0] = root;
+    path->key = key;
+    path->valid = static_cast<int>(reached);
+  };
+  for (; depth < tree_depth; ++depth) {
     const unsigned int pos = octomap::computeChildIdx(key, static_cast<int>(tree_depth - 1 - depth));
     if (!nodeChildExists(node, pos)) {
       if (!nodeHasChildren(node) && !created) {
         // A leaf above the finest level (pruned): OctoMap's search ends here and its
         // early return looks at this node; otherwise it is expanded.
         if (was_occupied) *was_occupied = isNodeOccupied(node);
-        if (saturated(node)) return node;
+        if (saturated(node)) {
+          remember(depth);
+          return node;
+        }
         expandNode(node);
       } else {
         // The search would have found nothing (no early return): the path is new from here.
@@ -60,7 +85,9 @@ MobilityOcTreeNode* MobilityOcTree::updateLeaf(const octomap::OcTreeKey& key, bo
       }
     }
     node = getNodeChild(node, pos);
+    if (path) path->nodes[depth + 1] = node;
   }
+  remember(tree_depth);
   if (!created) {
     if (was_occupied) *was_occupied = isNodeOccupied(node);
     if (saturated(node)) return node;

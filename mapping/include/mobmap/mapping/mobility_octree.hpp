@@ -104,7 +104,18 @@ class MobilityOcTree : public octomap::OccupancyOcTreeBase<MobilityOcTreeNode> {
   /// included. `was_occupied`, if given, tells whether the voxel was occupied before
   /// the update: by its own leaf or by the pruned leaf holding it (false for a voxel
   /// the update creates).
-  MobilityOcTreeNode* updateLeaf(const octomap::OcTreeKey& key, bool occupied, bool* was_occupied = nullptr);
+  /// With `path`, the descent starts at the deepest node the key shares with the path
+  /// of the previous key updated through the same `path` (a run of nearby keys skips
+  /// most of the tree's 16 levels). A path is valid while the tree is only changed by
+  /// updateLeaf, updateNode with lazy_eval and expandNode: no prune(), clear(), node
+  /// deletion or reading in between.
+  struct UpdatePath {
+    octomap::OcTreeKey key{0, 0, 0};
+    MobilityOcTreeNode* nodes[17] = {};  ///< nodes[d]: the node at depth d on key's path
+    int valid = -1;                      ///< nodes[0 .. valid] are set
+  };
+  MobilityOcTreeNode* updateLeaf(const octomap::OcTreeKey& key, bool occupied, bool* was_occupied = nullptr,
+                                 UpdatePath* path = nullptr);
 
   /// Reads node data written by write()/writeData() with every read checked: stops at
   /// the first failed read or after `max_nodes` nodes instead of trusting the stream
