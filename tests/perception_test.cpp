@@ -162,15 +162,25 @@ TEST(Neighbours, RestrictedGraphEqualsBruteForceOnTheKeptPoints) {
     for (int k : {16, 30}) {
       std::size_t recomputed = 0;
       const KnnGraph fast = restrictKnnGraph(all, pts, keep, k, 0.02f, 10.f, &recomputed, simd);
-      expectSameGraph(fast, bruteForceKnnGraph(kept, k), std::string(toString(simd)) + " k " + std::to_string(k));
+      const KnnGraph reference = bruteForceKnnGraph(kept, k);
+      expectSameGraph(fast, reference, std::string(toString(simd)) + " k " + std::to_string(k));
       EXPECT_GT(recomputed, 0u) << "k " << k;  // the test exercises the search-again path
       EXPECT_LT(recomputed, kept.size()) << "k " << k;  // and the reuse path
+      // The same graph built over the original in its own buffers (what the pipeline does).
+      KnnGraph in_place = all;
+      std::size_t recomputed_in_place = 0;
+      restrictKnnGraphInPlace(in_place, pts, keep, k, 0.02f, 10.f, &recomputed_in_place, simd);
+      expectSameGraph(in_place, reference, std::string("in place ") + toString(simd) + " k " + std::to_string(k));
+      EXPECT_EQ(in_place.indices.size(), kept.size() * static_cast<std::size_t>(k));
+      EXPECT_EQ(recomputed_in_place, recomputed);
     }
   }
   EXPECT_THROW(restrictKnnGraph(all, pts, keep, 31, 0.02f, 10.f), std::invalid_argument);
+  KnnGraph copy = all;
+  EXPECT_THROW(restrictKnnGraphInPlace(copy, pts, keep, 31, 0.02f, 10.f), std::invalid_argument);
 }
 
-// The pipeline keeps its two graphs from frame to frame. A graph built into buffers
+// The pipeline keeps its graph from frame to frame. A graph built into buffers
 // that held another cloud's graph (more points, another k, rows full of stale
 // entries) must equal a fresh one, padding of short rows included.
 TEST(Neighbours, GraphsBuiltIntoReusedBuffersEqualFreshOnes) {

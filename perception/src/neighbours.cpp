@@ -415,48 +415,65 @@ KnnGraph restrictKnnGraph(const KnnGraph& g, const std::vector<Eigen::Vector3f>&
   return out;
 }
 
-void restrictKnnGraph(const KnnGraph& g, const std::vector<Eigen::Vector3f>& points, const std::vector<bool>& keep,
-                      int k, float cell_m, float max_radius_m, KnnGraph& out, std::size_t* recomputed, Simd simd) {
+namespace {
+
+// The rows of the kept points, renumbered, from (src_*, src_k) into (dst_*, k): a kept
+// point's row is the first k kept entries of its old row. dst may be src itself: row i
+// goes to row new_index[i] <= i with k <= src_k, and entry j of a row to entry c <= j,
+// so no entry is written before it has been read. Marks in `redo` the rows that must be
+// searched again and returns their number.
+std::size_t compactRows(const int* src_idx, const float* src_d2, const int* src_count, int src_k, int* dst_idx,
+                        float* dst_d2, int* dst_count, int k, const std::vector<int>& new_index, float max_r2,
+                        std::vector<bool>& redo) {
+  std::size_t n_redo = 0;
+  for (std::size_t i = 0; i < new_index.size(); ++i) {
+    const int ni = new_index[i];
+    if (ni < 0) continue;
+    const std::size_t base = i * static_cast<std::size_t>(src_k);
+    const std::size_t obase = static_cast<std::size_t>(ni) * static_cast<std::size_t>(k);
+    const int old_count = src_count[i];
+    int c = 0;
+    for (int j = 0; j < old_count && c < k; ++j) {
+      const int nb = new_index[static_cast<std::size_t>(src_idx[base + static_cast<std::size_t>(j)])];
+      const float d2 = src_d2[base + static_cast<std::size_t>(j)];
+      if (nb < 0 || d2 > max_r2) continue;
+      dst_idx[obase + static_cast<std::size_t>(c)] = nb;
+      dst_d2[obase + static_cast<std::size_t>(c)] = d2;
+      ++c;
+    }
+    dst_count[static_cast<std::size_t>(ni)] = c;
+    // The row is exact if it found k kept neighbours, or if the original row already
+    // held every point within the radius (it was not full). Otherwise removed points
+    // took places that farther kept points now fill: search again.
+    if (c < k && old_count == src_k) {
+      redo[static_cast<std::size_t>(ni)] = true;
+      ++n_redo;
+    }
+  }
+  return n_redo;
+}
+
+// Checks restrictKnnGraph's arguments; returns each point's index among the kept ones
+// (-1 if removed) and their number.
+std::vector<int> keptNumbering(const KnnGraph& g, const std::vector<Eigen::Vector3f>& points,
+                               const std::vector<bool>& keep, int k, float cell_m, float max_radius_m, int& n_kept) {
   checkArguments(k, cell_m, max_radius_m);
-  simd = resolveSimd(simd, "restrictKnnGraph");
-  if (&out == &g) throw std::invalid_argument("restrictKnnGraph: the output graph is the input graph");
   if (k > g.k) throw std::invalid_argument("restrictKnnGraph: k exceeds the graph's k");
   if (keep.size() != points.size() || g.count.size() != points.size()) {
     throw std::invalid_argument("restrictKnnGraph: graph, points and mask sizes differ");
   }
   std::vector<int> new_index(points.size(), -1);
-  int n_kept = 0;
+  n_kept = 0;
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (keep[i]) new_index[i] = n_kept++;
   }
-  allocate(out, static_cast<std::size_t>(n_kept), k);
-  std::vector<bool> redo(static_cast<std::size_t>(n_kept), false);
-  std::size_t n_redo = 0;
-  const float max_r2 = max_radius_m * max_radius_m;
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    const int ni = new_index[i];
-    if (ni < 0) continue;
-    const std::size_t base = i * static_cast<std::size_t>(g.k);
-    const std::size_t obase = static_cast<std::size_t>(ni) * static_cast<std::size_t>(k);
-    int c = 0;
-    for (int j = 0; j < g.count[i] && c < k; ++j) {
-      const int nb = new_index[static_cast<std::size_t>(g.indices[base + static_cast<std::size_t>(j)])];
-      const float d2 = g.sq_dist[base + static_cast<std::size_t>(j)];
-      if (nb < 0 || d2 > max_r2) continue;
-      out.indices[obase + static_cast<std::size_t>(c)] = nb;
-      out.sq_dist[obase + static_cast<std::size_t>(c)] = d2;
-      ++c;
-    }
-    out.count[static_cast<std::size_t>(ni)] = c;
-    // The row is exact if it found k kept neighbours, or if the original row already
-    // held every point within the radius (it was not full). Otherwise removed points
-    // took places that farther kept points now fill: search again.
-    if (c < k && g.count[i] == g.k) {
-      redo[static_cast<std::size_t>(ni)] = true;
-      ++n_redo;
-    }
-  }
-  if (recomputed) *recomputed = n_redo;
+  return new_index;
+}
+
+// Searches the rows marked in `redo` again among the kept points, and pads the rows.
+void researchRows(KnnGraph& out, const std::vector<Eigen::Vector3f>& points, const std::vector<bool>& keep,
+                  int n_kept, const std::vector<bool>& redo, std::size_t n_redo, int k, float cell_m,
+                  float max_radius_m, Simd simd) {
   if (n_redo > 0) {  // only then is the kept cloud needed as a cloud of its own
     std::vector<Eigen::Vector3f> kept;
     kept.reserve(static_cast<std::size_t>(n_kept));
@@ -467,6 +484,41 @@ void restrictKnnGraph(const KnnGraph& g, const std::vector<Eigen::Vector3f>& poi
                [&](int i) { return static_cast<bool>(redo[static_cast<std::size_t>(i)]); }, [](int i) { return i; });
   }
   padTails(out);
+}
+
+}  // namespace
+
+void restrictKnnGraph(const KnnGraph& g, const std::vector<Eigen::Vector3f>& points, const std::vector<bool>& keep,
+                      int k, float cell_m, float max_radius_m, KnnGraph& out, std::size_t* recomputed, Simd simd) {
+  if (&out == &g) throw std::invalid_argument("restrictKnnGraph: the output graph is the input graph");
+  int n_kept = 0;
+  const std::vector<int> new_index = keptNumbering(g, points, keep, k, cell_m, max_radius_m, n_kept);
+  simd = resolveSimd(simd, "restrictKnnGraph");
+  allocate(out, static_cast<std::size_t>(n_kept), k);
+  std::vector<bool> redo(static_cast<std::size_t>(n_kept), false);
+  const std::size_t n_redo = compactRows(g.indices.data(), g.sq_dist.data(), g.count.data(), g.k, out.indices.data(),
+                                         out.sq_dist.data(), out.count.data(), k, new_index,
+                                         max_radius_m * max_radius_m, redo);
+  if (recomputed) *recomputed = n_redo;
+  researchRows(out, points, keep, n_kept, redo, n_redo, k, cell_m, max_radius_m, simd);
+}
+
+void restrictKnnGraphInPlace(KnnGraph& g, const std::vector<Eigen::Vector3f>& points, const std::vector<bool>& keep,
+                             int k, float cell_m, float max_radius_m, std::size_t* recomputed, Simd simd) {
+  int n_kept = 0;
+  const std::vector<int> new_index = keptNumbering(g, points, keep, k, cell_m, max_radius_m, n_kept);
+  simd = resolveSimd(simd, "restrictKnnGraph");
+  std::vector<bool> redo(static_cast<std::size_t>(n_kept), false);
+  const std::size_t n_redo = compactRows(g.indices.data(), g.sq_dist.data(), g.count.data(), g.k, g.indices.data(),
+                                         g.sq_dist.data(), g.count.data(), k, new_index,
+                                         max_radius_m * max_radius_m, redo);
+  // Shrinking keeps the buffers' capacity for the next frame.
+  g.k = k;
+  g.indices.resize(static_cast<std::size_t>(n_kept) * static_cast<std::size_t>(k));
+  g.sq_dist.resize(static_cast<std::size_t>(n_kept) * static_cast<std::size_t>(k));
+  g.count.resize(static_cast<std::size_t>(n_kept));
+  if (recomputed) *recomputed = n_redo;
+  researchRows(g, points, keep, n_kept, redo, n_redo, k, cell_m, max_radius_m, simd);
 }
 
 KnnGraph bruteForceKnnGraph(const std::vector<Eigen::Vector3f>& points, int k) {

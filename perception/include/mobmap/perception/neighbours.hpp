@@ -53,6 +53,12 @@ void restrictKnnGraph(const KnnGraph& graph, const std::vector<Eigen::Vector3f>&
                       const std::vector<bool>& keep, int k, float cell_m, float max_radius_m, KnnGraph& out,
                       std::size_t* recomputed = nullptr, Simd simd = Simd::kAuto);
 
+/// The same graph built in `graph` itself, which it replaces (no second buffer of
+/// tens of MB for a VGA frame).
+void restrictKnnGraphInPlace(KnnGraph& graph, const std::vector<Eigen::Vector3f>& points,
+                             const std::vector<bool>& keep, int k, float cell_m, float max_radius_m,
+                             std::size_t* recomputed = nullptr, Simd simd = Simd::kAuto);
+
 /// Reference: the same graph by brute force, O(n^2). For tests.
 KnnGraph bruteForceKnnGraph(const std::vector<Eigen::Vector3f>& points, int k);
 
