@@ -138,6 +138,36 @@ TEST(Neighbours, GridKnnEqualsBruteForceOnALatticeFullOfTies) {
   }
 }
 
+TEST(Neighbours, GridKnnEqualsBruteForceWithPointsOnAndBesideCellFaces) {
+  // The search trusts a radius of one cell plus each point's distance to its own cell's
+  // faces. Points exactly on faces (margin 0), one float step either side of them, at
+  // the middle of a cell (margin half a cell), and the same lattice 1 km away (where a
+  // float step is ~0.1 mm and the cell arithmetic rounds the most).
+  const float cell = 0.04f;
+  std::vector<Eigen::Vector3f> pts;
+  for (const float origin : {0.f, 1000.f}) {
+    for (int i = 0; i < 24; ++i) {
+      for (int j = 0; j < 24; ++j) {
+        for (int l = 0; l < 3; ++l) {
+          const Eigen::Vector3f p(origin + 0.01f * i, origin + 0.01f * j, origin + 0.02f * l);
+          pts.push_back(p);
+          if ((i + j + l) % 5 == 0) {
+            pts.emplace_back(std::nextafter(p.x(), 1e9f), p.y(), std::nextafter(p.z(), -1e9f));
+          } else if ((i + j + l) % 5 == 1) {
+            pts.emplace_back(std::nextafter(p.x(), -1e9f), std::nextafter(p.y(), 1e9f), p.z());
+          }
+        }
+      }
+    }
+  }
+  for (Simd simd : simdChoices()) {
+    for (int k : {8, 30, 60}) {
+      expectSameGraph(buildKnnGraph(pts, k, cell, 0.2f, simd), bruteForceKnnGraph(pts, k),
+                      std::string(toString(simd)) + " k " + std::to_string(k));
+    }
+  }
+}
+
 TEST(Neighbours, MaxRadiusDropsFarNeighbours) {
   std::vector<Eigen::Vector3f> pts = {{0, 0, 0}, {0.01f, 0, 0}, {1, 0, 0}};
   for (Simd simd : simdChoices()) {

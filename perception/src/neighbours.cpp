@@ -196,6 +196,7 @@ class SortedCellSearch {
       : k_(static_cast<std::size_t>(k)),
         cell_(cell_m),
         max_r2_(max_radius_m * max_radius_m),
+        inv_cell_(1.f / cell_m),
         max_ring_(std::max(1, static_cast<int>(std::ceil(max_radius_m / cell_m)))) {
     // Own copies of the buckets' arrays (moved out), not references into them: the hot
     // loops read them, and plain members keep them as cheap to reach as before.
@@ -213,7 +214,6 @@ class SortedCellSearch {
 
   template <typename Want, typename RowOf>
   void run(KnnGraph& g, Want want, RowOf row_of) {
-    const float guarantee = std::min(cell_ * cell_, max_r2_);
     for (std::size_t c = 0; c < cells_.size(); ++c) {
       bool any = false;
       for (int s = start_[c]; s < start_[c + 1] && !any; ++s) any = want(id_[static_cast<std::size_t>(s)]);
@@ -224,11 +224,14 @@ class SortedCellSearch {
       for (int s = start_[c]; s < start_[c + 1]; ++s) {
         const int i = id_[static_cast<std::size_t>(s)];
         if (!want(i)) continue;
-        // Any limit within the block's guarantee (every point closer than one cell is in
-        // it) gives the exact answer once k candidates lie within it. Neighbouring
-        // points see the same density: limits just above the previous point's k-th
-        // distance usually hold k candidates, and fewer candidates make the selection
-        // cheaper. All four are counted in the pass that computes the distances.
+        // Any limit within the block's guarantee (every point closer than one cell plus
+        // the point's distance to its own cell's faces is in it) gives the exact answer
+        // once k candidates lie within it. Neighbouring points see the same density:
+        // limits just above the previous point's k-th distance usually hold k
+        // candidates, and fewer candidates make the selection cheaper. All four are
+        // counted in the pass that computes the distances.
+        const float margin = faceMargin(cells_[c], static_cast<std::size_t>(s));
+        const float guarantee = std::min((cell_ + margin) * (cell_ + margin), max_r2_);
         const float limit[4] = {std::min(1.15f * last_kth2, guarantee), std::min(1.4f * last_kth2, guarantee),
                                 std::min(1.8f * last_kth2, guarantee), guarantee};
         int count[4];
@@ -240,18 +243,22 @@ class SortedCellSearch {
         const std::size_t n = select(block_, i, limit[tightestHolding(count)], g, static_cast<std::size_t>(row_of(i)));
         if (n == k_) last_kth2 = g.sq_dist[static_cast<std::size_t>(row_of(i)) * k_ + k_ - 1];
       }
-      // Points without k neighbours within one cell: ring r of cells guarantees r cells
-      // of radius; one block per ring serves all of this cell's short points.
+      // Points without k neighbours within that: ring r of cells guarantees r cells
+      // (plus the face margin) of radius; one block per ring serves all of this cell's
+      // short points.
       for (int ring = 2; !short_.empty() && ring <= max_ring_; ++ring) {
         if (ring == 2) copyBlock(block_, wide_);
         gather(cells_[c], ring, wide_, /*shell_only=*/true);
-        const float inner = static_cast<float>(ring - 1) * cell_;
-        const float outer2 = std::min(static_cast<float>(ring) * cell_ * static_cast<float>(ring) * cell_, max_r2_);
         std::size_t still = 0;
         for (int s : short_) {
           const int i = id_[static_cast<std::size_t>(s)];
+          const float margin = faceMargin(cells_[c], static_cast<std::size_t>(s));
+          const float inner = static_cast<float>(ring - 1) * cell_ + margin;
+          // The last ring reaches the maximum radius (max_ring_ cells cover it).
+          const float outer = static_cast<float>(ring) * cell_ + margin;
+          const float outer2 = ring == max_ring_ ? max_r2_ : std::min(outer * outer, max_r2_);
           float limit[4];
-          for (int q = 0; q < 4; ++q) {
+          for (int q = 0; q < 3; ++q) {
             const float r = inner + 0.25f * static_cast<float>(q + 1) * cell_;
             limit[q] = std::min(r * r, outer2);
           }
@@ -320,6 +327,27 @@ class SortedCellSearch {
     b.x.resize(size), b.y.resize(size), b.z.resize(size), b.d2.resize(size), b.id.resize(size);
   }
 
+  // The distance from sorted point s to the nearest face of its cell cc, less a slack
+  // for rounding: every point within r cells plus this of s lies within r cells of cc
+  // (Chebyshev), so the block of that ring holds it. Measured in cell units with the
+  // product CellBuckets floors (a point in cell cc + 2 has x * inv >= cc + 2), so the
+  // bound holds for the cells as assigned; the slack covers the rounding of that
+  // product (a few units in its last place) and of the squared distances. For a point
+  // on a face the margin is slightly negative: a point just beyond the block, one cell
+  // and a fraction of a float step away, can round to exactly one cell's distance
+  // (taking the bare cell as the radius, the search missed it there).
+  [[nodiscard]] float faceMargin(const Eigen::Vector3i& cc, std::size_t s) const {
+    const float t[3] = {x_[s] * inv_cell_, y_[s] * inv_cell_, z_[s] * inv_cell_};
+    float u = 0.5f, scale = 0.f;
+    for (int a = 0; a < 3; ++a) {
+      const auto lo = static_cast<float>(cc(a));
+      u = std::min({u, t[a] - lo, lo + 1.f - t[a]});
+      scale = std::max(scale, std::abs(t[a]));
+    }
+    const float slack = 1e-5f + 1e-6f * scale;
+    return (u - slack) * cell_;
+  }
+
   // The first of the four limits (ascending) within which k candidates lie; the last
   // when none holds k (it is the widest the block can answer).
   [[nodiscard]] int tightestHolding(const int count[4]) const {
@@ -355,6 +383,7 @@ class SortedCellSearch {
 
   std::size_t k_;
   float cell_, max_r2_;
+  float inv_cell_;  // 1 / cell_ as CellBuckets computes it
   int max_ring_;
   detail::CellHash index_{1};
   std::vector<Eigen::Vector3i> cells_;
