@@ -324,6 +324,46 @@ TEST(OutlierRemoval, KeepsExactlyThePointsWithinAlphaSigma) {
   EXPECT_GT(removed, 0);
 }
 
+TEST(OutlierRemoval, MatchesAPlainPassForAnyRowLengthAndCount) {
+  // The mask sums four rows at a time, four square roots per step: k not a multiple of
+  // four, a graph wider than k, a point count not a multiple of four and rows short of
+  // k neighbours must all give what one plain pass over the rows gives.
+  // A jittered 1 cm lattice (mean neighbour distances close together) with every 50th
+  // point lifted off it.
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> jitter(-0.001f, 0.001f);
+  std::vector<Eigen::Vector3f> pts;
+  for (int i = 0; i < 2003; ++i) {
+    pts.emplace_back(0.01f * static_cast<float>(i % 45) + jitter(rng), 0.01f * static_cast<float>(i / 45) + jitter(rng),
+                     (i % 50 == 7 ? 0.03f : 0.f) + jitter(rng));
+  }
+  for (const auto& [graph_k, k] : std::vector<std::pair<int, int>>{{9, 7}, {16, 16}, {5, 3}, {12, 10}}) {
+    KnnGraph g = bruteForceKnnGraph(pts, graph_k);
+    for (std::size_t i = 5; i < pts.size(); i += 41) g.count[i] = k - 1;  // too few neighbours
+    const auto keep = statisticalOutlierMask(g, 1.5, k);
+    std::vector<double> mean(pts.size(), 0.0);
+    double sum = 0, sum2 = 0;
+    std::size_t m = 0;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      if (g.count[i] < k) continue;
+      double d = 0;
+      for (int j = 0; j < k; ++j) d += std::sqrt(g.sq_dist[i * static_cast<std::size_t>(graph_k) + static_cast<std::size_t>(j)]);
+      mean[i] = d / k;
+      sum += mean[i];
+      sum2 += mean[i] * mean[i];
+      ++m;
+    }
+    const double mu = sum / static_cast<double>(m);
+    const double sigma = std::sqrt(std::max(0.0, sum2 / static_cast<double>(m) - mu * mu));
+    int removed = 0;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      EXPECT_EQ(keep[i], g.count[i] >= k && std::abs(mean[i] - mu) <= 1.5 * sigma + 1e-12) << "k " << k << " point " << i;
+      removed += !keep[i];
+    }
+    EXPECT_GT(removed, 49) << k;  // the short rows and some outliers
+  }
+}
+
 TEST(Normals, SphereNormalsPointRadiallyTowardsTheViewpoint) {
   // Points on a sphere of radius 0.5 around (0, 0, 2), viewed from the origin.
   std::vector<Eigen::Vector3f> pts;
