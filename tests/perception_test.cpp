@@ -142,7 +142,7 @@ TEST(Neighbours, GridKnnEqualsBruteForceWithPointsOnAndBesideCellFaces) {
   // The search trusts a radius of one cell plus each point's distance to its own cell's
   // faces. Points exactly on faces (margin 0), one float step either side of them, at
   // the middle of a cell (margin half a cell), and the same lattice 1 km away (where a
-  // float step is ~0.1 mm and the cell arithmetic rounds the most).
+  // float step is ~0.06 mm and the cell arithmetic rounds the most).
   const float cell = 0.04f;
   std::vector<Eigen::Vector3f> pts;
   for (const float origin : {0.f, 1000.f}) {
