@@ -303,6 +303,58 @@ TEST(VoxelReduce, CentroidsEqualBruteForceGrouping) {
   }
 }
 
+TEST(VoxelReduce, ImageOrderedRunsGiveTheCentroidsOfOnePointAtATime) {
+  // Points as an image gives them: rows of pixels whose voxels come in runs of equal
+  // keys, go back to a voxel seen a few points or a row before, straddle voxel faces
+  // (coordinates exactly on them too) and lie on both sides of zero. Every kernel of
+  // the voxel keys must give, bit for bit, what one point at a time gives: voxels
+  // numbered by first occurrence, each the double sum of its points in input order.
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> jitter(-0.004f, 0.004f);
+  std::vector<Eigen::Vector3f> pts;
+  for (int v = 0; v < 60; ++v) {
+    for (int u = 0; u < 77; ++u) {  // 77 * 60 points: not a multiple of 8 or 16
+      const float x = -0.2f + 0.0027f * static_cast<float>(u), y = -0.1f + 0.0031f * static_cast<float>(v);
+      float z = 1.f + 0.3f * x + jitter(rng);  // depth noise: the key flips along z
+      if ((u + v) % 23 == 0) z = 1.f;          // on a face
+      if ((u * v) % 31 == 0) z = 0.01f * static_cast<float>(u % 5);
+      pts.emplace_back(u % 19 == 0 ? 0.01f * static_cast<float>(v % 7 - 3) : x, y, z);
+    }
+  }
+  const float size = 0.01f, inv = 1.f / size;
+  std::map<std::tuple<int, int, int>, int> number;
+  std::vector<Eigen::Vector3d> sums;
+  std::vector<int> counts, ref_of;
+  for (const auto& p : pts) {
+    const std::tuple<int, int, int> key{static_cast<int>(std::floor(p.x() * inv)),
+                                        static_cast<int>(std::floor(p.y() * inv)),
+                                        static_cast<int>(std::floor(p.z() * inv))};
+    auto it = number.find(key);
+    if (it == number.end()) {
+      it = number.emplace(key, static_cast<int>(sums.size())).first;
+      sums.emplace_back(Eigen::Vector3d::Zero());
+      counts.push_back(0);
+    }
+    sums[static_cast<std::size_t>(it->second)] += p.cast<double>();
+    ++counts[static_cast<std::size_t>(it->second)];
+    ref_of.push_back(it->second);
+  }
+  int repeats = 0;  // points whose voxel is that of the point before: the runs
+  for (std::size_t i = 1; i < ref_of.size(); ++i) repeats += ref_of[i] == ref_of[i - 1];
+  ASSERT_GT(repeats, 1000);
+  ASSERT_LT(sums.size(), pts.size() - static_cast<std::size_t>(repeats));  // and voxels met again later
+  for (Simd simd : simdChoices()) {
+    std::vector<int> voxel_of;
+    const auto vox = voxelReduce(pts, size, &voxel_of, simd);
+    EXPECT_EQ(voxel_of, ref_of) << toString(simd);
+    ASSERT_EQ(vox.size(), sums.size()) << toString(simd);
+    for (std::size_t v = 0; v < vox.size(); ++v) {
+      const Eigen::Vector3f want = (sums[v] / counts[v]).cast<float>();
+      EXPECT_EQ(vox[v], want) << toString(simd) << " voxel " << v;
+    }
+  }
+}
+
 TEST(OutlierRemoval, KeepsExactlyThePointsWithinAlphaSigma) {
   auto pts = randomCloud(2000, 3);
   const int k = 8;

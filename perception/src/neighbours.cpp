@@ -143,6 +143,7 @@ void checkArguments(int k, float cell_m, float max_radius_m) {
 // vectorises the distance pass with what the target has). They have no ranking: the
 // k nearest are always selected by bands (selectSmallestBanded).
 struct PortableKernels {
+  static constexpr Simd kSimd = Simd::kPortable;
   static constexpr bool kRanks = false;
   static void distancesAndCounts(const float* x, const float* y, const float* z, std::size_t n, float px, float py,
                                  float pz, const float limit[4], float* d2, int count[4]) {
@@ -169,12 +170,14 @@ struct PortableKernels {
 #if MOBMAP_X86_KERNELS
 // The vector kernels SortedCellSearch runs on (simd_kernels.hpp).
 struct Avx512Kernels {
+  static constexpr Simd kSimd = Simd::kAvx512;
   static constexpr bool kRanks = true;
   static constexpr auto distancesAndCounts = &detail::avx512::distancesAndCounts;
   static constexpr auto compactKeys = &detail::avx512::compactKeys;
   static constexpr auto rankSmallest = &detail::avx512::rankSmallest;
 };
 struct Avx2Kernels {
+  static constexpr Simd kSimd = Simd::kAvx2;
   static constexpr bool kRanks = true;
   static constexpr auto distancesAndCounts = &detail::avx2::distancesAndCounts;
   static constexpr auto compactKeys = &detail::avx2::compactKeys;
@@ -200,7 +203,7 @@ class SortedCellSearch {
         max_ring_(std::max(1, static_cast<int>(std::ceil(max_radius_m / cell_m)))) {
     // Own copies of the buckets' arrays (moved out), not references into them: the hot
     // loops read them, and plain members keep them as cheap to reach as before.
-    detail::CellBuckets buckets(points, cell_m);
+    detail::CellBuckets buckets(points, cell_m, Kernels::kSimd);
     index_ = std::move(buckets.index);
     cells_ = std::move(buckets.cells);
     start_ = std::move(buckets.start);

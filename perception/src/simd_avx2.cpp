@@ -421,6 +421,39 @@ MOBMAP_TARGET_AVX2 unsigned localPlanes8(const float* points, const float sums[9
   return (done_bits | (live & ~planar_bits)) & live;
 }
 
+MOBMAP_TARGET_AVX2 std::size_t cellKeys(const float* xyz, std::size_t n, float inv_cell, std::uint64_t* keys) {
+  const __m256 inv = _mm256_set1_ps(inv_cell);
+  const __m256i offset = _mm256_set1_epi64x(1 << 20);
+  std::size_t i = 0;
+  for (; i + 8 <= n; i += 8) {
+    const float* p = xyz + 3 * i;
+    // Points 0-3 in the low halves, 4-7 in the high ones: x0 y0 z0 x1 | y1 z1 x2 y2 |
+    // z2 x3 y3 z3 (and the same for 4-7), shuffled into x, y and z of the 8 points in
+    // the order 0 1 2 3 | 4 5 6 7.
+    const __m256 m0 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(p)), _mm_loadu_ps(p + 12), 1);
+    const __m256 m1 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(p + 4)), _mm_loadu_ps(p + 16), 1);
+    const __m256 m2 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(p + 8)), _mm_loadu_ps(p + 20), 1);
+    const __m256 x2y2x3y3 = _mm256_shuffle_ps(m1, m2, _MM_SHUFFLE(2, 1, 3, 2));  // x2 y2 x3 y3
+    const __m256 y0z0y1z1 = _mm256_shuffle_ps(m0, m1, _MM_SHUFFLE(1, 0, 2, 1));  // y0 z0 y1 z1
+    const __m256 x = _mm256_shuffle_ps(m0, x2y2x3y3, _MM_SHUFFLE(2, 0, 3, 0));
+    const __m256 y = _mm256_shuffle_ps(y0z0y1z1, x2y2x3y3, _MM_SHUFFLE(3, 1, 2, 0));
+    const __m256 z = _mm256_shuffle_ps(y0z0y1z1, m2, _MM_SHUFFLE(3, 0, 3, 1));
+    const __m256 axes[3] = {x, y, z};
+    __m256i lo[3], hi[3];
+    for (int axis = 0; axis < 3; ++axis) {
+      // floor(v * inv), exact, then converted (an integer-valued float converts exactly).
+      const __m256i cell = _mm256_cvttps_epi32(_mm256_floor_ps(_mm256_mul_ps(axes[axis], inv)));
+      lo[axis] = _mm256_add_epi64(_mm256_cvtepi32_epi64(_mm256_castsi256_si128(cell)), offset);
+      hi[axis] = _mm256_add_epi64(_mm256_cvtepi32_epi64(_mm256_extracti128_si256(cell, 1)), offset);
+    }
+    const __m256i k_lo = _mm256_or_si256(_mm256_or_si256(_mm256_slli_epi64(lo[0], 42), _mm256_slli_epi64(lo[1], 21)), lo[2]);
+    const __m256i k_hi = _mm256_or_si256(_mm256_or_si256(_mm256_slli_epi64(hi[0], 42), _mm256_slli_epi64(hi[1], 21)), hi[2]);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(keys + i), k_lo);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(keys + i + 4), k_hi);
+  }
+  return i;
+}
+
 }  // namespace mobmap::perception::detail::avx2
 
 #endif  // MOBMAP_X86_KERNELS

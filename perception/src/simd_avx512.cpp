@@ -282,6 +282,33 @@ MOBMAP_TARGET_AVX512 unsigned localPlanes8(const float* points, const float sums
   return static_cast<unsigned>(done | few);
 }
 
+MOBMAP_TARGET_AVX512 std::size_t cellKeys(const float* xyz, std::size_t n, float inv_cell, std::uint64_t* keys) {
+  // Coordinate `axis` of point q is float 3 q + axis of the 48 in a, b, c: the two-source
+  // permute takes those below 32 from a and b, a second permute the rest from c.
+  const __m512i stride3 = _mm512_setr_epi32(0, 3, 6, 9, 12, 15, 18, 21, 24, 27, 30, 33, 36, 39, 42, 45);
+  const __m512 inv = _mm512_set1_ps(inv_cell);
+  const __m512i offset = _mm512_set1_epi64(1 << 20);
+  std::size_t i = 0;
+  for (; i + 16 <= n; i += 16) {
+    const float* p = xyz + 3 * i;
+    const __m512 a = _mm512_loadu_ps(p), b = _mm512_loadu_ps(p + 16), c = _mm512_loadu_ps(p + 32);
+    __m512i lo[3], hi[3];
+    for (int axis = 0; axis < 3; ++axis) {
+      const __m512i at = _mm512_add_epi32(stride3, _mm512_set1_epi32(axis));
+      const __mmask16 in_c = _mm512_cmpge_epi32_mask(at, _mm512_set1_epi32(32));
+      const __m512 v = _mm512_mask_permutexvar_ps(_mm512_permutex2var_ps(a, at, b), in_c,
+                                                  _mm512_sub_epi32(at, _mm512_set1_epi32(32)), c);
+      // floor(v * inv) as an integer: the conversion itself rounds down, exactly.
+      const __m512i cell = _mm512_cvt_roundps_epi32(_mm512_mul_ps(v, inv), _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC);
+      lo[axis] = _mm512_add_epi64(_mm512_cvtepi32_epi64(_mm512_castsi512_si256(cell)), offset);
+      hi[axis] = _mm512_add_epi64(_mm512_cvtepi32_epi64(_mm512_extracti64x4_epi64(cell, 1)), offset);
+    }
+    _mm512_storeu_si512(keys + i, _mm512_or_si512(_mm512_or_si512(_mm512_slli_epi64(lo[0], 42), _mm512_slli_epi64(lo[1], 21)), lo[2]));
+    _mm512_storeu_si512(keys + i + 8, _mm512_or_si512(_mm512_or_si512(_mm512_slli_epi64(hi[0], 42), _mm512_slli_epi64(hi[1], 21)), hi[2]));
+  }
+  return i;
+}
+
 }  // namespace mobmap::perception::detail::avx512
 
 #endif  // MOBMAP_X86_KERNELS

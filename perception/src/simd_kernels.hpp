@@ -64,6 +64,13 @@ std::size_t rankSmallest(std::uint64_t* keys, std::size_t m, std::size_t k, floa
 void offsetSums8(const float* points, const int* indices, std::size_t k, const int* counts, std::size_t first,
                  int lanes, float sums[9 * 8]);
 
+/// The packed cell keys (spatial_hash.hpp's cellKey of floorToInt(coordinate *
+/// inv_cell) per axis) of the first points of `xyz` (x, y, z per point), 16 at a time;
+/// returns how many it did (n rounded down to a multiple of 16), the rest is the
+/// caller's. Same bits as the scalar code: one product per coordinate, rounded down
+/// exactly, then the same integer operations.
+std::size_t cellKeys(const float* xyz, std::size_t n, float inv_cell, std::uint64_t* keys);
+
 /// Local planes of the points first .. first + lanes - 1 (lanes <= 8), as
 /// estimateNormals computes them with the arithmetic of local_plane.hpp, from their
 /// OffsetSums (sums[q * 8 + lane], fields in declaration order: sx, sy, sz, xx, xy, xz,
@@ -93,6 +100,8 @@ void distancesAndCounts(const float* x, const float* y, const float* z, std::siz
                         const float limit[4], float* d2, int count[4]);
 std::size_t compactKeys(const float* d2, const int* index, std::size_t n, int self, float limit, std::uint64_t* keys);
 std::size_t rankSmallest(std::uint64_t* keys, std::size_t m, std::size_t k, float* sq_dist, int* index);
+/// As avx512::cellKeys, 8 points at a time.
+std::size_t cellKeys(const float* xyz, std::size_t n, float inv_cell, std::uint64_t* keys);
 /// As avx512::offsetSums8; `n_points` is the number of points (x, y, z triples) in
 /// `points`, so that no load reads past the last.
 void offsetSums8(const float* points, std::size_t n_points, const int* indices, std::size_t k, const int* counts,

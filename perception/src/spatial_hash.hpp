@@ -1,6 +1,9 @@
 #pragma once
 // Open-addressing hash from packed integer cell coordinates to a value (internal).
 
+#include "mobmap/perception/simd.hpp"
+#include "simd_kernels.hpp"
+
 #include <Eigen/Core>
 
 #include <cmath>
@@ -18,79 +21,96 @@ inline std::uint64_t cellKey(std::int64_t ix, std::int64_t iy, std::int64_t iz) 
          (static_cast<std::uint64_t>(iy + kOffset) << 21) | static_cast<std::uint64_t>(iz + kOffset);
 }
 
+/// static_cast<int>(std::floor(x)) for |x| < 2^31, without the library call or the
+/// long inline sequence std::floor becomes on baseline x86-64 (the point scan of the
+/// voxel reduction spent most of its time there).
+inline int floorToInt(float x) {
+  const int t = static_cast<int>(x);  // towards zero; exact, as is the float of t
+  return t - static_cast<int>(static_cast<float>(t) > x);
+}
+
 inline Eigen::Vector3i cellOf(const Eigen::Vector3f& p, float inv_cell) {
-  return {static_cast<int>(std::floor(p.x() * inv_cell)), static_cast<int>(std::floor(p.y() * inv_cell)),
-          static_cast<int>(std::floor(p.z() * inv_cell))};
+  return {floorToInt(p.x() * inv_cell), floorToInt(p.y() * inv_cell), floorToInt(p.z() * inv_cell)};
 }
 
 /// The packed cell keys of the points, in order: computed before a scan of lookups so
-/// that CellHash::slotAhead can ask for a slot before it is needed.
-inline std::vector<std::uint64_t> cellKeys(const std::vector<Eigen::Vector3f>& points, float inv_cell) {
+/// that CellHash::slotAhead can ask for a slot before it is needed. `simd` picks the
+/// kernel (the same keys from each; a resolved choice, not kAuto).
+inline std::vector<std::uint64_t> cellKeys(const std::vector<Eigen::Vector3f>& points, float inv_cell, Simd simd) {
+  static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "points are read as x, y, z triples");
   std::vector<std::uint64_t> keys(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i) {
+  std::size_t done = 0;
+#if MOBMAP_X86_KERNELS
+  // (Cast, not ->data(): an empty vector's data() may be null.)
+  const auto* xyz = reinterpret_cast<const float*>(points.data());
+  if (simd == Simd::kAvx512) done = avx512::cellKeys(xyz, points.size(), inv_cell, keys.data());
+  if (simd == Simd::kAvx2) done = avx2::cellKeys(xyz, points.size(), inv_cell, keys.data());
+#else
+  (void)simd;
+#endif
+  for (std::size_t i = done; i < points.size(); ++i) {
     const Eigen::Vector3i c = cellOf(points[i], inv_cell);
     keys[i] = cellKey(c.x(), c.y(), c.z());
   }
   return keys;
 }
 
-/// key -> int32 value; capacity a power of two, linear probing.
+/// key -> int32 value; capacity a power of two, linear probing. Each slot holds its key
+/// and value side by side, so a lookup touches one cache line.
 class CellHash {
  public:
   explicit CellHash(std::size_t expected) {
     std::size_t cap = 16;
     while (cap < expected * 2) cap <<= 1;
-    keys_.assign(cap, kEmpty);
-    values_.assign(cap, -1);
+    slots_.assign(cap, Slot{});
     mask_ = cap - 1;
   }
   /// Returns a reference to the value slot of `key`, inserting -1 if absent. The
   /// reference is valid until the next insertion (the table doubles at half load).
   int& slot(std::uint64_t key) {
-    if (2 * (size_ + 1) > keys_.size()) grow();
+    if (2 * (size_ + 1) > slots_.size()) grow();
     std::size_t i = hash(key) & mask_;
-    while (keys_[i] != kEmpty && keys_[i] != key) i = (i + 1) & mask_;
-    if (keys_[i] == kEmpty) {
-      keys_[i] = key;
+    while (slots_[i].key != kEmpty && slots_[i].key != key) i = (i + 1) & mask_;
+    if (slots_[i].key == kEmpty) {
+      slots_[i].key = key;
       ++size_;
     }
-    return values_[i];
+    return slots_[i].value;
   }
-  /// slot(keys[i]) in a scan over `keys`, having first asked for the cache lines of
-  /// keys[i + kAhead]'s slot: the first lookup of every key misses the cache otherwise
-  /// (the table is a few MB and keys land at random places in it).
+  /// Asks for the cache line of `key`'s slot, to be looked up soon: the first lookup of
+  /// every key misses the cache otherwise (the table is a few MB and keys land at random
+  /// places in it).
+  void prefetch(std::uint64_t key) const { __builtin_prefetch(slots_.data() + (hash(key) & mask_)); }
+  /// slot(keys[i]) in a scan over `keys`, having first prefetched keys[i + kAhead]'s slot.
   int& slotAhead(const std::vector<std::uint64_t>& keys, std::size_t i) {
-    constexpr std::size_t kAhead = 32;
-    if (i + kAhead < keys.size()) {
-      const std::size_t ahead = hash(keys[i + kAhead]) & mask_;
-      __builtin_prefetch(keys_.data() + ahead);
-      __builtin_prefetch(values_.data() + ahead);
-    }
+    if (i + kAhead < keys.size()) prefetch(keys[i + kAhead]);
     return slot(keys[i]);
   }
   [[nodiscard]] int find(std::uint64_t key) const {
     std::size_t i = hash(key) & mask_;
-    while (keys_[i] != kEmpty) {
-      if (keys_[i] == key) return values_[i];
+    while (slots_[i].key != kEmpty) {
+      if (slots_[i].key == key) return slots_[i].value;
       i = (i + 1) & mask_;
     }
     return -1;
   }
+  static constexpr std::size_t kAhead = 32;
 
  private:
   static constexpr std::uint64_t kEmpty = ~0ULL;
+  struct Slot {
+    std::uint64_t key = kEmpty;
+    int value = -1;
+  };
   void grow() {
-    std::vector<std::uint64_t> old_keys(keys_.size() * 2, kEmpty);
-    std::vector<int> old_values(values_.size() * 2, -1);
-    old_keys.swap(keys_);
-    old_values.swap(values_);
-    mask_ = keys_.size() - 1;
-    for (std::size_t j = 0; j < old_keys.size(); ++j) {
-      if (old_keys[j] == kEmpty) continue;
-      std::size_t i = hash(old_keys[j]) & mask_;
-      while (keys_[i] != kEmpty) i = (i + 1) & mask_;
-      keys_[i] = old_keys[j];
-      values_[i] = old_values[j];
+    std::vector<Slot> old(slots_.size() * 2);
+    old.swap(slots_);
+    mask_ = slots_.size() - 1;
+    for (const Slot& s : old) {
+      if (s.key == kEmpty) continue;
+      std::size_t i = hash(s.key) & mask_;
+      while (slots_[i].key != kEmpty) i = (i + 1) & mask_;
+      slots_[i] = s;
     }
   }
   std::size_t size_ = 0;
@@ -100,8 +120,7 @@ class CellHash {
     k ^= k >> 33;
     return static_cast<std::size_t>(k);
   }
-  std::vector<std::uint64_t> keys_;
-  std::vector<int> values_;
+  std::vector<Slot> slots_;
   std::size_t mask_ = 0;
 };
 
@@ -126,11 +145,12 @@ struct CellBuckets {
   std::vector<int> order;              ///< point indices grouped by cell
   CellHash index{1};                   ///< cellKey -> cell number
 
-  CellBuckets(const std::vector<Eigen::Vector3f>& points, float cell_m) : index(points.size() / 2 + 16) {
+  /// `simd`: the kernel of the cell keys (resolved, not kAuto).
+  CellBuckets(const std::vector<Eigen::Vector3f>& points, float cell_m, Simd simd) : index(points.size() / 2 + 16) {
     const float inv = 1.f / cell_m;
     std::vector<int> cell_of_point(points.size());
     std::vector<int> counts;
-    const std::vector<std::uint64_t> keys = cellKeys(points, inv);
+    const std::vector<std::uint64_t> keys = cellKeys(points, inv, simd);
     for (std::size_t i = 0; i < points.size(); ++i) {
       int& s = index.slotAhead(keys, i);
       if (s < 0) {

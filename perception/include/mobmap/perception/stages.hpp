@@ -19,8 +19,10 @@ namespace mobmap::perception {
 /// Voxel-grid reduction: the centroid of the points in each occupied cubic voxel of
 /// `voxel_m` (grid aligned to the origin), in order of first occurrence.
 /// `voxel_of_point` (optional) receives the output index of each input point.
+/// A centroid is the mean of its points summed in input order in double precision.
+/// `simd` picks the kernel of the voxel keys (the same result from each).
 std::vector<Eigen::Vector3f> voxelReduce(const std::vector<Eigen::Vector3f>& points, float voxel_m,
-                                         std::vector<int>* voxel_of_point = nullptr);
+                                         std::vector<int>* voxel_of_point = nullptr, Simd simd = Simd::kAuto);
 
 /// Statistical outlier removal (paper eq. 1): mean distance d_i to the k nearest
 /// neighbours; keep points with |d_i - mu| <= alpha sigma over the cloud. Returns the
