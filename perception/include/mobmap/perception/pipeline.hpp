@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 
 #include <array>
+#include <chrono>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -202,7 +203,11 @@ class FramePipeline {
   [[nodiscard]] const gp::MobilityModel& model() const { return model_; }
 
  private:
+  // raw: the frame's finite points within the range limits (pixel_of_raw: their pixels,
+  // empty for an unorganized cloud, in an image of `pixels`); `valid`: its finite
+  // points before the crop; `started`: when making them began (the reduction's clock).
   FrameResult run(std::vector<Eigen::Vector3f> raw, std::vector<int> pixel_of_raw, std::size_t pixels,
+                  std::size_t valid, std::chrono::steady_clock::time_point started,
                   const std::optional<Eigen::Vector3f>& gravity_down_camera) const;
   PerceptionParams params_;
   gp::MobilityModel model_;
