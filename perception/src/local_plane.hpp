@@ -7,6 +7,8 @@
 // left to right in its first two rows and right to left in its third; checked on two
 // million random inputs), so the pipeline's results did not change either.
 
+#include "simd_kernels.hpp"
+
 #include <Eigen/Core>
 
 #include <algorithm>
@@ -84,7 +86,7 @@ inline bool smallestEigenvectorNear(const LocalMoments& c, const double start[3]
     // unless l0 / l1 > 0.9, a neighbourhood with no plane, which goes to the exact
     // solver through the curvature test below.
     const double d0 = n0 - x0, d1 = n1 - x1, d2 = n2 - x2;
-    const bool converged = std::sqrt((d0 * d0 + d1 * d1) + d2 * d2) < 1e-5;
+    const bool converged = (d0 * d0 + d1 * d1) + d2 * d2 <= kStepUnder1e5Squared;
     x0 = n0, x1 = n1, x2 = n2;
     if (converged) {
       const double total = c.xx + (c.yy + c.zz);

@@ -367,9 +367,9 @@ MOBMAP_TARGET_AVX2 unsigned localPlanes8(const float* points, const float sums[9
       active = bitAnd(active, bitAnd(compare<_CMP_GT_OQ>(norm, floor), compare<_CMP_LT_OQ>(norm, inf)));
       const Pair n0 = div(y0, norm), n1 = div(y1, norm), n2 = div(y2, norm);
       const Pair d0 = sub(n0, x0), d1 = sub(n1, x1), d2 = sub(n2, x2);
-      const Pair moved = sqrt(add(add(mul(d0, d0), mul(d1, d1)), mul(d2, d2)));
+      const Pair moved2 = add(add(mul(d0, d0), mul(d1, d1)), mul(d2, d2));
       x0 = select(x0, n0, active), x1 = select(x1, n1, active), x2 = select(x2, n2, active);
-      const Pair converged = bitAnd(active, compare<_CMP_LT_OQ>(moved, splat(1e-5)));
+      const Pair converged = bitAnd(active, compare<_CMP_LE_OQ>(moved2, splat(kStepUnder1e5Squared)));
       if (bitsOf(converged)) {
         const Pair total = add(cxx, add(cyy, czz));
         const Pair cx0 = add(add(mul(cxx, x0), mul(cxy, x1)), mul(cxz, x2));

@@ -231,9 +231,9 @@ MOBMAP_TARGET_AVX512 unsigned localPlanes8(const float* points, const float sums
       active = _mm512_mask_cmp_pd_mask(active, norm, floor, _CMP_GT_OQ) & _mm512_cmp_pd_mask(norm, inf, _CMP_LT_OQ);
       const __m512d n0 = _mm512_div_pd(y0, norm), n1 = _mm512_div_pd(y1, norm), n2 = _mm512_div_pd(y2, norm);
       const __m512d d0 = _mm512_sub_pd(n0, x0), d1 = _mm512_sub_pd(n1, x1), d2 = _mm512_sub_pd(n2, x2);
-      const __m512d moved = _mm512_sqrt_pd(_mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(d0, d0), _mm512_mul_pd(d1, d1)), _mm512_mul_pd(d2, d2)));
+      const __m512d moved2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(d0, d0), _mm512_mul_pd(d1, d1)), _mm512_mul_pd(d2, d2));
       x0 = _mm512_mask_mov_pd(x0, active, n0), x1 = _mm512_mask_mov_pd(x1, active, n1), x2 = _mm512_mask_mov_pd(x2, active, n2);
-      const __mmask8 converged = _mm512_mask_cmp_pd_mask(active, moved, _mm512_set1_pd(1e-5), _CMP_LT_OQ);
+      const __mmask8 converged = _mm512_mask_cmp_pd_mask(active, moved2, _mm512_set1_pd(kStepUnder1e5Squared), _CMP_LE_OQ);
       if (converged) {
         const __m512d total = _mm512_add_pd(cxx, _mm512_add_pd(cyy, czz));
         const __m512d cx0 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(cxx, x0), _mm512_mul_pd(cxy, x1)), _mm512_mul_pd(cxz, x2));

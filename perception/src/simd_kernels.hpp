@@ -19,6 +19,14 @@ namespace mobmap::perception::detail {
 /// floats) above the point index, so keys order by (distance, index) and are distinct.
 inline constexpr std::size_t kRankMaxKeys = 64;
 
+/// The inverse iteration's convergence test (local_plane.hpp), a step of under 1e-5:
+/// the largest double s with sqrt(s) < 1e-5, two units in the last place below the
+/// rounded 1e-5 * 1e-5. Square roots are correctly rounded and monotone, so for s >= 0
+/// "s <= this" is exactly "sqrt(s) < 1e-5", without the square root the next step
+/// would wait for. (Found by stepping nextafter from 1e-5 * 1e-5; the normals are
+/// bit-identical to those of the square-root test.)
+inline constexpr double kStepUnder1e5Squared = 0x1.b7cdfd9d7bdbap-34;
+
 #if MOBMAP_X86_KERNELS
 /// The localPlanes8 kernels' last step: for each lane l < lanes whose bit is set in
 /// `done`, copies its normal (out_n[axis][l]), curvature and, if `projected` is not
