@@ -172,114 +172,167 @@ MOBMAP_TARGET_AVX512 std::size_t rankSmallest(std::uint64_t* keys, std::size_t m
   return out;
 }
 
-MOBMAP_TARGET_AVX512 unsigned localPlanes8(const float* points, const float sums[9 * 8], const int* counts,
-                                           std::size_t first, int lanes, const float* near, const float viewpoint[3],
-                                           float* normals, float* curvature, float* projected, double moments[9 * 8]) {
-  const auto live = static_cast<__mmask8>((1u << lanes) - 1u);
-  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-  const __m256i count = _mm256_maskz_loadu_epi32(live, counts + first);
-  // The points themselves (x, y, z at 3 i, 3 i + 1, 3 i + 2).
-  const float* base = points + 3 * first;
-  const __m256i p3 = _mm256_mullo_epi32(lane, _mm256_set1_epi32(3));
-  const __m256 px = _mm256_mmask_i32gather_ps(_mm256_setzero_ps(), live, p3, base, 4);
-  const __m256 py = _mm256_mmask_i32gather_ps(_mm256_setzero_ps(), live, p3, base + 1, 4);
-  const __m256 pz = _mm256_mmask_i32gather_ps(_mm256_setzero_ps(), live, p3, base + 2, 4);
-  const __m256 sx = _mm256_loadu_ps(sums), sy = _mm256_loadu_ps(sums + 8), sz = _mm256_loadu_ps(sums + 16);
-  const __m256 xx = _mm256_loadu_ps(sums + 24), xy = _mm256_loadu_ps(sums + 32), xz = _mm256_loadu_ps(sums + 40);
-  const __m256 yy = _mm256_loadu_ps(sums + 48), yz = _mm256_loadu_ps(sums + 56), zz = _mm256_loadu_ps(sums + 64);
+namespace {
 
-  // Moments in double (momentsOf).
-  const __mmask8 planar = _mm256_mask_cmpge_epi32_mask(live, count, _mm256_set1_epi32(2));
-  const __m512d m = _mm512_add_pd(_mm512_cvtepi32_pd(count), _mm512_set1_pd(1.0));
-  const __m512d mx = _mm512_div_pd(_mm512_cvtps_pd(sx), m), my = _mm512_div_pd(_mm512_cvtps_pd(sy), m);
-  const __m512d mz = _mm512_div_pd(_mm512_cvtps_pd(sz), m);
-  const __m512d cxx = _mm512_sub_pd(_mm512_div_pd(_mm512_cvtps_pd(xx), m), _mm512_mul_pd(mx, mx));
-  const __m512d cxy = _mm512_sub_pd(_mm512_div_pd(_mm512_cvtps_pd(xy), m), _mm512_mul_pd(mx, my));
-  const __m512d cxz = _mm512_sub_pd(_mm512_div_pd(_mm512_cvtps_pd(xz), m), _mm512_mul_pd(mx, mz));
-  const __m512d cyy = _mm512_sub_pd(_mm512_div_pd(_mm512_cvtps_pd(yy), m), _mm512_mul_pd(my, my));
-  const __m512d cyz = _mm512_sub_pd(_mm512_div_pd(_mm512_cvtps_pd(yz), m), _mm512_mul_pd(my, mz));
-  const __m512d czz = _mm512_sub_pd(_mm512_div_pd(_mm512_cvtps_pd(zz), m), _mm512_mul_pd(mz, mz));
+// localPlanes8 on H groups of eight points at once (H = 1 or 2). Every lane does the
+// arithmetic of localPlanes8; the groups only share the loop of the inverse iteration,
+// whose steps are a chain of a square root and a division each: two independent
+// chains keep the divider busy while either waits.
+template <int H>
+MOBMAP_TARGET_AVX512 inline unsigned localPlanesGroups(const float* points, const float* sums, const int* counts,
+                                                       std::size_t first, int lanes, const float* near,
+                                                       const float viewpoint[3], float* normals, float* curvature,
+                                                       float* projected, double* moments) {
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256i p3 = _mm256_mullo_epi32(lane, _mm256_set1_epi32(3));
+  __mmask8 live[H], planar[H], done[H], active[H];
+  __m256 px[H], py[H], pz[H];
+  __m512d mx[H], my[H], mz[H], cxx[H], cxy[H], cxz[H], cyy[H], cyz[H], czz[H];
+  __m512d nx[H], ny[H], nz[H], curv[H];
+  for (int h = 0; h < H; ++h) {
+    const int in_group = std::clamp(lanes - 8 * h, 0, 8);
+    live[h] = static_cast<__mmask8>((1u << in_group) - 1u);
+    const std::size_t at = first + 8 * static_cast<std::size_t>(h);
+    const float* sum = sums + 72 * h;
+    const __m256i count = _mm256_maskz_loadu_epi32(live[h], counts + at);
+    // The points themselves (x, y, z at 3 i, 3 i + 1, 3 i + 2).
+    const float* base = points + 3 * at;
+    px[h] = _mm256_mmask_i32gather_ps(_mm256_setzero_ps(), live[h], p3, base, 4);
+    py[h] = _mm256_mmask_i32gather_ps(_mm256_setzero_ps(), live[h], p3, base + 1, 4);
+    pz[h] = _mm256_mmask_i32gather_ps(_mm256_setzero_ps(), live[h], p3, base + 2, 4);
+    const __m256 sx = _mm256_loadu_ps(sum), sy = _mm256_loadu_ps(sum + 8), sz = _mm256_loadu_ps(sum + 16);
+    const __m256 xx = _mm256_loadu_ps(sum + 24), xy = _mm256_loadu_ps(sum + 32), xz = _mm256_loadu_ps(sum + 40);
+    const __m256 yy = _mm256_loadu_ps(sum + 48), yz = _mm256_loadu_ps(sum + 56), zz = _mm256_loadu_ps(sum + 64);
+    // Moments in double (momentsOf).
+    planar[h] = _mm256_mask_cmpge_epi32_mask(live[h], count, _mm256_set1_epi32(2));
+    const __m512d m = _mm512_add_pd(_mm512_cvtepi32_pd(count), _mm512_set1_pd(1.0));
+    mx[h] = _mm512_div_pd(_mm512_cvtps_pd(sx), m), my[h] = _mm512_div_pd(_mm512_cvtps_pd(sy), m);
+    mz[h] = _mm512_div_pd(_mm512_cvtps_pd(sz), m);
+    cxx[h] = _mm512_sub_pd(_mm512_div_pd(_mm512_cvtps_pd(xx), m), _mm512_mul_pd(mx[h], mx[h]));
+    cxy[h] = _mm512_sub_pd(_mm512_div_pd(_mm512_cvtps_pd(xy), m), _mm512_mul_pd(mx[h], my[h]));
+    cxz[h] = _mm512_sub_pd(_mm512_div_pd(_mm512_cvtps_pd(xz), m), _mm512_mul_pd(mx[h], mz[h]));
+    cyy[h] = _mm512_sub_pd(_mm512_div_pd(_mm512_cvtps_pd(yy), m), _mm512_mul_pd(my[h], my[h]));
+    cyz[h] = _mm512_sub_pd(_mm512_div_pd(_mm512_cvtps_pd(yz), m), _mm512_mul_pd(my[h], mz[h]));
+    czz[h] = _mm512_sub_pd(_mm512_div_pd(_mm512_cvtps_pd(zz), m), _mm512_mul_pd(mz[h], mz[h]));
+    done[h] = 0;
+    active[h] = 0;
+    nx[h] = _mm512_setzero_pd(), ny[h] = nx[h], nz[h] = nx[h], curv[h] = _mm512_set1_pd(1.0);
+  }
 
   // Inverse iteration from `near` (smallestEigenvectorNear), lane by lane in step.
-  __mmask8 done = 0;
-  __m512d nx = _mm512_setzero_pd(), ny = nx, nz = nx, curv = _mm512_set1_pd(1.0);
   if (near) {
-    const __m256i n3 = p3;
-    const __m512d x0s = _mm512_cvtps_pd(_mm256_mmask_i32gather_ps(_mm256_setzero_ps(), planar, n3, near + 3 * first, 4));
-    const __m512d x1s = _mm512_cvtps_pd(_mm256_mmask_i32gather_ps(_mm256_setzero_ps(), planar, n3, near + 3 * first + 1, 4));
-    const __m512d x2s = _mm512_cvtps_pd(_mm256_mmask_i32gather_ps(_mm256_setzero_ps(), planar, n3, near + 3 * first + 2, 4));
-    const __m512d start2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(x0s, x0s), _mm512_mul_pd(x1s, x1s)), _mm512_mul_pd(x2s, x2s));
-    __mmask8 active = _mm512_mask_cmp_pd_mask(planar, start2, _mm512_set1_pd(0.25), _CMP_NLT_UQ);
-    const __m512d a00 = _mm512_sub_pd(_mm512_mul_pd(cyy, czz), _mm512_mul_pd(cyz, cyz));
-    const __m512d a11 = _mm512_sub_pd(_mm512_mul_pd(cxx, czz), _mm512_mul_pd(cxz, cxz));
-    const __m512d a22 = _mm512_sub_pd(_mm512_mul_pd(cxx, cyy), _mm512_mul_pd(cxy, cxy));
-    const __m512d a01 = _mm512_sub_pd(_mm512_mul_pd(cxz, cyz), _mm512_mul_pd(cxy, czz));
-    const __m512d a02 = _mm512_sub_pd(_mm512_mul_pd(cxy, cyz), _mm512_mul_pd(cxz, cyy));
-    const __m512d a12 = _mm512_sub_pd(_mm512_mul_pd(cxy, cxz), _mm512_mul_pd(cxx, cyz));
-    const __m512d scale = _mm512_max_pd(_mm512_max_pd(_mm512_max_pd(_mm512_abs_pd(a00), _mm512_abs_pd(a11)),
-                                                      _mm512_max_pd(_mm512_abs_pd(a22), _mm512_abs_pd(a01))),
-                                        _mm512_max_pd(_mm512_abs_pd(a02), _mm512_abs_pd(a12)));
-    const __m512d floor = _mm512_mul_pd(_mm512_set1_pd(1e-30), scale);
     const __m512d inf = _mm512_set1_pd(__builtin_inf());
-    __m512d x0 = x0s, x1 = x1s, x2 = x2s;
-    for (int step = 0; step < 8 && active; ++step) {
-      const __m512d y0 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(a00, x0), _mm512_mul_pd(a01, x1)), _mm512_mul_pd(a02, x2));
-      const __m512d y1 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(a01, x0), _mm512_mul_pd(a11, x1)), _mm512_mul_pd(a12, x2));
-      const __m512d y2 = _mm512_add_pd(_mm512_mul_pd(a02, x0), _mm512_add_pd(_mm512_mul_pd(a12, x1), _mm512_mul_pd(a22, x2)));
-      const __m512d norm = _mm512_sqrt_pd(_mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(y0, y0), _mm512_mul_pd(y1, y1)), _mm512_mul_pd(y2, y2)));
-      // !(norm > floor) || !isfinite(norm): such lanes go to the exact solver.
-      active = _mm512_mask_cmp_pd_mask(active, norm, floor, _CMP_GT_OQ) & _mm512_cmp_pd_mask(norm, inf, _CMP_LT_OQ);
-      const __m512d n0 = _mm512_div_pd(y0, norm), n1 = _mm512_div_pd(y1, norm), n2 = _mm512_div_pd(y2, norm);
-      const __m512d d0 = _mm512_sub_pd(n0, x0), d1 = _mm512_sub_pd(n1, x1), d2 = _mm512_sub_pd(n2, x2);
-      const __m512d moved2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(d0, d0), _mm512_mul_pd(d1, d1)), _mm512_mul_pd(d2, d2));
-      x0 = _mm512_mask_mov_pd(x0, active, n0), x1 = _mm512_mask_mov_pd(x1, active, n1), x2 = _mm512_mask_mov_pd(x2, active, n2);
-      const __mmask8 converged = _mm512_mask_cmp_pd_mask(active, moved2, _mm512_set1_pd(kStepUnder1e5Squared), _CMP_LE_OQ);
-      if (converged) {
-        const __m512d total = _mm512_add_pd(cxx, _mm512_add_pd(cyy, czz));
-        const __m512d cx0 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(cxx, x0), _mm512_mul_pd(cxy, x1)), _mm512_mul_pd(cxz, x2));
-        const __m512d cx1 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(cxy, x0), _mm512_mul_pd(cyy, x1)), _mm512_mul_pd(cyz, x2));
-        const __m512d cx2 = _mm512_add_pd(_mm512_mul_pd(cxz, x0), _mm512_add_pd(_mm512_mul_pd(cyz, x1), _mm512_mul_pd(czz, x2)));
-        const __m512d rayleigh = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(x0, cx0), _mm512_mul_pd(x1, cx1)), _mm512_mul_pd(x2, cx2));
-        // std::max(0.0, v): 0 unless 0 < v (so a NaN gives 0), as vmaxpd(v, 0) does.
-        const __m512d lambda0 = _mm512_max_pd(rayleigh, _mm512_setzero_pd());
-        const __mmask8 plane = _mm512_mask_cmp_pd_mask(converged, total, _mm512_setzero_pd(), _CMP_GT_OQ) &
-                               _mm512_cmp_pd_mask(lambda0, _mm512_mul_pd(_mm512_set1_pd(0.25), total), _CMP_NGT_UQ);
-        nx = _mm512_mask_mov_pd(nx, plane, x0), ny = _mm512_mask_mov_pd(ny, plane, x1), nz = _mm512_mask_mov_pd(nz, plane, x2);
-        curv = _mm512_mask_mov_pd(curv, plane, _mm512_div_pd(lambda0, total));
-        done |= plane;
-        active &= static_cast<__mmask8>(~converged);
+    __m512d a00[H], a11[H], a22[H], a01[H], a02[H], a12[H], floor[H], x0[H], x1[H], x2[H];
+    for (int h = 0; h < H; ++h) {
+      const float* start = near + 3 * (first + 8 * static_cast<std::size_t>(h));
+      const __m512d x0s = _mm512_cvtps_pd(_mm256_mmask_i32gather_ps(_mm256_setzero_ps(), planar[h], p3, start, 4));
+      const __m512d x1s = _mm512_cvtps_pd(_mm256_mmask_i32gather_ps(_mm256_setzero_ps(), planar[h], p3, start + 1, 4));
+      const __m512d x2s = _mm512_cvtps_pd(_mm256_mmask_i32gather_ps(_mm256_setzero_ps(), planar[h], p3, start + 2, 4));
+      const __m512d start2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(x0s, x0s), _mm512_mul_pd(x1s, x1s)), _mm512_mul_pd(x2s, x2s));
+      active[h] = _mm512_mask_cmp_pd_mask(planar[h], start2, _mm512_set1_pd(0.25), _CMP_NLT_UQ);
+      a00[h] = _mm512_sub_pd(_mm512_mul_pd(cyy[h], czz[h]), _mm512_mul_pd(cyz[h], cyz[h]));
+      a11[h] = _mm512_sub_pd(_mm512_mul_pd(cxx[h], czz[h]), _mm512_mul_pd(cxz[h], cxz[h]));
+      a22[h] = _mm512_sub_pd(_mm512_mul_pd(cxx[h], cyy[h]), _mm512_mul_pd(cxy[h], cxy[h]));
+      a01[h] = _mm512_sub_pd(_mm512_mul_pd(cxz[h], cyz[h]), _mm512_mul_pd(cxy[h], czz[h]));
+      a02[h] = _mm512_sub_pd(_mm512_mul_pd(cxy[h], cyz[h]), _mm512_mul_pd(cxz[h], cyy[h]));
+      a12[h] = _mm512_sub_pd(_mm512_mul_pd(cxy[h], cxz[h]), _mm512_mul_pd(cxx[h], cyz[h]));
+      const __m512d scale = _mm512_max_pd(_mm512_max_pd(_mm512_max_pd(_mm512_abs_pd(a00[h]), _mm512_abs_pd(a11[h])),
+                                                        _mm512_max_pd(_mm512_abs_pd(a22[h]), _mm512_abs_pd(a01[h]))),
+                                          _mm512_max_pd(_mm512_abs_pd(a02[h]), _mm512_abs_pd(a12[h])));
+      floor[h] = _mm512_mul_pd(_mm512_set1_pd(1e-30), scale);
+      x0[h] = x0s, x1[h] = x1s, x2[h] = x2s;
+    }
+    const auto anyActive = [&]() {
+      unsigned any = 0;
+      for (int h = 0; h < H; ++h) any |= active[h];
+      return any != 0;
+    };
+    for (int step = 0; step < 8 && anyActive(); ++step) {
+      for (int h = 0; h < H; ++h) {
+        if (!active[h]) continue;
+        const __m512d y0 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(a00[h], x0[h]), _mm512_mul_pd(a01[h], x1[h])), _mm512_mul_pd(a02[h], x2[h]));
+        const __m512d y1 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(a01[h], x0[h]), _mm512_mul_pd(a11[h], x1[h])), _mm512_mul_pd(a12[h], x2[h]));
+        const __m512d y2 = _mm512_add_pd(_mm512_mul_pd(a02[h], x0[h]), _mm512_add_pd(_mm512_mul_pd(a12[h], x1[h]), _mm512_mul_pd(a22[h], x2[h])));
+        const __m512d norm = _mm512_sqrt_pd(_mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(y0, y0), _mm512_mul_pd(y1, y1)), _mm512_mul_pd(y2, y2)));
+        // !(norm > floor) || !isfinite(norm): such lanes go to the exact solver.
+        active[h] = _mm512_mask_cmp_pd_mask(active[h], norm, floor[h], _CMP_GT_OQ) & _mm512_cmp_pd_mask(norm, inf, _CMP_LT_OQ);
+        const __m512d n0 = _mm512_div_pd(y0, norm), n1 = _mm512_div_pd(y1, norm), n2 = _mm512_div_pd(y2, norm);
+        const __m512d d0 = _mm512_sub_pd(n0, x0[h]), d1 = _mm512_sub_pd(n1, x1[h]), d2 = _mm512_sub_pd(n2, x2[h]);
+        const __m512d moved2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(d0, d0), _mm512_mul_pd(d1, d1)), _mm512_mul_pd(d2, d2));
+        x0[h] = _mm512_mask_mov_pd(x0[h], active[h], n0), x1[h] = _mm512_mask_mov_pd(x1[h], active[h], n1);
+        x2[h] = _mm512_mask_mov_pd(x2[h], active[h], n2);
+        const __mmask8 converged = _mm512_mask_cmp_pd_mask(active[h], moved2, _mm512_set1_pd(kStepUnder1e5Squared), _CMP_LE_OQ);
+        if (converged) {
+          const __m512d total = _mm512_add_pd(cxx[h], _mm512_add_pd(cyy[h], czz[h]));
+          const __m512d cx0 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(cxx[h], x0[h]), _mm512_mul_pd(cxy[h], x1[h])), _mm512_mul_pd(cxz[h], x2[h]));
+          const __m512d cx1 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(cxy[h], x0[h]), _mm512_mul_pd(cyy[h], x1[h])), _mm512_mul_pd(cyz[h], x2[h]));
+          const __m512d cx2 = _mm512_add_pd(_mm512_mul_pd(cxz[h], x0[h]), _mm512_add_pd(_mm512_mul_pd(cyz[h], x1[h]), _mm512_mul_pd(czz[h], x2[h])));
+          const __m512d rayleigh = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(x0[h], cx0), _mm512_mul_pd(x1[h], cx1)), _mm512_mul_pd(x2[h], cx2));
+          // std::max(0.0, v): 0 unless 0 < v (so a NaN gives 0), as vmaxpd(v, 0) does.
+          const __m512d lambda0 = _mm512_max_pd(rayleigh, _mm512_setzero_pd());
+          const __mmask8 plane = _mm512_mask_cmp_pd_mask(converged, total, _mm512_setzero_pd(), _CMP_GT_OQ) &
+                                 _mm512_cmp_pd_mask(lambda0, _mm512_mul_pd(_mm512_set1_pd(0.25), total), _CMP_NGT_UQ);
+          nx[h] = _mm512_mask_mov_pd(nx[h], plane, x0[h]), ny[h] = _mm512_mask_mov_pd(ny[h], plane, x1[h]);
+          nz[h] = _mm512_mask_mov_pd(nz[h], plane, x2[h]);
+          curv[h] = _mm512_mask_mov_pd(curv[h], plane, _mm512_div_pd(lambda0, total));
+          done[h] |= plane;
+          active[h] &= static_cast<__mmask8>(~converged);
+        }
       }
     }
   }
 
-  // Lanes with under 2 neighbours keep what the caller set (zero normal, curvature 1,
-  // the point itself).
-  const auto few = static_cast<__mmask8>(live & ~planar);
-  alignas(32) float out_n[3][8], out_c[8], out_p[3][8];
-  if (done) {
-    // orientedNormal: turned towards the viewpoint, then normalised, in single precision.
-    const __m512d vx = _mm512_cvtps_pd(_mm256_sub_ps(_mm256_set1_ps(viewpoint[0]), px));
-    const __m512d vy = _mm512_cvtps_pd(_mm256_sub_ps(_mm256_set1_ps(viewpoint[1]), py));
-    const __m512d vz = _mm512_cvtps_pd(_mm256_sub_ps(_mm256_set1_ps(viewpoint[2]), pz));
-    const __m512d facing = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(nx, vx), _mm512_mul_pd(ny, vy)), _mm512_mul_pd(nz, vz));
-    const __mmask8 away = _mm512_cmp_pd_mask(facing, _mm512_setzero_pd(), _CMP_LT_OQ);
-    const __m512d sign = _mm512_mask_mov_pd(_mm512_set1_pd(1.0), away, _mm512_set1_pd(-1.0));
-    const __m512d ox = _mm512_mul_pd(nx, sign), oy = _mm512_mul_pd(ny, sign), oz = _mm512_mul_pd(nz, sign);
-    const __m512d len = _mm512_sqrt_pd(_mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(ox, ox), _mm512_mul_pd(oy, oy)), _mm512_mul_pd(oz, oz)));
-    _mm256_store_ps(out_n[0], _mm512_cvtpd_ps(_mm512_div_pd(ox, len)));
-    _mm256_store_ps(out_n[1], _mm512_cvtpd_ps(_mm512_div_pd(oy, len)));
-    _mm256_store_ps(out_n[2], _mm512_cvtpd_ps(_mm512_div_pd(oz, len)));
-    _mm256_store_ps(out_c, _mm512_cvtpd_ps(curv));
-    // projectedPoint, with the unturned normal.
-    const __m512d t = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(nx, mx), _mm512_mul_pd(ny, my)), _mm512_mul_pd(nz, mz));
-    _mm256_store_ps(out_p[0], _mm512_cvtpd_ps(_mm512_add_pd(_mm512_cvtps_pd(px), _mm512_mul_pd(nx, t))));
-    _mm256_store_ps(out_p[1], _mm512_cvtpd_ps(_mm512_add_pd(_mm512_cvtps_pd(py), _mm512_mul_pd(ny, t))));
-    _mm256_store_ps(out_p[2], _mm512_cvtpd_ps(_mm512_add_pd(_mm512_cvtps_pd(pz), _mm512_mul_pd(nz, t))));
+  unsigned result = 0;
+  for (int h = 0; h < H; ++h) {
+    // Lanes with under 2 neighbours keep what the caller set (zero normal, curvature 1,
+    // the point itself).
+    const auto few = static_cast<__mmask8>(live[h] & ~planar[h]);
+    alignas(32) float out_n[3][8], out_c[8], out_p[3][8];
+    if (done[h]) {
+      // orientedNormal: turned towards the viewpoint, then normalised, in single precision.
+      const __m512d vx = _mm512_cvtps_pd(_mm256_sub_ps(_mm256_set1_ps(viewpoint[0]), px[h]));
+      const __m512d vy = _mm512_cvtps_pd(_mm256_sub_ps(_mm256_set1_ps(viewpoint[1]), py[h]));
+      const __m512d vz = _mm512_cvtps_pd(_mm256_sub_ps(_mm256_set1_ps(viewpoint[2]), pz[h]));
+      const __m512d facing = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(nx[h], vx), _mm512_mul_pd(ny[h], vy)), _mm512_mul_pd(nz[h], vz));
+      const __mmask8 away = _mm512_cmp_pd_mask(facing, _mm512_setzero_pd(), _CMP_LT_OQ);
+      const __m512d sign = _mm512_mask_mov_pd(_mm512_set1_pd(1.0), away, _mm512_set1_pd(-1.0));
+      const __m512d ox = _mm512_mul_pd(nx[h], sign), oy = _mm512_mul_pd(ny[h], sign), oz = _mm512_mul_pd(nz[h], sign);
+      const __m512d len = _mm512_sqrt_pd(_mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(ox, ox), _mm512_mul_pd(oy, oy)), _mm512_mul_pd(oz, oz)));
+      _mm256_store_ps(out_n[0], _mm512_cvtpd_ps(_mm512_div_pd(ox, len)));
+      _mm256_store_ps(out_n[1], _mm512_cvtpd_ps(_mm512_div_pd(oy, len)));
+      _mm256_store_ps(out_n[2], _mm512_cvtpd_ps(_mm512_div_pd(oz, len)));
+      _mm256_store_ps(out_c, _mm512_cvtpd_ps(curv[h]));
+      // projectedPoint, with the unturned normal.
+      const __m512d t = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(nx[h], mx[h]), _mm512_mul_pd(ny[h], my[h])), _mm512_mul_pd(nz[h], mz[h]));
+      _mm256_store_ps(out_p[0], _mm512_cvtpd_ps(_mm512_add_pd(_mm512_cvtps_pd(px[h]), _mm512_mul_pd(nx[h], t))));
+      _mm256_store_ps(out_p[1], _mm512_cvtpd_ps(_mm512_add_pd(_mm512_cvtps_pd(py[h]), _mm512_mul_pd(ny[h], t))));
+      _mm256_store_ps(out_p[2], _mm512_cvtpd_ps(_mm512_add_pd(_mm512_cvtps_pd(pz[h]), _mm512_mul_pd(nz[h], t))));
+    }
+    const int in_group = std::clamp(lanes - 8 * h, 0, 8);
+    storeDoneLanes(done[h], in_group, first + 8 * static_cast<std::size_t>(h), out_n, out_c, out_p, normals, curvature,
+                   projected);
+    const __m512d fields[9] = {mx[h], my[h], mz[h], cxx[h], cxy[h], cxz[h], cyy[h], cyz[h], czz[h]};
+    for (int q = 0; q < 9; ++q) _mm512_storeu_pd(moments + 72 * h + 8 * q, fields[q]);
+    result |= static_cast<unsigned>(done[h] | few) << (8 * h);
   }
-  storeDoneLanes(done, lanes, first, out_n, out_c, out_p, normals, curvature, projected);
-  const __m512d fields[9] = {mx, my, mz, cxx, cxy, cxz, cyy, cyz, czz};
-  for (int q = 0; q < 9; ++q) _mm512_storeu_pd(moments + 8 * q, fields[q]);
-  return static_cast<unsigned>(done | few);
+  return result;
+}
+
+}  // namespace
+
+MOBMAP_TARGET_AVX512 unsigned localPlanes8(const float* points, const float sums[9 * 8], const int* counts,
+                                           std::size_t first, int lanes, const float* near, const float viewpoint[3],
+                                           float* normals, float* curvature, float* projected, double moments[9 * 8]) {
+  return localPlanesGroups<1>(points, sums, counts, first, lanes, near, viewpoint, normals, curvature, projected,
+                              moments);
+}
+
+MOBMAP_TARGET_AVX512 unsigned localPlanes16(const float* points, const float sums[2 * 9 * 8], const int* counts,
+                                            std::size_t first, int lanes, const float* near, const float viewpoint[3],
+                                            float* normals, float* curvature, float* projected,
+                                            double moments[2 * 9 * 8]) {
+  return localPlanesGroups<2>(points, sums, counts, first, lanes, near, viewpoint, normals, curvature, projected,
+                              moments);
 }
 
 MOBMAP_TARGET_AVX512 std::size_t cellKeys(const float* xyz, std::size_t n, float inv_cell, std::uint64_t* keys) {

@@ -95,6 +95,15 @@ unsigned localPlanes8(const float* points, const float sums[9 * 8], const int* c
                       const float* near, const float viewpoint[3], float* normals, float* curvature, float* projected,
                       double moments[9 * 8]);
 
+/// localPlanes8 on the points first .. first + lanes - 1 (lanes <= 16) as two groups of
+/// eight: group g's sums at sums + 72 g and moments at moments + 72 g, its lanes at
+/// bits 8 g .. 8 g + 7 of the result. The same results; the two groups' inverse
+/// iterations run side by side, each hiding the other's waits on the square root and
+/// the division.
+unsigned localPlanes16(const float* points, const float sums[2 * 9 * 8], const int* counts, std::size_t first,
+                       int lanes, const float* near, const float viewpoint[3], float* normals, float* curvature,
+                       float* projected, double moments[2 * 9 * 8]);
+
 }  // namespace avx512
 
 /// The same functions, with the same contracts and results, in AVX2 (simd_avx2.cpp):
