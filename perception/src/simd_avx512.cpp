@@ -174,8 +174,8 @@ MOBMAP_TARGET_AVX512 std::size_t rankSmallest(std::uint64_t* keys, std::size_t m
 
 namespace {
 
-// localPlanes8 on H groups of eight points at once (H = 1 or 2). Every lane does the
-// arithmetic of localPlanes8; the groups only share the loop of the inverse iteration,
+// Local planes of H groups of eight points (localPlanes16: H = 2). Every lane does the
+// same arithmetic whatever H; the groups only share the loop of the inverse iteration,
 // whose steps are a chain of a square root and a division each: two independent
 // chains keep the divider busy while either waits.
 template <int H>
@@ -319,13 +319,6 @@ MOBMAP_TARGET_AVX512 inline unsigned localPlanesGroups(const float* points, cons
 }
 
 }  // namespace
-
-MOBMAP_TARGET_AVX512 unsigned localPlanes8(const float* points, const float sums[9 * 8], const int* counts,
-                                           std::size_t first, int lanes, const float* near, const float viewpoint[3],
-                                           float* normals, float* curvature, float* projected, double moments[9 * 8]) {
-  return localPlanesGroups<1>(points, sums, counts, first, lanes, near, viewpoint, normals, curvature, projected,
-                              moments);
-}
 
 MOBMAP_TARGET_AVX512 unsigned localPlanes16(const float* points, const float sums[2 * 9 * 8], const int* counts,
                                             std::size_t first, int lanes, const float* near, const float viewpoint[3],

@@ -28,7 +28,7 @@ inline constexpr std::size_t kRankMaxKeys = 64;
 inline constexpr double kStepUnder1e5Squared = 0x1.b7cdfd9d7bdbap-34;
 
 #if MOBMAP_X86_KERNELS
-/// The localPlanes8 kernels' last step: for each lane l < lanes whose bit is set in
+/// The local-plane kernels' last step, for a group of eight: for each lane l < lanes whose bit is set in
 /// `done`, copies its normal (out_n[axis][l]), curvature and, if `projected` is not
 /// null, projected point to point first + l of the output arrays.
 inline void storeDoneLanes(unsigned done, int lanes, std::size_t first, const float out_n[3][8],
@@ -79,27 +79,22 @@ void offsetSums8(const float* points, const int* indices, std::size_t k, const i
 /// exactly, then the same integer operations.
 std::size_t cellKeys(const float* xyz, std::size_t n, float inv_cell, std::uint64_t* keys);
 
-/// Local planes of the points first .. first + lanes - 1 (lanes <= 8), as
-/// estimateNormals computes them with the arithmetic of local_plane.hpp, from their
-/// OffsetSums (sums[q * 8 + lane], fields in declaration order: sx, sy, sz, xx, xy, xz,
-/// yy, yz, zz) and neighbour counts. `points` is x, y, z per point; `near` (the same)
-/// is null for the closed-form solver, whose lanes this leaves to the caller. For each
-/// lane done, writes normal (x, y, z, turned towards `viewpoint`), curvature and, if
-/// `projected` is not null, the projected point. Returns the mask of lanes done; for the
-/// others with at least 2 neighbours, moments[q * 8 + lane] holds the LocalMoments
-/// fields in declaration order (mx, my, mz, xx, xy, xz, yy, yz, zz) for the exact
-/// solver. Lanes with under 2 neighbours count as done and are not written: the caller
-/// has set them (zero normal, curvature 1, projected = point). Gathering the neighbours is left to scalar code: on AMD cores a gather
-/// fetches about one element per cycle, no faster than the scalar loads it replaces.
-unsigned localPlanes8(const float* points, const float sums[9 * 8], const int* counts, std::size_t first, int lanes,
-                      const float* near, const float viewpoint[3], float* normals, float* curvature, float* projected,
-                      double moments[9 * 8]);
-
-/// localPlanes8 on the points first .. first + lanes - 1 (lanes <= 16) as two groups of
-/// eight: group g's sums at sums + 72 g and moments at moments + 72 g, its lanes at
-/// bits 8 g .. 8 g + 7 of the result. The same results; the two groups' inverse
-/// iterations run side by side, each hiding the other's waits on the square root and
-/// the division.
+/// Local planes of the points first .. first + lanes - 1 (lanes <= 16), as
+/// estimateNormals computes them with the arithmetic of local_plane.hpp, in two groups
+/// of eight (group g: points first + 8 g ..), from their OffsetSums (sums[72 g + q * 8 +
+/// lane], fields in declaration order: sx, sy, sz, xx, xy, xz, yy, yz, zz) and
+/// neighbour counts. `points` is x, y, z per point; `near` (the same) is null for the
+/// closed-form solver, whose lanes this leaves to the caller. For each lane done,
+/// writes normal (x, y, z, turned towards `viewpoint`), curvature and, if `projected`
+/// is not null, the projected point. Returns the mask of lanes done (group g at bits
+/// 8 g .. 8 g + 7); for the others with at least 2 neighbours, moments[72 g + q * 8 +
+/// lane] holds the LocalMoments fields in declaration order (mx, my, mz, xx, xy, xz,
+/// yy, yz, zz) for the exact solver. Lanes with under 2 neighbours count as done and
+/// are not written: the caller has set them (zero normal, curvature 1, projected =
+/// point). The two groups' inverse iterations run side by side, each hiding the other's
+/// waits on the square root and the division. Gathering the neighbours is left to
+/// scalar code: on AMD cores a gather fetches about one element per cycle, no faster
+/// than the scalar loads it replaces.
 unsigned localPlanes16(const float* points, const float sums[2 * 9 * 8], const int* counts, std::size_t first,
                        int lanes, const float* near, const float viewpoint[3], float* normals, float* curvature,
                        float* projected, double moments[2 * 9 * 8]);
@@ -123,6 +118,7 @@ std::size_t cellKeys(const float* xyz, std::size_t n, float inv_cell, std::uint6
 /// `points`, so that no load reads past the last.
 void offsetSums8(const float* points, std::size_t n_points, const int* indices, std::size_t k, const int* counts,
                  std::size_t first, int lanes, float sums[9 * 8]);
+/// As avx512::localPlanes16 with one group of eight (lanes <= 8).
 unsigned localPlanes8(const float* points, const float sums[9 * 8], const int* counts, std::size_t first, int lanes,
                       const float* near, const float viewpoint[3], float* normals, float* curvature, float* projected,
                       double moments[9 * 8]);
