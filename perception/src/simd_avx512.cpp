@@ -49,23 +49,26 @@ MOBMAP_TARGET_AVX512 inline void rankInto(const std::uint64_t* keys, std::size_t
 
 }  // namespace
 
-MOBMAP_TARGET_AVX512 void offsetSums8(const float* points, const int* indices, std::size_t k, const int* counts,
-                                      std::size_t first, int lanes, float sums[9 * 8]) {
-  // d = (dx, dy, dz, 0) in the low lanes; the products lhs * rhs are, lane by lane,
-  // dx*1 dy*1 dz*1 dx*dx dx*dy dx*dz dy*dy dy*dz dz*dz (x * 1 is x exactly).
-  const __m512i lhs_idx = _mm512_setr_epi32(0, 1, 2, 0, 0, 0, 1, 1, 2, 3, 3, 3, 3, 3, 3, 3);
-  const __m512i rhs_idx = _mm512_setr_epi32(0, 0, 0, 0, 1, 2, 1, 2, 2, 3, 3, 3, 3, 3, 3, 3);
+MOBMAP_TARGET_AVX512 void offsetSums8(const float* points, std::size_t n_points, const int* indices, std::size_t k,
+                                      const int* counts, std::size_t first, int lanes, float sums[9 * 8]) {
+  // v = (dx, dy, dz, 1) in each 128-bit block, loaded as one broadcast (a load, not a
+  // shuffle); one permute spreads dx, dy, dz and 1 over the blocks, so the products are
+  // dx*dx dy*dx dz*dx 1*dx | dx*dy dy*dy dz*dy 1*dy | dx*dz dy*dz dz*dz 1*dz | dx dy dz 1:
+  // every sum (x * 1 is x, and x * y is y * x, exactly) for one permute per neighbour
+  // where two were needed to line the operands up.
+  const __m512i spread = _mm512_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3);
   const __m512 ones = _mm512_set1_ps(1.f);
-  constexpr __mmask16 kProducts = 0x01F8;  // lanes 3..8 take rhs from d, 0..2 keep 1
+  constexpr __mmask16 kOffsets = 0x7777;  // dx, dy, dz in every block, 1 in its last lane
   __m512 acc[8];
-  __m128 centre[8];
+  __m512 centre[8];
   int c[8] = {0, 0, 0, 0, 0, 0, 0, 0};
   int most = 0;
   for (int l = 0; l < 8; ++l) {
     acc[l] = _mm512_setzero_ps();
+    centre[l] = _mm512_setzero_ps();
     if (l >= lanes) continue;
     const std::size_t i = first + static_cast<std::size_t>(l);
-    centre[l] = _mm_maskz_loadu_ps(0x7, points + 3 * i);
+    centre[l] = _mm512_broadcast_f32x4(_mm_maskz_loadu_ps(0x7, points + 3 * i));
     c[l] = counts[i];
     most = std::max(most, c[l]);
   }
@@ -74,16 +77,19 @@ MOBMAP_TARGET_AVX512 void offsetSums8(const float* points, const int* indices, s
       if (j >= c[l]) continue;
       const std::size_t i = first + static_cast<std::size_t>(l);
       const auto nb = static_cast<std::size_t>(indices[i * k + static_cast<std::size_t>(j)]);
-      const __m512 d = _mm512_castps128_ps512(_mm_sub_ps(_mm_maskz_loadu_ps(0x7, points + 3 * nb), centre[l]));
-      const __m512 lhs = _mm512_permutexvar_ps(lhs_idx, d);
-      const __m512 rhs = _mm512_mask_permutexvar_ps(ones, kProducts, rhs_idx, d);
-      acc[l] = _mm512_add_ps(acc[l], _mm512_mul_ps(lhs, rhs));
+      // x, y, z and the next point's x (masked off below); the last point's three
+      // coordinates alone, so that no load reads past the array.
+      const __m128 xyz = nb + 1 < n_points ? _mm_loadu_ps(points + 3 * nb) : _mm_maskz_loadu_ps(0x7, points + 3 * nb);
+      const __m512 v = _mm512_mask_sub_ps(ones, kOffsets, _mm512_broadcast_f32x4(xyz), centre[l]);
+      acc[l] = _mm512_add_ps(acc[l], _mm512_mul_ps(v, _mm512_permutexvar_ps(spread, v)));
     }
   }
+  // sx sy sz xx xy xz yy yz zz from their lanes.
+  constexpr int kLane[9] = {12, 13, 14, 0, 1, 2, 5, 6, 10};
   for (int l = 0; l < lanes; ++l) {
     alignas(64) float out[16];
     _mm512_store_ps(out, acc[l]);
-    for (int q = 0; q < 9; ++q) sums[8 * q + l] = out[q];
+    for (int q = 0; q < 9; ++q) sums[8 * q + l] = out[kLane[q]];
   }
 }
 

@@ -68,9 +68,10 @@ std::size_t rankSmallest(std::uint64_t* keys, std::size_t m, std::size_t k, floa
 /// counts[i] neighbours (indices[i * k ..]), into sums[q * 8 + lane] (fields in
 /// declaration order), as sumOffsets computes them: one vector holds a point's nine
 /// sums, so each neighbour is one subtract, one multiply and one add in the same order
-/// as the scalar loop; the eight points' chains are interleaved.
-void offsetSums8(const float* points, const int* indices, std::size_t k, const int* counts, std::size_t first,
-                 int lanes, float sums[9 * 8]);
+/// as the scalar loop; the eight points' chains are interleaved. `n_points` is the
+/// number of points (x, y, z triples) in `points`, so that no load reads past the last.
+void offsetSums8(const float* points, std::size_t n_points, const int* indices, std::size_t k, const int* counts,
+                 std::size_t first, int lanes, float sums[9 * 8]);
 
 /// The packed cell keys (spatial_hash.hpp's cellKey of floorToInt(coordinate *
 /// inv_cell) per axis) of the first points of `xyz` (x, y, z per point), 16 at a time;
@@ -114,8 +115,7 @@ std::size_t compactKeys(const float* d2, const int* index, std::size_t n, int se
 std::size_t rankSmallest(std::uint64_t* keys, std::size_t m, std::size_t k, float* sq_dist, int* index);
 /// As avx512::cellKeys, 8 points at a time.
 std::size_t cellKeys(const float* xyz, std::size_t n, float inv_cell, std::uint64_t* keys);
-/// As avx512::offsetSums8; `n_points` is the number of points (x, y, z triples) in
-/// `points`, so that no load reads past the last.
+/// As avx512::offsetSums8.
 void offsetSums8(const float* points, std::size_t n_points, const int* indices, std::size_t k, const int* counts,
                  std::size_t first, int lanes, float sums[9 * 8]);
 /// As avx512::localPlanes16 with one group of eight (lanes <= 8).

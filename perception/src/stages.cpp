@@ -215,9 +215,9 @@ void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph&
       const int lanes = static_cast<int>(std::min(group, n - first));
       unsigned done = 0;
       if (simd == Simd::kAvx512) {
-        detail::avx512::offsetSums8(xyz, g.indices.data(), k, g.count.data(), first, std::min(lanes, 8), sums);
+        detail::avx512::offsetSums8(xyz, n, g.indices.data(), k, g.count.data(), first, std::min(lanes, 8), sums);
         if (lanes > 8) {
-          detail::avx512::offsetSums8(xyz, g.indices.data(), k, g.count.data(), first + 8, lanes - 8, sums + 72);
+          detail::avx512::offsetSums8(xyz, n, g.indices.data(), k, g.count.data(), first + 8, lanes - 8, sums + 72);
         }
         done = detail::avx512::localPlanes16(xyz, sums, g.count.data(), first, lanes, start, viewpoint.data(),
                                              normal_xyz, curvature.data(), proj, moments);
