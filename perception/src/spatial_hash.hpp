@@ -56,13 +56,25 @@ inline std::vector<std::uint64_t> cellKeys(const std::vector<Eigen::Vector3f>& p
 }
 
 /// key -> int32 value; capacity a power of two, linear probing. Each slot holds its key
-/// and value side by side, so a lookup touches one cache line.
+/// and value side by side, so a lookup touches one cache line, and the number of the
+/// fill it belongs to: a slot of an earlier fill counts as empty, so reset() empties
+/// the table without writing it (a table kept from frame to frame is not cleared,
+/// megabytes each time).
 class CellHash {
  public:
-  explicit CellHash(std::size_t expected) {
+  explicit CellHash(std::size_t expected) { reset(expected); }
+  /// Empties the table, sized for `expected` keys (its capacity the same as a new
+  /// table's: a table grown for a larger fill is allocated anew, not kept).
+  void reset(std::size_t expected) {
     std::size_t cap = 16;
     while (cap < expected * 2) cap <<= 1;
-    slots_.assign(cap, Slot{});
+    size_ = 0;
+    if (cap != slots_.size() || fill_ == ~0u) {
+      slots_.assign(cap, Slot{});
+      fill_ = 1;
+    } else {
+      ++fill_;
+    }
     mask_ = cap - 1;
   }
   /// Returns a reference to the value slot of `key`, inserting -1 if absent. The
@@ -70,12 +82,13 @@ class CellHash {
   int& slot(std::uint64_t key) {
     if (2 * (size_ + 1) > slots_.size()) grow();
     std::size_t i = hash(key) & mask_;
-    while (slots_[i].key != kEmpty && slots_[i].key != key) i = (i + 1) & mask_;
-    if (slots_[i].key == kEmpty) {
-      slots_[i].key = key;
+    while (slots_[i].fill == fill_ && slots_[i].key != key) i = (i + 1) & mask_;
+    Slot& s = slots_[i];
+    if (s.fill != fill_) {
+      s = Slot{key, -1, fill_};
       ++size_;
     }
-    return slots_[i].value;
+    return s.value;
   }
   /// Asks for the cache line of `key`'s slot, to be looked up soon: the first lookup of
   /// every key misses the cache otherwise (the table is a few MB and keys land at random
@@ -88,7 +101,7 @@ class CellHash {
   }
   [[nodiscard]] int find(std::uint64_t key) const {
     std::size_t i = hash(key) & mask_;
-    while (slots_[i].key != kEmpty) {
+    while (slots_[i].fill == fill_) {
       if (slots_[i].key == key) return slots_[i].value;
       i = (i + 1) & mask_;
     }
@@ -97,23 +110,22 @@ class CellHash {
   static constexpr std::size_t kAhead = 32;
 
  private:
-  static constexpr std::uint64_t kEmpty = ~0ULL;
   struct Slot {
-    std::uint64_t key = kEmpty;
+    std::uint64_t key = 0;
     int value = -1;
+    unsigned fill = 0;  // the fill this slot was written in; 0: never
   };
   void grow() {
     std::vector<Slot> old(slots_.size() * 2);
     old.swap(slots_);
     mask_ = slots_.size() - 1;
     for (const Slot& s : old) {
-      if (s.key == kEmpty) continue;
+      if (s.fill != fill_) continue;
       std::size_t i = hash(s.key) & mask_;
-      while (slots_[i].key != kEmpty) i = (i + 1) & mask_;
+      while (slots_[i].fill == fill_) i = (i + 1) & mask_;
       slots_[i] = s;
     }
   }
-  std::size_t size_ = 0;
   static std::size_t hash(std::uint64_t k) {
     k ^= k >> 33;
     k *= 0xff51afd7ed558ccdULL;
@@ -122,6 +134,8 @@ class CellHash {
   }
   std::vector<Slot> slots_;
   std::size_t mask_ = 0;
+  std::size_t size_ = 0;
+  unsigned fill_ = 0;
 };
 
 /// Calls f(x, y, z) for every cell within Chebyshev distance `ring` of cc or, with
