@@ -28,9 +28,9 @@ inline constexpr std::size_t kRankMaxKeys = 64;
 inline constexpr double kStepUnder1e5Squared = 0x1.b7cdfd9d7bdbap-34;
 
 #if MOBMAP_X86_KERNELS
-/// The local-plane kernels' last step, for a group of eight: for each lane l < lanes whose bit is set in
-/// `done`, copies its normal (out_n[axis][l]), curvature and, if `projected` is not
-/// null, projected point to point first + l of the output arrays.
+/// The local-plane kernels' last step, for a group of eight: for each lane l < lanes
+/// whose bit is set in `done`, copies its normal (out_n[axis][l]), curvature and, if
+/// `projected` is not null, projected point to point first + l of the output arrays.
 inline void storeDoneLanes(unsigned done, int lanes, std::size_t first, const float out_n[3][8],
                            const float out_c[8], const float out_p[3][8], float* normals, float* curvature,
                            float* projected) {
