@@ -90,13 +90,11 @@ class CellHash {
     }
     return s.value;
   }
-  /// Asks for the cache line of `key`'s slot, to be looked up soon: the first lookup of
-  /// every key misses the cache otherwise (the table is a few MB and keys land at random
-  /// places in it).
-  void prefetch(std::uint64_t key) const { __builtin_prefetch(slots_.data() + (hash(key) & mask_)); }
-  /// slot(keys[i]) in a scan over `keys`, having first prefetched keys[i + kAhead]'s slot.
+  /// slot(keys[i]) in a scan over `keys`, having first asked for the cache line of
+  /// keys[i + kAhead]'s slot: the first lookup of every key misses the cache otherwise
+  /// (the table is a few MB and keys land at random places in it).
   int& slotAhead(const std::vector<std::uint64_t>& keys, std::size_t i) {
-    if (i + kAhead < keys.size()) prefetch(keys[i + kAhead]);
+    if (i + kAhead < keys.size()) __builtin_prefetch(slots_.data() + (hash(keys[i + kAhead]) & mask_));
     return slot(keys[i]);
   }
   [[nodiscard]] int find(std::uint64_t key) const {
@@ -107,9 +105,9 @@ class CellHash {
     }
     return -1;
   }
-  static constexpr std::size_t kAhead = 32;
 
  private:
+  static constexpr std::size_t kAhead = 32;
   struct Slot {
     std::uint64_t key = 0;
     int value = -1;

@@ -87,9 +87,8 @@ std::vector<Eigen::Vector3f> voxelReduce(const std::vector<Eigen::Vector3f>& poi
   // store and a load per point.
   std::size_t i = 0;
   while (i < n) {
-    if (i + detail::CellHash::kAhead < n) index.prefetch(keys[i + detail::CellHash::kAhead]);
     const std::uint64_t key = keys[i];
-    int& slot = index.slot(key);
+    int& slot = index.slotAhead(keys, i);
     if (slot < 0) {
       slot = static_cast<int>(sums.size());
       sums.emplace_back(Eigen::Vector3d::Zero());
