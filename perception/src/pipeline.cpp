@@ -163,6 +163,28 @@ struct RangeGate {
   float lo2, hi2;
 };
 
+// The finite points of `points` within the range limits, in order; `index` (if given)
+// receives the position of each in `points`, `valid` the number of finite points.
+std::vector<Eigen::Vector3f> finiteInRange(const std::vector<Eigen::Vector3f>& points, const RangeGate& in_range,
+                                           std::vector<int>* index, std::size_t& valid) {
+  // Sized for every point and cut to the kept ones after (not a push_back per point).
+  std::vector<Eigen::Vector3f> raw(points.size());
+  if (index) index->resize(points.size());
+  std::size_t n = 0;
+  valid = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!points[i].allFinite()) continue;
+    ++valid;
+    if (!in_range(points[i])) continue;
+    raw[n] = points[i];
+    if (index) (*index)[n] = static_cast<int>(i);
+    ++n;
+  }
+  raw.resize(n);
+  if (index) index->resize(n);
+  return raw;
+}
+
 }  // namespace
 
 FramePipeline::FramePipeline(PerceptionParams params, gp::MobilityModel model)
@@ -215,34 +237,17 @@ FrameResult FramePipeline::processOrganized(const std::vector<Eigen::Vector3f>& 
     throw std::invalid_argument(msg.str());
   }
   const auto started = std::chrono::steady_clock::now();
-  const RangeGate in_range(params_);
-  std::vector<Eigen::Vector3f> raw(points.size());
-  std::vector<int> pixel_of_raw(points.size());
-  std::size_t n = 0, valid = 0;
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    if (!points[i].allFinite()) continue;
-    ++valid;
-    if (!in_range(points[i])) continue;
-    raw[n] = points[i];
-    pixel_of_raw[n++] = static_cast<int>(i);
-  }
-  raw.resize(n);
-  pixel_of_raw.resize(n);
+  std::vector<int> pixel_of_raw;
+  std::size_t valid = 0;
+  std::vector<Eigen::Vector3f> raw = finiteInRange(points, RangeGate(params_), &pixel_of_raw, valid);
   return run(std::move(raw), std::move(pixel_of_raw), points.size(), valid, started, gravity);
 }
 
 FrameResult FramePipeline::process(const std::vector<Eigen::Vector3f>& points,
                                    const std::optional<Eigen::Vector3f>& gravity) const {
   const auto started = std::chrono::steady_clock::now();
-  const RangeGate in_range(params_);
-  std::vector<Eigen::Vector3f> raw(points.size());
-  std::size_t n = 0, valid = 0;
-  for (const auto& q : points) {
-    if (!q.allFinite()) continue;
-    ++valid;
-    if (in_range(q)) raw[n++] = q;
-  }
-  raw.resize(n);
+  std::size_t valid = 0;
+  std::vector<Eigen::Vector3f> raw = finiteInRange(points, RangeGate(params_), nullptr, valid);
   return run(std::move(raw), {}, 0, valid, started, gravity);
 }
 
