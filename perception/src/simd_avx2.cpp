@@ -330,16 +330,16 @@ MOBMAP_TARGET_AVX2 unsigned localPlanes8(const float* points, const float sums[9
   const Pair planar = maskOf8(planar_bits);
 
   // Moments in double (momentsOf).
-  const Pair m = add(Pair{{_mm256_cvtepi32_pd(_mm_load_si128(reinterpret_cast<const __m128i*>(count_a))),
-                           _mm256_cvtepi32_pd(_mm_load_si128(reinterpret_cast<const __m128i*>(count_a + 4)))}},
-                     splat(1.0));
-  const Pair mx = div(widen(sums), m), my = div(widen(sums + 8), m), mz = div(widen(sums + 16), m);
-  const Pair cxx = sub(div(widen(sums + 24), m), mul(mx, mx));
-  const Pair cxy = sub(div(widen(sums + 32), m), mul(mx, my));
-  const Pair cxz = sub(div(widen(sums + 40), m), mul(mx, mz));
-  const Pair cyy = sub(div(widen(sums + 48), m), mul(my, my));
-  const Pair cyz = sub(div(widen(sums + 56), m), mul(my, mz));
-  const Pair czz = sub(div(widen(sums + 64), m), mul(mz, mz));
+  const Pair inv_m = div(splat(1.0), add(Pair{{_mm256_cvtepi32_pd(_mm_load_si128(reinterpret_cast<const __m128i*>(count_a))),
+                                                _mm256_cvtepi32_pd(_mm_load_si128(reinterpret_cast<const __m128i*>(count_a + 4)))}},
+                                          splat(1.0)));
+  const Pair mx = mul(widen(sums), inv_m), my = mul(widen(sums + 8), inv_m), mz = mul(widen(sums + 16), inv_m);
+  const Pair cxx = sub(mul(widen(sums + 24), inv_m), mul(mx, mx));
+  const Pair cxy = sub(mul(widen(sums + 32), inv_m), mul(mx, my));
+  const Pair cxz = sub(mul(widen(sums + 40), inv_m), mul(mx, mz));
+  const Pair cyy = sub(mul(widen(sums + 48), inv_m), mul(my, my));
+  const Pair cyz = sub(mul(widen(sums + 56), inv_m), mul(my, mz));
+  const Pair czz = sub(mul(widen(sums + 64), inv_m), mul(mz, mz));
 
   // Inverse iteration from `near` (smallestEigenvectorNear), the eight lanes in step.
   const Pair zero = splat(0.0);
@@ -348,24 +348,35 @@ MOBMAP_TARGET_AVX2 unsigned localPlanes8(const float* points, const float sums[9
     const Pair x0s = widen(sx_a), x1s = widen(sy_a), x2s = widen(sz_a);
     const Pair start2 = add(add(mul(x0s, x0s), mul(x1s, x1s)), mul(x2s, x2s));
     Pair active = bitAnd(planar, compare<_CMP_NLT_UQ>(start2, splat(0.25)));
-    const Pair a00 = sub(mul(cyy, czz), mul(cyz, cyz));
-    const Pair a11 = sub(mul(cxx, czz), mul(cxz, cxz));
-    const Pair a22 = sub(mul(cxx, cyy), mul(cxy, cxy));
-    const Pair a01 = sub(mul(cxz, cyz), mul(cxy, czz));
-    const Pair a02 = sub(mul(cxy, cyz), mul(cxz, cyy));
-    const Pair a12 = sub(mul(cxy, cxz), mul(cxx, cyz));
-    const Pair scale = max(max(max(abs(a00), abs(a11)), max(abs(a22), abs(a01))), max(abs(a02), abs(a12)));
+    // adj(C), squared twice (iterationMatrix).
+    Pair b00 = sub(mul(cyy, czz), mul(cyz, cyz));
+    Pair b11 = sub(mul(cxx, czz), mul(cxz, cxz));
+    Pair b22 = sub(mul(cxx, cyy), mul(cxy, cxy));
+    Pair b01 = sub(mul(cxz, cyz), mul(cxy, czz));
+    Pair b02 = sub(mul(cxy, cyz), mul(cxz, cyy));
+    Pair b12 = sub(mul(cxy, cxz), mul(cxx, cyz));
+    for (int square = 0; square < 2; ++square) {
+      const Pair j00 = b00, j11 = b11, j22 = b22, j01 = b01, j02 = b02, j12 = b12;
+      b00 = add(add(mul(j00, j00), mul(j01, j01)), mul(j02, j02));
+      b11 = add(add(mul(j01, j01), mul(j11, j11)), mul(j12, j12));
+      b22 = add(add(mul(j02, j02), mul(j12, j12)), mul(j22, j22));
+      b01 = add(add(mul(j00, j01), mul(j01, j11)), mul(j02, j12));
+      b02 = add(add(mul(j00, j02), mul(j01, j12)), mul(j02, j22));
+      b12 = add(add(mul(j01, j02), mul(j11, j12)), mul(j12, j22));
+    }
+    const Pair scale = max(max(max(abs(b00), abs(b11)), max(abs(b22), abs(b01))), max(abs(b02), abs(b12)));
     const Pair floor = mul(splat(1e-30), scale);
     const Pair inf = splat(std::numeric_limits<double>::infinity());
     Pair x0 = x0s, x1 = x1s, x2 = x2s;
     for (int step = 0; step < 8 && bitsOf(active); ++step) {
-      const Pair y0 = add(add(mul(a00, x0), mul(a01, x1)), mul(a02, x2));
-      const Pair y1 = add(add(mul(a01, x0), mul(a11, x1)), mul(a12, x2));
-      const Pair y2 = add(mul(a02, x0), add(mul(a12, x1), mul(a22, x2)));
+      const Pair y0 = add(add(mul(b00, x0), mul(b01, x1)), mul(b02, x2));
+      const Pair y1 = add(add(mul(b01, x0), mul(b11, x1)), mul(b12, x2));
+      const Pair y2 = add(mul(b02, x0), add(mul(b12, x1), mul(b22, x2)));
       const Pair norm = sqrt(add(add(mul(y0, y0), mul(y1, y1)), mul(y2, y2)));
       // !(norm > floor) || !isfinite(norm): such lanes go to the exact solver.
       active = bitAnd(active, bitAnd(compare<_CMP_GT_OQ>(norm, floor), compare<_CMP_LT_OQ>(norm, inf)));
-      const Pair n0 = div(y0, norm), n1 = div(y1, norm), n2 = div(y2, norm);
+      const Pair inv = div(splat(1.0), norm);
+      const Pair n0 = mul(y0, inv), n1 = mul(y1, inv), n2 = mul(y2, inv);
       const Pair d0 = sub(n0, x0), d1 = sub(n1, x1), d2 = sub(n2, x2);
       const Pair moved2 = add(add(mul(d0, d0), mul(d1, d1)), mul(d2, d2));
       x0 = select(x0, n0, active), x1 = select(x1, n1, active), x2 = select(x2, n2, active);

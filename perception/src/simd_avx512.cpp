@@ -180,6 +180,11 @@ MOBMAP_TARGET_AVX512 std::size_t rankSmallest(std::uint64_t* keys, std::size_t m
 
 namespace {
 
+// (a d + b e) + c f, lane by lane.
+MOBMAP_TARGET_AVX512 inline __m512d dot3(__m512d a, __m512d b, __m512d c, __m512d d, __m512d e, __m512d f) {
+  return _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(a, d), _mm512_mul_pd(b, e)), _mm512_mul_pd(c, f));
+}
+
 // Local planes of H groups of eight points (localPlanes16: H = 2). Every lane does the
 // same arithmetic whatever H; the groups only share the loop of the inverse iteration,
 // whose steps are a chain of a square root and a division each: two independent
@@ -211,15 +216,15 @@ MOBMAP_TARGET_AVX512 inline unsigned localPlanesGroups(const float* points, cons
     const __m256 yy = _mm256_loadu_ps(sum + 48), yz = _mm256_loadu_ps(sum + 56), zz = _mm256_loadu_ps(sum + 64);
     // Moments in double (momentsOf).
     planar[h] = _mm256_mask_cmpge_epi32_mask(live[h], count, _mm256_set1_epi32(2));
-    const __m512d m = _mm512_add_pd(_mm512_cvtepi32_pd(count), _mm512_set1_pd(1.0));
-    mx[h] = _mm512_div_pd(_mm512_cvtps_pd(sx), m), my[h] = _mm512_div_pd(_mm512_cvtps_pd(sy), m);
-    mz[h] = _mm512_div_pd(_mm512_cvtps_pd(sz), m);
-    cxx[h] = _mm512_sub_pd(_mm512_div_pd(_mm512_cvtps_pd(xx), m), _mm512_mul_pd(mx[h], mx[h]));
-    cxy[h] = _mm512_sub_pd(_mm512_div_pd(_mm512_cvtps_pd(xy), m), _mm512_mul_pd(mx[h], my[h]));
-    cxz[h] = _mm512_sub_pd(_mm512_div_pd(_mm512_cvtps_pd(xz), m), _mm512_mul_pd(mx[h], mz[h]));
-    cyy[h] = _mm512_sub_pd(_mm512_div_pd(_mm512_cvtps_pd(yy), m), _mm512_mul_pd(my[h], my[h]));
-    cyz[h] = _mm512_sub_pd(_mm512_div_pd(_mm512_cvtps_pd(yz), m), _mm512_mul_pd(my[h], mz[h]));
-    czz[h] = _mm512_sub_pd(_mm512_div_pd(_mm512_cvtps_pd(zz), m), _mm512_mul_pd(mz[h], mz[h]));
+    const __m512d inv_m = _mm512_div_pd(_mm512_set1_pd(1.0), _mm512_add_pd(_mm512_cvtepi32_pd(count), _mm512_set1_pd(1.0)));
+    mx[h] = _mm512_mul_pd(_mm512_cvtps_pd(sx), inv_m), my[h] = _mm512_mul_pd(_mm512_cvtps_pd(sy), inv_m);
+    mz[h] = _mm512_mul_pd(_mm512_cvtps_pd(sz), inv_m);
+    cxx[h] = _mm512_sub_pd(_mm512_mul_pd(_mm512_cvtps_pd(xx), inv_m), _mm512_mul_pd(mx[h], mx[h]));
+    cxy[h] = _mm512_sub_pd(_mm512_mul_pd(_mm512_cvtps_pd(xy), inv_m), _mm512_mul_pd(mx[h], my[h]));
+    cxz[h] = _mm512_sub_pd(_mm512_mul_pd(_mm512_cvtps_pd(xz), inv_m), _mm512_mul_pd(mx[h], mz[h]));
+    cyy[h] = _mm512_sub_pd(_mm512_mul_pd(_mm512_cvtps_pd(yy), inv_m), _mm512_mul_pd(my[h], my[h]));
+    cyz[h] = _mm512_sub_pd(_mm512_mul_pd(_mm512_cvtps_pd(yz), inv_m), _mm512_mul_pd(my[h], mz[h]));
+    czz[h] = _mm512_sub_pd(_mm512_mul_pd(_mm512_cvtps_pd(zz), inv_m), _mm512_mul_pd(mz[h], mz[h]));
     done[h] = 0;
     active[h] = 0;
     nx[h] = _mm512_setzero_pd(), ny[h] = nx[h], nz[h] = nx[h], curv[h] = _mm512_set1_pd(1.0);
@@ -228,7 +233,7 @@ MOBMAP_TARGET_AVX512 inline unsigned localPlanesGroups(const float* points, cons
   // Inverse iteration from `near` (smallestEigenvectorNear), lane by lane in step.
   if (near) {
     const __m512d inf = _mm512_set1_pd(__builtin_inf());
-    __m512d a00[H], a11[H], a22[H], a01[H], a02[H], a12[H], floor[H], x0[H], x1[H], x2[H];
+    __m512d b00[H], b11[H], b22[H], b01[H], b02[H], b12[H], floor[H], x0[H], x1[H], x2[H];
     for (int h = 0; h < H; ++h) {
       const float* start = near + 3 * (first + 8 * static_cast<std::size_t>(h));
       const __m512d x0s = _mm512_cvtps_pd(_mm256_mmask_i32gather_ps(_mm256_setzero_ps(), planar[h], p3, start, 4));
@@ -236,15 +241,25 @@ MOBMAP_TARGET_AVX512 inline unsigned localPlanesGroups(const float* points, cons
       const __m512d x2s = _mm512_cvtps_pd(_mm256_mmask_i32gather_ps(_mm256_setzero_ps(), planar[h], p3, start + 2, 4));
       const __m512d start2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(x0s, x0s), _mm512_mul_pd(x1s, x1s)), _mm512_mul_pd(x2s, x2s));
       active[h] = _mm512_mask_cmp_pd_mask(planar[h], start2, _mm512_set1_pd(0.25), _CMP_NLT_UQ);
-      a00[h] = _mm512_sub_pd(_mm512_mul_pd(cyy[h], czz[h]), _mm512_mul_pd(cyz[h], cyz[h]));
-      a11[h] = _mm512_sub_pd(_mm512_mul_pd(cxx[h], czz[h]), _mm512_mul_pd(cxz[h], cxz[h]));
-      a22[h] = _mm512_sub_pd(_mm512_mul_pd(cxx[h], cyy[h]), _mm512_mul_pd(cxy[h], cxy[h]));
-      a01[h] = _mm512_sub_pd(_mm512_mul_pd(cxz[h], cyz[h]), _mm512_mul_pd(cxy[h], czz[h]));
-      a02[h] = _mm512_sub_pd(_mm512_mul_pd(cxy[h], cyz[h]), _mm512_mul_pd(cxz[h], cyy[h]));
-      a12[h] = _mm512_sub_pd(_mm512_mul_pd(cxy[h], cxz[h]), _mm512_mul_pd(cxx[h], cyz[h]));
-      const __m512d scale = _mm512_max_pd(_mm512_max_pd(_mm512_max_pd(_mm512_abs_pd(a00[h]), _mm512_abs_pd(a11[h])),
-                                                        _mm512_max_pd(_mm512_abs_pd(a22[h]), _mm512_abs_pd(a01[h]))),
-                                          _mm512_max_pd(_mm512_abs_pd(a02[h]), _mm512_abs_pd(a12[h])));
+      // adj(C), squared twice (iterationMatrix).
+      b00[h] = _mm512_sub_pd(_mm512_mul_pd(cyy[h], czz[h]), _mm512_mul_pd(cyz[h], cyz[h]));
+      b11[h] = _mm512_sub_pd(_mm512_mul_pd(cxx[h], czz[h]), _mm512_mul_pd(cxz[h], cxz[h]));
+      b22[h] = _mm512_sub_pd(_mm512_mul_pd(cxx[h], cyy[h]), _mm512_mul_pd(cxy[h], cxy[h]));
+      b01[h] = _mm512_sub_pd(_mm512_mul_pd(cxz[h], cyz[h]), _mm512_mul_pd(cxy[h], czz[h]));
+      b02[h] = _mm512_sub_pd(_mm512_mul_pd(cxy[h], cyz[h]), _mm512_mul_pd(cxz[h], cyy[h]));
+      b12[h] = _mm512_sub_pd(_mm512_mul_pd(cxy[h], cxz[h]), _mm512_mul_pd(cxx[h], cyz[h]));
+      for (int square = 0; square < 2; ++square) {
+        const __m512d j00 = b00[h], j11 = b11[h], j22 = b22[h], j01 = b01[h], j02 = b02[h], j12 = b12[h];
+        b00[h] = dot3(j00, j01, j02, j00, j01, j02);
+        b11[h] = dot3(j01, j11, j12, j01, j11, j12);
+        b22[h] = dot3(j02, j12, j22, j02, j12, j22);
+        b01[h] = dot3(j00, j01, j02, j01, j11, j12);
+        b02[h] = dot3(j00, j01, j02, j02, j12, j22);
+        b12[h] = dot3(j01, j11, j12, j02, j12, j22);
+      }
+      const __m512d scale = _mm512_max_pd(_mm512_max_pd(_mm512_max_pd(_mm512_abs_pd(b00[h]), _mm512_abs_pd(b11[h])),
+                                                        _mm512_max_pd(_mm512_abs_pd(b22[h]), _mm512_abs_pd(b01[h]))),
+                                          _mm512_max_pd(_mm512_abs_pd(b02[h]), _mm512_abs_pd(b12[h])));
       floor[h] = _mm512_mul_pd(_mm512_set1_pd(1e-30), scale);
       x0[h] = x0s, x1[h] = x1s, x2[h] = x2s;
     }
@@ -256,13 +271,14 @@ MOBMAP_TARGET_AVX512 inline unsigned localPlanesGroups(const float* points, cons
     for (int step = 0; step < 8 && anyActive(); ++step) {
       for (int h = 0; h < H; ++h) {
         if (!active[h]) continue;
-        const __m512d y0 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(a00[h], x0[h]), _mm512_mul_pd(a01[h], x1[h])), _mm512_mul_pd(a02[h], x2[h]));
-        const __m512d y1 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(a01[h], x0[h]), _mm512_mul_pd(a11[h], x1[h])), _mm512_mul_pd(a12[h], x2[h]));
-        const __m512d y2 = _mm512_add_pd(_mm512_mul_pd(a02[h], x0[h]), _mm512_add_pd(_mm512_mul_pd(a12[h], x1[h]), _mm512_mul_pd(a22[h], x2[h])));
+        const __m512d y0 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(b00[h], x0[h]), _mm512_mul_pd(b01[h], x1[h])), _mm512_mul_pd(b02[h], x2[h]));
+        const __m512d y1 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(b01[h], x0[h]), _mm512_mul_pd(b11[h], x1[h])), _mm512_mul_pd(b12[h], x2[h]));
+        const __m512d y2 = _mm512_add_pd(_mm512_mul_pd(b02[h], x0[h]), _mm512_add_pd(_mm512_mul_pd(b12[h], x1[h]), _mm512_mul_pd(b22[h], x2[h])));
         const __m512d norm = _mm512_sqrt_pd(_mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(y0, y0), _mm512_mul_pd(y1, y1)), _mm512_mul_pd(y2, y2)));
         // !(norm > floor) || !isfinite(norm): such lanes go to the exact solver.
         active[h] = _mm512_mask_cmp_pd_mask(active[h], norm, floor[h], _CMP_GT_OQ) & _mm512_cmp_pd_mask(norm, inf, _CMP_LT_OQ);
-        const __m512d n0 = _mm512_div_pd(y0, norm), n1 = _mm512_div_pd(y1, norm), n2 = _mm512_div_pd(y2, norm);
+        const __m512d inv = _mm512_div_pd(_mm512_set1_pd(1.0), norm);
+        const __m512d n0 = _mm512_mul_pd(y0, inv), n1 = _mm512_mul_pd(y1, inv), n2 = _mm512_mul_pd(y2, inv);
         const __m512d d0 = _mm512_sub_pd(n0, x0[h]), d1 = _mm512_sub_pd(n1, x1[h]), d2 = _mm512_sub_pd(n2, x2[h]);
         const __m512d moved2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(d0, d0), _mm512_mul_pd(d1, d1)), _mm512_mul_pd(d2, d2));
         x0[h] = _mm512_mask_mov_pd(x0[h], active[h], n0), x1[h] = _mm512_mask_mov_pd(x1[h], active[h], n1);
