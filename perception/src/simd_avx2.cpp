@@ -465,6 +465,43 @@ MOBMAP_TARGET_AVX2 std::size_t cellKeys(const float* xyz, std::size_t n, float i
   return i;
 }
 
+MOBMAP_TARGET_AVX2 std::size_t planeInliers(const float* x, const float* y, const float* z, const float* nx,
+                                            const float* ny, const float* nz, std::size_t m, const float plane[4],
+                                            float dist, float cos_normal, std::uint64_t* bits) {
+  const __m256 a = _mm256_set1_ps(plane[0]), b = _mm256_set1_ps(plane[1]), c = _mm256_set1_ps(plane[2]);
+  const __m256 d = _mm256_set1_ps(plane[3]), limit = _mm256_set1_ps(dist), cosine = _mm256_set1_ps(cos_normal);
+  const __m256 magnitude = _mm256_castsi256_ps(_mm256_set1_epi32(0x7FFFFFFF));
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  std::size_t total = 0;
+  for (std::size_t w = 0; 64 * w < m; ++w) {
+    std::uint64_t word = 0;
+    for (std::size_t q = 0; q < 8; ++q) {
+      const std::size_t j = 64 * w + 8 * q;
+      if (j >= m) break;
+      const int left = static_cast<int>(std::min<std::size_t>(m - j, 8));
+      const __m256i live = _mm256_cmpgt_epi32(_mm256_set1_epi32(left), lane);
+      // |(a x + (b y + c z)) + d| not above the distance: not greater, or NaN.
+      const __m256 t = _mm256_add_ps(
+          _mm256_add_ps(_mm256_mul_ps(a, _mm256_maskload_ps(x + j, live)),
+                        _mm256_add_ps(_mm256_mul_ps(b, _mm256_maskload_ps(y + j, live)),
+                                      _mm256_mul_ps(c, _mm256_maskload_ps(z + j, live)))),
+          d);
+      __m256 in = _mm256_and_ps(_mm256_castsi256_ps(live), _mm256_cmp_ps(_mm256_and_ps(t, magnitude), limit, _CMP_NGT_UQ));
+      if (nx) {
+        // |a nx + (b ny + c nz)| not below the cosine: not less, or NaN.
+        const __m256 u = _mm256_add_ps(_mm256_mul_ps(a, _mm256_maskload_ps(nx + j, live)),
+                                       _mm256_add_ps(_mm256_mul_ps(b, _mm256_maskload_ps(ny + j, live)),
+                                                     _mm256_mul_ps(c, _mm256_maskload_ps(nz + j, live))));
+        in = _mm256_and_ps(in, _mm256_cmp_ps(_mm256_and_ps(u, magnitude), cosine, _CMP_NLT_UQ));
+      }
+      word |= static_cast<std::uint64_t>(static_cast<unsigned>(_mm256_movemask_ps(in))) << (8 * q);
+    }
+    total += static_cast<std::size_t>(__builtin_popcountll(word));
+    if (bits) bits[w] = word;
+  }
+  return total;
+}
+
 }  // namespace mobmap::perception::detail::avx2
 
 #endif  // MOBMAP_X86_KERNELS

@@ -377,6 +377,40 @@ MOBMAP_TARGET_AVX512 std::size_t cellKeys(const float* xyz, std::size_t n, float
   return i;
 }
 
+MOBMAP_TARGET_AVX512 std::size_t planeInliers(const float* x, const float* y, const float* z, const float* nx,
+                                              const float* ny, const float* nz, std::size_t m, const float plane[4],
+                                              float dist, float cos_normal, std::uint64_t* bits) {
+  const __m512 a = _mm512_set1_ps(plane[0]), b = _mm512_set1_ps(plane[1]), c = _mm512_set1_ps(plane[2]);
+  const __m512 d = _mm512_set1_ps(plane[3]), limit = _mm512_set1_ps(dist), cosine = _mm512_set1_ps(cos_normal);
+  std::size_t total = 0;
+  for (std::size_t w = 0; 64 * w < m; ++w) {
+    std::uint64_t word = 0;
+    for (std::size_t q = 0; q < 4; ++q) {
+      const std::size_t j = 64 * w + 16 * q;
+      if (j >= m) break;
+      const auto live = static_cast<__mmask16>(m - j >= 16 ? 0xFFFFu : (1u << (m - j)) - 1u);
+      // |(a x + (b y + c z)) + d| not above the distance: not greater, or NaN.
+      const __m512 t = _mm512_add_ps(
+          _mm512_add_ps(_mm512_mul_ps(a, _mm512_maskz_loadu_ps(live, x + j)),
+                        _mm512_add_ps(_mm512_mul_ps(b, _mm512_maskz_loadu_ps(live, y + j)),
+                                      _mm512_mul_ps(c, _mm512_maskz_loadu_ps(live, z + j)))),
+          d);
+      __mmask16 in = _mm512_mask_cmp_ps_mask(live, _mm512_abs_ps(t), limit, _CMP_NGT_UQ);
+      if (nx) {
+        // |a nx + (b ny + c nz)| not below the cosine: not less, or NaN.
+        const __m512 u = _mm512_add_ps(_mm512_mul_ps(a, _mm512_maskz_loadu_ps(live, nx + j)),
+                                       _mm512_add_ps(_mm512_mul_ps(b, _mm512_maskz_loadu_ps(live, ny + j)),
+                                                     _mm512_mul_ps(c, _mm512_maskz_loadu_ps(live, nz + j))));
+        in = _mm512_mask_cmp_ps_mask(in, _mm512_abs_ps(u), cosine, _CMP_NLT_UQ);
+      }
+      word |= static_cast<std::uint64_t>(in) << (16 * q);
+    }
+    total += static_cast<std::size_t>(__builtin_popcountll(word));
+    if (bits) bits[w] = word;
+  }
+  return total;
+}
+
 }  // namespace mobmap::perception::detail::avx512
 
 #endif  // MOBMAP_X86_KERNELS

@@ -99,6 +99,15 @@ std::size_t cellKeys(const float* xyz, std::size_t n, float inv_cell, std::uint6
 unsigned localPlanes16(const float* points, const float sums[2 * 9 * 8], const int* counts, std::size_t first,
                        int lanes, const float* near, const float viewpoint[3], float* normals, float* curvature,
                        float* projected, double moments[2 * 9 * 8]);
+/// The inliers of the plane a x + b y + c z + d = 0 (plane = a, b, c, d) among m
+/// points given as coordinate arrays: |(a x + (b y + c z)) + d| not above `dist` and,
+/// if nx is not null, |a nx + (b ny + c nz)| not below `cos_normal` (NaN passes both,
+/// as in ransacPlane's portable test). Returns their number; if `bits` is not null,
+/// sets bit j % 64 of bits[j / 64] for each inlier j and clears the others (all
+/// (m + 63) / 64 words are written). Sixteen points per vector.
+std::size_t planeInliers(const float* x, const float* y, const float* z, const float* nx, const float* ny,
+                         const float* nz, std::size_t m, const float plane[4], float dist, float cos_normal,
+                         std::uint64_t* bits);
 
 }  // namespace avx512
 
@@ -122,6 +131,10 @@ void offsetSums8(const float* points, std::size_t n_points, const int* indices, 
 unsigned localPlanes8(const float* points, const float sums[9 * 8], const int* counts, std::size_t first, int lanes,
                       const float* near, const float viewpoint[3], float* normals, float* curvature, float* projected,
                       double moments[9 * 8]);
+/// As avx512::planeInliers, eight points per vector.
+std::size_t planeInliers(const float* x, const float* y, const float* z, const float* nx, const float* ny,
+                         const float* nz, std::size_t m, const float plane[4], float dist, float cos_normal,
+                         std::uint64_t* bits);
 
 }  // namespace avx2
 #endif

@@ -89,12 +89,15 @@ struct RansacOptions {
   /// and w in eq. 6 is the inlier ratio on that subset; the winning plane's inliers
   /// are then counted on all candidates. 4096 points estimate a ratio to about 1%.
   std::size_t score_sample = 4096;
+  /// The instruction set of the inlier tests (the same planes and inliers from each).
+  Simd simd = Simd::kAuto;
 };
 
 /// RANSAC plane among `candidates` (indices into points) with the adaptive number of
 /// iterations of paper eq. 6: N = log(1-p) / log(1-w^3), w the best inlier ratio so
 /// far (estimated on `score_sample` points). The returned plane is refitted by least squares to its inliers. nullopt if no
-/// qualifying plane has 3 or more inliers.
+/// qualifying plane has 3 or more inliers. Throws std::invalid_argument if `o.simd`
+/// cannot run on this machine.
 std::optional<PlaneFit> ransacPlane(const std::vector<Eigen::Vector3f>& points, const std::vector<int>& candidates,
                                     const RansacOptions& options, std::mt19937& rng);
 
