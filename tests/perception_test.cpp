@@ -527,6 +527,41 @@ TEST(Normals, InverseIterationFromTheViewDirectionEqualsTheExactEigenvector) {
               most_orthogonal, worst_angle, worst_shift);
 }
 
+// The iteration multiplies by adj(C)^4, whose entries scale with the sixteenth power of
+// the neighbourhood's size: from a tenth of a millimetre (entries below 1e-60 here) to a
+// hundred metres (a cloud in millimetres read as metres) it must still find the
+// closed-form eigenvector, with every instruction set.
+TEST(Normals, InverseIterationHoldsFromSubMillimetreToHundredMetreNeighbourhoods) {
+  const auto base = randomCloud(1001, 21);  // ~1 m across, neighbourhoods ~0.1 m
+  const KnnGraph g = bruteForceKnnGraph(base, 12);
+  for (const float scale : {1e-3f, 1e-1f, 1.f, 1e2f}) {
+    std::vector<Eigen::Vector3f> pts(base.size());
+    for (std::size_t i = 0; i < pts.size(); ++i) pts[i] = base[i] * scale;
+    const Eigen::Vector3f viewpoint(0, 0, 5 * scale);
+    std::vector<Eigen::Vector3f> exact, proj;
+    std::vector<float> curv;
+    estimateNormals(pts, g, viewpoint, exact, curv, &proj, nullptr, Simd::kPortable);
+    std::vector<Eigen::Vector3f> near(pts.size());
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      near[i] = Eigen::AngleAxisf(static_cast<float>(10 * kDeg), exact[i].unitOrthogonal()) * exact[i];
+    }
+    for (Simd simd : simdChoices()) {
+      std::vector<Eigen::Vector3f> fast, fast_proj;
+      std::vector<float> fast_curv;
+      estimateNormals(pts, g, viewpoint, fast, fast_curv, &fast_proj, &near, simd);
+      double worst_angle = 0, worst_shift = 0, worst_curv = 0;
+      for (std::size_t i = 0; i < pts.size(); ++i) {
+        worst_angle = std::max(worst_angle, std::acos(std::min(1.0, static_cast<double>(exact[i].dot(fast[i])))) / kDeg);
+        worst_shift = std::max(worst_shift, static_cast<double>((fast_proj[i] - proj[i]).norm()) / scale);
+        worst_curv = std::max(worst_curv, static_cast<double>(std::abs(fast_curv[i] - curv[i])));
+      }
+      EXPECT_LT(worst_angle, 0.05) << "scale " << scale << " " << toString(simd);
+      EXPECT_LT(worst_shift, 1e-5) << "scale " << scale << " " << toString(simd);  // in units of the scale
+      EXPECT_LT(worst_curv, 1e-4) << "scale " << scale << " " << toString(simd);
+    }
+  }
+}
+
 // The vector normals must be the portable loop's to the last bit, for every outcome a
 // lane can have: the closed-form solver (no start), inverse iteration converging,
 // failing (a start orthogonal to the normal, a zero start, a line with no plane) and
