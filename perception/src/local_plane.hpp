@@ -44,8 +44,9 @@ struct LocalMoments {
 };
 
 inline LocalMoments momentsOf(const OffsetSums& s, int c) {
-  // One division: multiplying by 1 / (c + 1) differs from dividing by it in the last
-  // bit at most, and divisions were the vector kernels' slowest instructions.
+  // One division: multiplying by 1 / (c + 1) differs from dividing by c + 1 by at most
+  // a unit in the last place, and divisions were the vector kernels' slowest
+  // instructions.
   const double inv_m = 1.0 / (c + 1.0);
   LocalMoments o;
   o.mx = static_cast<double>(s.sx) * inv_m, o.my = static_cast<double>(s.sy) * inv_m;
