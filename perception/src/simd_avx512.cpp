@@ -239,7 +239,7 @@ MOBMAP_TARGET_AVX512 inline unsigned localPlanesGroups(const float* points, cons
       const __m512d x0s = _mm512_cvtps_pd(_mm256_mmask_i32gather_ps(_mm256_setzero_ps(), planar[h], p3, start, 4));
       const __m512d x1s = _mm512_cvtps_pd(_mm256_mmask_i32gather_ps(_mm256_setzero_ps(), planar[h], p3, start + 1, 4));
       const __m512d x2s = _mm512_cvtps_pd(_mm256_mmask_i32gather_ps(_mm256_setzero_ps(), planar[h], p3, start + 2, 4));
-      const __m512d start2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(x0s, x0s), _mm512_mul_pd(x1s, x1s)), _mm512_mul_pd(x2s, x2s));
+      const __m512d start2 = dot3(x0s, x1s, x2s, x0s, x1s, x2s);
       active[h] = _mm512_mask_cmp_pd_mask(planar[h], start2, _mm512_set1_pd(0.25), _CMP_NLT_UQ);
       // adj(C), squared twice (iterationMatrix).
       b00[h] = _mm512_sub_pd(_mm512_mul_pd(cyy[h], czz[h]), _mm512_mul_pd(cyz[h], cyz[h]));
@@ -271,25 +271,25 @@ MOBMAP_TARGET_AVX512 inline unsigned localPlanesGroups(const float* points, cons
     for (int step = 0; step < 8 && anyActive(); ++step) {
       for (int h = 0; h < H; ++h) {
         if (!active[h]) continue;
-        const __m512d y0 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(b00[h], x0[h]), _mm512_mul_pd(b01[h], x1[h])), _mm512_mul_pd(b02[h], x2[h]));
-        const __m512d y1 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(b01[h], x0[h]), _mm512_mul_pd(b11[h], x1[h])), _mm512_mul_pd(b12[h], x2[h]));
+        const __m512d y0 = dot3(b00[h], b01[h], b02[h], x0[h], x1[h], x2[h]);
+        const __m512d y1 = dot3(b01[h], b11[h], b12[h], x0[h], x1[h], x2[h]);
         const __m512d y2 = _mm512_add_pd(_mm512_mul_pd(b02[h], x0[h]), _mm512_add_pd(_mm512_mul_pd(b12[h], x1[h]), _mm512_mul_pd(b22[h], x2[h])));
-        const __m512d norm = _mm512_sqrt_pd(_mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(y0, y0), _mm512_mul_pd(y1, y1)), _mm512_mul_pd(y2, y2)));
+        const __m512d norm = _mm512_sqrt_pd(dot3(y0, y1, y2, y0, y1, y2));
         // !(norm > floor) || !isfinite(norm): such lanes go to the exact solver.
         active[h] = _mm512_mask_cmp_pd_mask(active[h], norm, floor[h], _CMP_GT_OQ) & _mm512_cmp_pd_mask(norm, inf, _CMP_LT_OQ);
         const __m512d inv = _mm512_div_pd(_mm512_set1_pd(1.0), norm);
         const __m512d n0 = _mm512_mul_pd(y0, inv), n1 = _mm512_mul_pd(y1, inv), n2 = _mm512_mul_pd(y2, inv);
         const __m512d d0 = _mm512_sub_pd(n0, x0[h]), d1 = _mm512_sub_pd(n1, x1[h]), d2 = _mm512_sub_pd(n2, x2[h]);
-        const __m512d moved2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(d0, d0), _mm512_mul_pd(d1, d1)), _mm512_mul_pd(d2, d2));
+        const __m512d moved2 = dot3(d0, d1, d2, d0, d1, d2);
         x0[h] = _mm512_mask_mov_pd(x0[h], active[h], n0), x1[h] = _mm512_mask_mov_pd(x1[h], active[h], n1);
         x2[h] = _mm512_mask_mov_pd(x2[h], active[h], n2);
         const __mmask8 converged = _mm512_mask_cmp_pd_mask(active[h], moved2, _mm512_set1_pd(kStepUnder1e5Squared), _CMP_LE_OQ);
         if (converged) {
           const __m512d total = _mm512_add_pd(cxx[h], _mm512_add_pd(cyy[h], czz[h]));
-          const __m512d cx0 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(cxx[h], x0[h]), _mm512_mul_pd(cxy[h], x1[h])), _mm512_mul_pd(cxz[h], x2[h]));
-          const __m512d cx1 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(cxy[h], x0[h]), _mm512_mul_pd(cyy[h], x1[h])), _mm512_mul_pd(cyz[h], x2[h]));
+          const __m512d cx0 = dot3(cxx[h], cxy[h], cxz[h], x0[h], x1[h], x2[h]);
+          const __m512d cx1 = dot3(cxy[h], cyy[h], cyz[h], x0[h], x1[h], x2[h]);
           const __m512d cx2 = _mm512_add_pd(_mm512_mul_pd(cxz[h], x0[h]), _mm512_add_pd(_mm512_mul_pd(cyz[h], x1[h]), _mm512_mul_pd(czz[h], x2[h])));
-          const __m512d rayleigh = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(x0[h], cx0), _mm512_mul_pd(x1[h], cx1)), _mm512_mul_pd(x2[h], cx2));
+          const __m512d rayleigh = dot3(x0[h], x1[h], x2[h], cx0, cx1, cx2);
           // std::max(0.0, v): 0 unless 0 < v (so a NaN gives 0), as vmaxpd(v, 0) does.
           const __m512d lambda0 = _mm512_max_pd(rayleigh, _mm512_setzero_pd());
           const __mmask8 plane = _mm512_mask_cmp_pd_mask(converged, total, _mm512_setzero_pd(), _CMP_GT_OQ) &
@@ -315,17 +315,17 @@ MOBMAP_TARGET_AVX512 inline unsigned localPlanesGroups(const float* points, cons
       const __m512d vx = _mm512_cvtps_pd(_mm256_sub_ps(_mm256_set1_ps(viewpoint[0]), px[h]));
       const __m512d vy = _mm512_cvtps_pd(_mm256_sub_ps(_mm256_set1_ps(viewpoint[1]), py[h]));
       const __m512d vz = _mm512_cvtps_pd(_mm256_sub_ps(_mm256_set1_ps(viewpoint[2]), pz[h]));
-      const __m512d facing = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(nx[h], vx), _mm512_mul_pd(ny[h], vy)), _mm512_mul_pd(nz[h], vz));
+      const __m512d facing = dot3(nx[h], ny[h], nz[h], vx, vy, vz);
       const __mmask8 away = _mm512_cmp_pd_mask(facing, _mm512_setzero_pd(), _CMP_LT_OQ);
       const __m512d sign = _mm512_mask_mov_pd(_mm512_set1_pd(1.0), away, _mm512_set1_pd(-1.0));
       const __m512d ox = _mm512_mul_pd(nx[h], sign), oy = _mm512_mul_pd(ny[h], sign), oz = _mm512_mul_pd(nz[h], sign);
-      const __m512d len = _mm512_sqrt_pd(_mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(ox, ox), _mm512_mul_pd(oy, oy)), _mm512_mul_pd(oz, oz)));
+      const __m512d len = _mm512_sqrt_pd(dot3(ox, oy, oz, ox, oy, oz));
       _mm256_store_ps(out_n[0], _mm512_cvtpd_ps(_mm512_div_pd(ox, len)));
       _mm256_store_ps(out_n[1], _mm512_cvtpd_ps(_mm512_div_pd(oy, len)));
       _mm256_store_ps(out_n[2], _mm512_cvtpd_ps(_mm512_div_pd(oz, len)));
       _mm256_store_ps(out_c, _mm512_cvtpd_ps(curv[h]));
       // projectedPoint, with the unturned normal.
-      const __m512d t = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(nx[h], mx[h]), _mm512_mul_pd(ny[h], my[h])), _mm512_mul_pd(nz[h], mz[h]));
+      const __m512d t = dot3(nx[h], ny[h], nz[h], mx[h], my[h], mz[h]);
       _mm256_store_ps(out_p[0], _mm512_cvtpd_ps(_mm512_add_pd(_mm512_cvtps_pd(px[h]), _mm512_mul_pd(nx[h], t))));
       _mm256_store_ps(out_p[1], _mm512_cvtpd_ps(_mm512_add_pd(_mm512_cvtps_pd(py[h]), _mm512_mul_pd(ny[h], t))));
       _mm256_store_ps(out_p[2], _mm512_cvtpd_ps(_mm512_add_pd(_mm512_cvtps_pd(pz[h]), _mm512_mul_pd(nz[h], t))));
