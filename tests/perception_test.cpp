@@ -1500,6 +1500,7 @@ class CorridorFrames : public ::testing::TestWithParam<sim::NoiseModel> {};
 TEST_P(CorridorFrames, RampSlopesFloorRoughnessAndGround) {
   sim::CorridorParams params;
   params.noise = GetParam();
+  params.kinect.edge_window_px = 0;  // per-frame accuracy on sharp edges (edges: CorridorMap.FootholdsAndPlans...)
   const sim::CorridorScene scene(params);
   const FramePipeline pipeline;
   std::map<int, std::vector<double>> slope_errors;  // ramp id -> errors
@@ -1549,6 +1550,7 @@ TEST_P(CorridorFrames, RampSlopesFloorRoughnessAndGround) {
 TEST_P(CorridorFrames, SurfacesAreCoveredByOneSegmentEach) {
   sim::CorridorParams params;
   params.noise = GetParam();
+  params.kinect.edge_window_px = 0;  // per-frame accuracy on sharp edges (edges: CorridorMap.FootholdsAndPlans...)
   const sim::CorridorScene scene(params);
   const FramePipeline pipeline;
   // Per surface over several frames: points seen, points in its best segment, and the

@@ -1,5 +1,6 @@
-// Reachability: which standable places a robot gets to by steps and small gaps, against
-// an analytic scene and a brute-force reference on random maps.
+// Footholds, reachability and the footstep planner on analytic voxel scenes: soles on
+// floors, edges, ramps and holes; which surfaces a robot walks to; monotone limits; plans.
+#include "mobmap/mapping/footstep_planner.hpp"
 #include "mobmap/mapping/reachability.hpp"
 
 #include <gtest/gtest.h>
@@ -94,346 +95,287 @@ const Place& placeAt(const Reachability& r, double x, double y, double top) {
   return *p;
 }
 
+// A floor of i x j in [0, ni) x [0, nj) with tops at 0.02 m, mobility 1.
+void floorOf(MobilityOcTree& t, int ni, int nj) {
+  for (int i = 0; i < ni; ++i) {
+    for (int j = 0; j < nj; ++j) put(t, i, j, 0, 1.0);
+  }
+}
+
+TEST(Footholds, WholeSolesOnFloorsRampsEdgesHolesAndObstacles) {
+  MobilityOcTree t(kRes);
+  for (int i = 0; i < 100; ++i) {
+    for (int j = 0; j < 60; ++j) {
+      if (!(i >= 20 && i < 25 && j < 15)) put(t, i, j, 0, 1.0);
+    }
+  }
+  // A 16 cm block at x >= 1.0 (tops 0.18), a hole at x in [0.4, 0.5), y in [0, 0.3).
+  for (int i = 50; i < 100; ++i) {
+    for (int j = 0; j < 60; ++j) {
+      for (int k = 1; k <= 8; ++k) put(t, i, j, k, 1.0);
+    }
+  }
+  const SurfaceColumns cols(t);
+  RobotParams robot;
+  // On the open floor: the plane through the tops, level, no problem.
+  const Foothold flat = evaluateFoothold(cols, 0.31, 0.91, 0.3, 0.02, robot);
+  EXPECT_TRUE(flat.standable());
+  EXPECT_NEAR(flat.z, 0.02, 1e-9);
+  EXPECT_NEAR(flat.tilt_deg, 0.0, 1e-6);
+  EXPECT_EQ(flat.samples, 78);
+  // On the block, away from its edge: standable at 0.18.
+  const Foothold top = evaluateFoothold(cols, 1.5, 0.6, 0.0, 0.18, robot);
+  EXPECT_TRUE(top.standable());
+  EXPECT_NEAR(top.z, 0.18, 1e-9);
+  // Straddling the block's edge (x = 1.0) from the floor: half the sole has no surface
+  // at the floor's height, and the block stands in its space.
+  EXPECT_FALSE(evaluateFoothold(cols, 1.0, 0.6, 0.0, 0.02, robot).standable());
+  EXPECT_EQ(evaluateFoothold(cols, 0.9, 0.6, 0.0, 0.02, robot).problem, FootholdProblem::kObstacle);
+  // Hanging over the block's edge from its top: too little of the sole on surface.
+  EXPECT_EQ(evaluateFoothold(cols, 1.0, 0.6, 0.0, 0.18, robot).problem, FootholdProblem::kNoSurface);
+  // Half over the hole: 50 % known.
+  const Foothold hole = evaluateFoothold(cols, 0.4, 0.1, 0.0, 0.02, robot);
+  EXPECT_EQ(hole.problem, FootholdProblem::kNoSurface);
+  EXPECT_NEAR(hole.support_fraction, 0.5, 0.1);
+  // Mobility: a strip of 0.2 over a fifth of a sole fails it; a single voxel does not.
+  put(t, 10, 30, 0, 0.2);
+  for (int j = 40; j < 60; ++j) put(t, 30, j, 0, 0.2), put(t, 31, j, 0, 0.2), put(t, 32, j, 0, 0.2);
+  const SurfaceColumns poor(t);
+  EXPECT_TRUE(evaluateFoothold(poor, 0.21, 0.61, 0.0, 0.02, robot).standable());
+  const Foothold strip = evaluateFoothold(poor, 0.63, 1.0, 0.0, 0.02, robot);
+  EXPECT_EQ(strip.problem, FootholdProblem::kLowMobility);
+  EXPECT_NEAR(strip.min_mobility, 0.2, 1e-4);  // stored as a float
+  RobotParams lenient = robot;
+  lenient.min_mobility = 0.2;
+  EXPECT_TRUE(evaluateFoothold(poor, 0.63, 1.0, 0.0, 0.02, lenient).standable());
+}
+
+TEST(Footholds, RampTiltIsMeasuredAndLimited) {
+  for (const double deg : {10.0, 30.0}) {
+    MobilityOcTree t(kRes);
+    const double g = std::tan(deg * M_PI / 180);
+    // A ramp rising along +x: each column's top voxel holds the surface z = g x.
+    for (int i = 0; i < 40; ++i) {
+      for (int j = 0; j < 30; ++j) {
+        const int k = static_cast<int>(std::floor(g * (i + 0.5) * kRes / kRes));
+        put(t, i, j, k, 1.0);
+      }
+    }
+    const SurfaceColumns cols(t);
+    const double x = 0.4, z = g * x;
+    const Foothold f = evaluateFoothold(cols, x, 0.3, 0.0, z, RobotParams{});
+    ASSERT_TRUE(f.has_plane) << deg;
+    EXPECT_NEAR(f.tilt_deg, deg, 3.0);  // voxel tops step: a few degrees over a 25 cm sole
+    EXPECT_EQ(f.standable(), deg < 20) << deg << ": " << toString(f.problem);
+    if (deg > 20) EXPECT_EQ(f.problem, FootholdProblem::kTooSteep);
+  }
+}
+
+// The real failure: on a staircase the sensor's rounded edges leave voxels part way up
+// each riser with the floor's or the tread's mobility. Voxel by voxel they are stepping
+// stones 6 and 12 cm apart; no sole rests on them.
+TEST(Reachability, EdgeVoxelsPartWayUpARiserAreNoSteppingStones) {
+  MobilityOcTree t(kRes);
+  floorOf(t, 60, 50);
+  // A 17 cm step (tops 0.18 m: voxels 1..8) from x = 0.6.
+  for (int i = 30; i < 60; ++i) {
+    for (int j = 0; j < 50; ++j) {
+      for (int k = 1; k <= 8; ++k) put(t, i, j, k, k == 8 ? 1.0 : 0.0);
+    }
+  }
+  // In front of the riser: a rounded corner, voxels at 6 cm and 12 cm with walkable mobility.
+  for (int j = 0; j < 50; ++j) {
+    for (int k = 1; k <= 2; ++k) put(t, 28, j, k, 0.9);
+    for (int k = 1; k <= 5; ++k) put(t, 29, j, k, 0.9);
+  }
+  ReachParams p;
+  p.robot.max_step_m = 0.15;
+  const Reachability r = computeReachability(t, {0.2, 0.5, 0.02}, p);
+  ASSERT_TRUE(r.start());
+  EXPECT_TRUE(placeAt(r, 0.2, 0.5, 0.02).reachable);
+  EXPECT_TRUE(placeAt(r, 0.9, 0.5, 0.18).standable);
+  EXPECT_FALSE(placeAt(r, 0.9, 0.5, 0.18).reachable);
+  EXPECT_FALSE(placeAt(r, 0.59, 0.5, 0.12).standable);  // the corner voxels 12 cm up carry no sole
+  p.robot.max_step_m = 0.2;
+  const Reachability up = computeReachability(t, {0.2, 0.5, 0.02}, p);
+  EXPECT_TRUE(placeAt(up, 0.9, 0.5, 0.18).reachable);
+  // A footstep plan says the same, and names the step.
+  PlanParams plan;
+  plan.robot.max_step_m = 0.15;
+  const Plan no = planFootsteps(t, {0.2, 0.5, 0.02}, {0.9, 0.5, 0.18}, plan);
+  EXPECT_FALSE(no.found);
+  EXPECT_NE(no.reason.find("--max-step 0.15"), std::string::npos) << no.reason;
+  EXPECT_NE(no.reason.find("the step up"), std::string::npos) << no.reason;
+  plan.robot.max_step_m = 0.2;
+  const Plan yes = planFootsteps(t, {0.2, 0.5, 0.02}, {0.9, 0.5, 0.18}, plan);
+  ASSERT_TRUE(yes.found) << yes.reason;
+  EXPECT_NEAR(yes.footsteps.back().z, 0.18, 0.01);
+}
+
 TEST(Reachability, StepsLedgesTablesWallsHolesAndPoorFloor) {
   const Scene s;
-  const Eigen::Vector3d camera(1.505, 0.8, 1.3);  // above the open floor
-  const Reachability r = computeReachability(s.tree, camera);
+  ReachParams p;
+  const Reachability r = computeReachability(s.tree, {1.505, 0.8, 0.1}, p);
   ASSERT_TRUE(r.start());
-  EXPECT_NEAR(r.places()[*r.start()].top_z, 0.02, 1e-9);
-  EXPECT_NEAR(r.places()[*r.start()].x, 1.51, 1e-9);  // the column under the camera
+  EXPECT_NEAR(r.footPlaces()[*r.start()].z, 0.02, 1e-6);
   // Open floor, both sides of the 4 cm hole, under the table (no clearance asked).
   EXPECT_TRUE(placeAt(r, 1.5, 1.0, 0.02).reachable);
   EXPECT_TRUE(placeAt(r, 0.1, 0.5, 0.02).reachable);
   EXPECT_TRUE(placeAt(r, 0.5, 1.5, 0.02).reachable);
-  // Stairs of 10 cm risers, and the platform they lead to.
-  EXPECT_TRUE(placeAt(r, 1.1, 0.3, 0.12).reachable);
+  // Stairs of 10 cm risers and 30 cm treads, and the platform they lead to.
+  EXPECT_TRUE(placeAt(r, 1.15, 0.3, 0.12).reachable);
   EXPECT_TRUE(placeAt(r, 1.7, 0.3, 0.32).reachable);
-  // A 30 cm ledge, a table top, a walled room, the annex beyond poor floor: not reachable,
-  // though each can be stood on.
-  for (const auto& [x, y, top] : {std::tuple{2.5, 0.3, 0.32}, {0.5, 1.5, 0.72}, {2.6, 1.6, 0.02}, {3.3, 0.4, 0.02}}) {
-    const Place& p = placeAt(r, x, y, top);
-    EXPECT_TRUE(p.standable) << x << " " << y;
-    EXPECT_FALSE(p.reachable) << x << " " << y;
+  // A 30 cm ledge, a table top, a walled room: standable, not reachable.
+  for (const auto& [x, y, top] : {std::tuple{2.5, 0.3, 0.32}, {0.5, 1.5, 0.72}, {2.6, 1.6, 0.02}}) {
+    const Place& q = placeAt(r, x, y, top);
+    EXPECT_TRUE(q.standable) << x << " " << y;
+    EXPECT_FALSE(q.reachable) << x << " " << y;
   }
-  // The poor strip and the wall cannot be stood on at all.
+  // The annex lies beyond a 10 cm strip of poor floor: a stride steps over it.
+  EXPECT_TRUE(placeAt(r, 3.3, 0.4, 0.02).reachable);
   EXPECT_FALSE(placeAt(r, 3.05, 0.4, 0.02).standable);
+  // A dais 10 x 10 cm carries no sole; the wall top neither.
+  EXPECT_FALSE(placeAt(r, 0.25, 0.25, 0.18).standable);
   EXPECT_FALSE(placeAt(r, 2.21, 1.5, 1.0).standable);
-  // Headroom under the table: 0.70 - 0.02 m.
   EXPECT_NEAR(placeAt(r, 0.5, 1.5, 0.02).headroom_m, 0.68, 1e-9);
-  EXPECT_TRUE(std::isinf(placeAt(r, 0.5, 1.5, 0.72).headroom_m));
-
-  // Counts: every standable place is one of the regions above.
+  // Clearance: under the table is no longer standable.
+  ReachParams tall = p;
+  tall.robot.clearance_m = 1.0;
+  const Reachability rt = computeReachability(s.tree, {1.505, 0.8, 0.1}, tall);
+  EXPECT_FALSE(placeAt(rt, 0.5, 1.5, 0.02).standable);
+  EXPECT_TRUE(placeAt(rt, 1.5, 1.0, 0.02).reachable);
+  // Short strides do not cross the poor strip.
+  ReachParams short_stride = p;
+  short_stride.robot.max_stride_m = 0.1;
+  short_stride.robot.stance_width_m = 0.1;
+  EXPECT_FALSE(placeAt(computeReachability(s.tree, {1.505, 0.8, 0.1}, short_stride), 3.3, 0.4, 0.02).reachable);
+  // Counting.
   std::size_t reachable = 0;
-  for (const Place& p : r.places()) reachable += p.reachable;
+  for (const Place& q : r.places()) reachable += q.reachable;
   EXPECT_EQ(reachable, r.reachableCount());
-
-  // The dais: tops 7 voxels apart (the noisy floor voxel) may hide a step of nearly 8,
-  // 16 cm, more than 15; within 20 cm it is reachable.
-  EXPECT_TRUE(placeAt(r, 0.19, 0.25, 0.04).reachable);
-  EXPECT_FALSE(placeAt(r, 0.25, 0.25, 0.18).reachable);
-
-  // Each limit moves what is reachable, and only that.
-  ReachParams p;
-  p.max_step_m = 0.30;  // tops 15 voxels apart may hide a step of nearly 16: not enough
-  EXPECT_FALSE(placeAt(computeReachability(s.tree, camera, p), 2.5, 0.3, 0.32).reachable);
-  p.max_step_m = 0.32;
-  EXPECT_TRUE(placeAt(computeReachability(s.tree, camera, p), 2.5, 0.3, 0.32).reachable);
-  p.max_step_m = 0.20;
-  EXPECT_TRUE(placeAt(computeReachability(s.tree, camera, p), 0.25, 0.25, 0.18).reachable);
-  p.max_step_m = 0.09;  // the 10 cm stairs are too high now
-  const Reachability low = computeReachability(s.tree, camera, p);
-  EXPECT_FALSE(placeAt(low, 1.1, 0.3, 0.12).reachable);
-  EXPECT_TRUE(placeAt(low, 0.1, 0.5, 0.02).reachable);
-  p = {};
-  p.max_gap_m = 0.02;  // the 4 cm hole is too wide
-  EXPECT_FALSE(placeAt(computeReachability(s.tree, camera, p), 0.1, 0.5, 0.02).reachable);
-  p.max_gap_m = 0.5;  // a wide gap still never crosses the room's wall or the poor strip
-  const Reachability wide = computeReachability(s.tree, camera, p);
-  EXPECT_FALSE(placeAt(wide, 2.6, 1.6, 0.02).reachable);
-  EXPECT_FALSE(placeAt(wide, 3.3, 0.4, 0.02).reachable);
-  p = {};
-  p.min_mobility = 0.1;  // now the strip is floor too
-  EXPECT_TRUE(placeAt(computeReachability(s.tree, camera, p), 3.3, 0.4, 0.02).reachable);
-  p = {};
-  p.clearance_m = 1.0;  // too tall to stand under the table; the open floor is fine
-  const Reachability tall = computeReachability(s.tree, camera, p);
-  EXPECT_FALSE(placeAt(tall, 0.5, 1.5, 0.02).standable);
-  EXPECT_TRUE(placeAt(tall, 1.5, 1.0, 0.02).reachable);
-  EXPECT_TRUE(placeAt(tall, 0.1, 0.5, 0.02).reachable);  // around the table
-
-  // A start over the table (and below its top, so the table is excluded) starts on the floor.
-  const Reachability under = computeReachability(s.tree, {0.5, 1.5, 0.5});
-  ASSERT_TRUE(under.start());
-  EXPECT_NEAR(under.places()[*under.start()].top_z, 0.02, 1e-9);
-  // Starting on the table reaches the table alone.
-  const Reachability on_table = computeReachability(s.tree, {0.5, 1.5, 1.5});
-  ASSERT_TRUE(on_table.start());
-  EXPECT_EQ(on_table.reachableCount(), 30u * 30u);
-  // Unless the start is on the largest level near the point: the floor.
-  ReachParams largest;
-  largest.start_rule = ReachParams::Start::kLargestLevel;
-  const Reachability floor = computeReachability(s.tree, {0.5, 1.5, 1.5}, largest);
-  ASSERT_TRUE(floor.start());
-  EXPECT_NEAR(floor.places()[*floor.start()].top_z, 0.02, 1e-9);
-  EXPECT_EQ(floor.reachableCount(), r.reachableCount());
-  // Nothing standable near the start: no start, nothing reachable.
-  const Reachability nowhere = computeReachability(s.tree, {10.0, 10.0, 1.0});
-  EXPECT_FALSE(nowhere.start());
-  EXPECT_EQ(nowhere.reachableCount(), 0u);
 }
 
-TEST(SoleSamples, OnePerVoxelCellCentresTurnedWithTheYawAndNoneForInvalidSoles) {
-  for (const double yaw : {0.0, 0.7, M_PI / 2}) {
-    const Foot f{1.0, -2.0, 0.3, yaw, 0.25, 0.12};
-    const std::vector<SoleSample> samples = soleSamples(f, kRes);
-    ASSERT_EQ(samples.size(), 13u * 6u);  // ceil(0.25 / 0.02) x ceil(0.12 / 0.02)
-    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-    std::set<std::pair<long, long>> cells;
-    for (const SoleSample& s : samples) {
-      // Cell centres of a 13 x 6 grid over the sole: a = (i + 0.5) * 0.25 / 13 - 0.125.
-      const double i = (s.a + 0.125) / (0.25 / 13) - 0.5, j = (s.b + 0.06) / 0.02 - 0.5;
-      EXPECT_NEAR(i, std::round(i), 1e-9);
-      EXPECT_NEAR(j, std::round(j), 1e-9);
-      cells.insert({std::lround(i), std::lround(j)});
-      EXPECT_NEAR(s.x, 1.0 + std::cos(yaw) * s.a - std::sin(yaw) * s.b, 1e-12);
-      EXPECT_NEAR(s.y, -2.0 + std::sin(yaw) * s.a + std::cos(yaw) * s.b, 1e-12);
-      mean += Eigen::Vector2d(s.x, s.y);
-    }
-    EXPECT_EQ(cells.size(), samples.size());  // every cell once
-    EXPECT_LT((mean / samples.size() - Eigen::Vector2d(1.0, -2.0)).norm(), 1e-12);
-  }
-  EXPECT_EQ(soleSamples({0, 0, 0, 0, 0.01, 0.01}, kRes).size(), 1u);  // smaller than a voxel: one
-  EXPECT_TRUE(soleSamples({0, 0, 0, 0, 0.0, 0.1}, kRes).empty());
-  EXPECT_TRUE(soleSamples({0, 0, 0, NAN, 0.2, 0.1}, kRes).empty());
-  EXPECT_TRUE(soleSamples({INFINITY, 0, 0, 0, 0.2, 0.1}, kRes).empty());
-  EXPECT_TRUE(soleSamples({0, 0, 0, 0, 1e6, 0.1}, kRes).empty());  // 5e7 voxels long
-  EXPECT_TRUE(soleSamples({0, 0, 0, 0, 0.2, 0.1}, 0.0).empty());
-}
-
-TEST(Reachability, SoleCountsTheSamplesOnReachablePlaces) {
-  const Scene s;
-  const Reachability r = computeReachability(s.tree, {1.505, 0.8, 1.3});
-  // 24 x 12 cm soles: 12 x 6 samples, one per column.
-  const auto sole = [&](double x, double y, double z) { return r.sole({x, y, z, 0.0, 0.24, 0.12}, 0.1, 0.4); };
-  const SoleReach open = sole(1.5, 1.0, 0.02);
-  EXPECT_EQ(open.samples, 72);
-  EXPECT_EQ(open.on_place, 72);
-  EXPECT_EQ(open.reachable, 72);
-  EXPECT_DOUBLE_EQ(open.reachableFraction(), 1.0);
-  // On the ledge (30 cm up): every sample can be stood on, none reached.
-  const SoleReach ledge = sole(2.5, 0.3, 0.32);
-  EXPECT_EQ(ledge.standable, 72);
-  EXPECT_EQ(ledge.reachable, 0);
-  // Across the ledge's edge at x = 2.30, at the ledge's height: the 6 columns of samples
-  // west of it find the floor 0.30 m down (within the 0.4 searched), the 6 east of it the ledge.
-  const SoleReach edge = sole(2.30, 0.3, 0.32);
-  EXPECT_EQ(edge.on_place, 72);
-  EXPECT_EQ(edge.standable, 72);
-  EXPECT_EQ(edge.reachable, 36);
-  EXPECT_DOUBLE_EQ(edge.reachableFraction(), 0.5);
-  // Searching only 0.1 m down, the floor is out of the band: the west half finds nothing.
-  const SoleReach shallow = r.sole({2.30, 0.3, 0.32, 0.0, 0.24, 0.12}, 0.1, 0.1);
-  EXPECT_EQ(shallow.on_place, 36);
-  EXPECT_EQ(shallow.reachable, 0);
-  // Over the 4 cm hole (x in [0.40, 0.44)): two of its 12 columns of samples have no place.
-  const SoleReach hole = sole(0.42, 0.5, 0.02);
-  EXPECT_EQ(hole.on_place, 60);
-  EXPECT_EQ(hole.reachable, 60);
-  EXPECT_NEAR(hole.reachableFraction(), 60.0 / 72.0, 1e-12);
-  // The poor strip (mobility 0.2) is a place but cannot be stood on.
-  const SoleReach poor = r.sole({3.05, 0.4, 0.02, 0.0, 0.08, 0.08}, 0.1, 0.1);
-  EXPECT_EQ(poor.on_place, 16);
-  EXPECT_EQ(poor.standable, 0);
-  // Turned a quarter: the same sole across the edge now lies along it, on the floor side.
-  const SoleReach along = r.sole({2.28, 0.3, 0.32, M_PI / 2, 0.24, 0.12}, 0.1, 0.4);
-  EXPECT_EQ(along.samples, 72);
-  EXPECT_EQ(along.reachable, 48);  // x = 2.23 ... 2.33: 4 of its 6 rows are west of 2.30
-  EXPECT_EQ(Reachability().sole({0, 0, 0, 0, 0.2, 0.1}).samples, 0);
-}
-
-TEST(Reachability, RejectsInvalidParamsAndStartsNamingThem) {
-  const MobilityOcTree t(kRes);
-  for (const auto& [field, set] : std::vector<std::pair<std::string, std::function<void(ReachParams&)>>>{
-           {"max_step_m", [](ReachParams& p) { p.max_step_m = -0.1; }},
-           {"max_step_m", [](ReachParams& p) { p.max_step_m = 0.039; }},  // under two 2 cm voxels
-           {"min_mobility", [](ReachParams& p) { p.min_mobility = 1.5; }},
-           {"clearance_m", [](ReachParams& p) { p.clearance_m = NAN; }},
-           {"max_gap_m", [](ReachParams& p) { p.max_gap_m = 2.0; }},
-           {"start_radius_m", [](ReachParams& p) { p.start_radius_m = -1; }}}) {
-    ReachParams p;
-    set(p);
-    try {
-      (void)computeReachability(t, Eigen::Vector3d::Zero(), p);
-      ADD_FAILURE() << field;
-    } catch (const std::invalid_argument& e) {
-      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
-    }
-  }
-  EXPECT_THROW((void)computeReachability(t, Eigen::Vector3d(0, NAN, 0)), std::invalid_argument);
-}
-
-// The same rule, written out from a set of voxels with no intervals, no pruning, no
-// queue: places as the tops of runs in each column, edges by brute force over all pairs,
-// connectivity by relaxing until nothing changes.
-std::set<std::tuple<int, int, int>> bruteForceReachable(const std::set<std::tuple<int, int, int>>& occupied,
-                                                       const std::map<std::tuple<int, int, int>, double>& mobility,
-                                                       const ReachParams& p, const Eigen::Vector3d& start) {
-  struct P {
-    int i, j, k;
-    bool standable;
-  };
-  std::vector<P> places;
-  const int step = static_cast<int>(std::floor(p.max_step_m / kRes + 1e-6)) - 1;  // a voxel of margin
-  const int gap = static_cast<int>(std::floor(p.max_gap_m / kRes + 1e-6));
-  const int clear = static_cast<int>(std::ceil(p.clearance_m / kRes - 1e-6));
-  for (const auto& [i, j, k] : occupied) {
-    if (occupied.count({i, j, k + 1})) continue;  // not the top of its run
-    // Mobility: the top voxel's, else the highest in the run with one.
-    std::optional<double> m;
-    for (int kk = k; occupied.count({i, j, kk}) && !m; --kk) {
-      const auto f = mobility.find({i, j, kk});
-      if (f != mobility.end()) m = f->second;
-    }
-    int above = 1;
-    while (above <= clear && !occupied.count({i, j, k + above})) ++above;
-    places.push_back({i, j, k, m && *m >= p.min_mobility && above > clear});
-  }
-  const auto occupiedIn = [&](int i, int j, int lo, int hi) {
-    for (int k = lo; k <= hi; ++k) {
-      if (occupied.count({i, j, k})) return true;
-    }
-    return false;
-  };
-  const auto edge = [&](const P& a, const P& b) {
-    if (!a.standable || !b.standable || std::abs(a.k - b.k) > step) return false;
-    const int di = b.i - a.i, dj = b.j - a.j;
-    const int n = std::max(std::abs(di), std::abs(dj));
-    if (n == 0 || n > 1 + gap) return false;
-    if ((di != 0 && std::abs(di) != n) || (dj != 0 && std::abs(dj) != n)) return false;  // not on one of 8 lines
-    for (int m = 1; m < n; ++m) {
-      if (occupiedIn(a.i + m * di / n, a.j + m * dj / n, std::min(a.k, b.k) - step, std::max(a.k, b.k) + std::max(step, clear))) {
-        return false;
-      }
-    }
-    return true;
-  };
-  // Regions: every standable place starts in its own, joined along edges until stable.
-  std::vector<std::size_t> label(places.size());
-  for (std::size_t q = 0; q < places.size(); ++q) label[q] = q;
-  for (bool changed = true; changed;) {
-    changed = false;
-    for (std::size_t a = 0; a < places.size(); ++a) {
-      for (std::size_t b = 0; b < places.size(); ++b) {
-        if (label[b] > label[a] && edge(places[a], places[b])) label[b] = label[a], changed = true;
-      }
-    }
-  }
-  // The largest level: the height with the most standable places within 2 voxels (4 cm), the lowest of equals.
-  int level = 0;
-  long most = 0;
-  for (int k = -20; k < 40; ++k) {
-    const long n = std::count_if(places.begin(), places.end(), [&](const P& o) { return o.standable && std::abs(o.k - k) <= 2; });
-    if (n > most) most = n, level = k;
-  }
-  const bool largest = p.start_rule == ReachParams::Start::kLargestLevel;
-  const auto regionSize = [&](std::size_t q) { return largest ? std::count(label.begin(), label.end(), label[q]) : 0L; };
-  // Start: among the standable places within the radius with their top at or below the
-  // start's z + step (and on the largest level, if asked), the largest region (if asked),
-  // then the nearest column, then the highest.
-  int best = -1;
-  const auto d2 = [&](const P& c) {
-    const double x = (c.i + 0.5) * kRes - start.x(), y = (c.j + 0.5) * kRes - start.y();
-    return x * x + y * y;
-  };
-  for (std::size_t q = 0; q < places.size(); ++q) {
-    const P& a = places[q];
-    if (!a.standable || (a.k + 1) * kRes > start.z() + p.max_step_m + 1e-9 || d2(a) > p.start_radius_m * p.start_radius_m + 1e-12) {
-      continue;
-    }
-    if (largest && std::abs(a.k - level) > 2) continue;
-    if (best < 0) {
-      best = static_cast<int>(q);
-      continue;
-    }
-    const auto b = static_cast<std::size_t>(best);
-    const long sa = regionSize(q), sb = regionSize(b);
-    if (sa > sb || (sa == sb && (d2(a) < d2(places[b]) - 1e-12 || (d2(a) <= d2(places[b]) + 1e-12 && a.k > places[b].k)))) {
-      best = static_cast<int>(q);
-    }
-  }
-  std::vector<bool> reached(places.size(), false);
-  for (std::size_t q = 0; q < places.size() && best >= 0; ++q) reached[q] = places[q].standable && label[q] == label[static_cast<std::size_t>(best)];
-  std::set<std::tuple<int, int, int>> out;
-  for (std::size_t q = 0; q < places.size(); ++q) {
-    if (reached[q]) out.insert({places[q].i, places[q].j, places[q].k});
-  }
-  return out;
-}
-
-TEST(Reachability, EqualsABruteForceReferenceOnRandomMapsWithPrunedBlocks) {
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  int nonempty = 0, pruned = 0;
-  for (int trial = 0; trial < 40; ++trial) {
-    SCOPED_TRACE(trial);
-    MobilityOcTree t(kRes);
-    std::set<std::tuple<int, int, int>> occupied;
-    std::map<std::tuple<int, int, int>, double> mobility;
-    const auto set = [&](int i, int j, int k, std::optional<double> m) {
-      // One log-odds for all, so equal blocks prune.
-      auto* n = t.setNodeValue(octomap::point3d(static_cast<float>((i + 0.5) * kRes), static_cast<float>((j + 0.5) * kRes),
-                                                static_cast<float>((k + 0.5) * kRes)),
-                               2.0f);
-      if (m) {
-        n->setMobility(*m, 50.0, 2);
-        mobility[{i, j, k}] = *m;
-      } else {
-        n->clearMobility();
-        mobility.erase({i, j, k});
-      }
-      occupied.insert({i, j, k});
-    };
-    // A terrain of 16 x 16 columns: a height field with holes, some columns stacked with
-    // a second level, and 2 x 2 x 2 blocks of one value that prune into one node.
-    for (int i = 0; i < 16; ++i) {
-      for (int j = 0; j < 16; ++j) {
-        if (u(rng) < 0.12) continue;  // a hole
-        const int h = static_cast<int>(u(rng) * 6);
-        const auto m = u(rng) < 0.1 ? std::nullopt : std::optional<double>(u(rng) < 0.25 ? 0.2 : 0.9);
-        for (int k = std::max(0, h - 1); k <= h; ++k) set(i, j, k, m);
-        if (u(rng) < 0.15) set(i, j, h + 3 + static_cast<int>(u(rng) * 8), 0.9);  // an overhang or second level
-      }
-    }
-    for (int b = 0; b < 4; ++b) {  // aligned blocks, identical voxels
-      const int i0 = 2 * static_cast<int>(u(rng) * 8), j0 = 2 * static_cast<int>(u(rng) * 8), k0 = 2 * static_cast<int>(u(rng) * 4);
-      for (int di = 0; di < 2; ++di) {
-        for (int dj = 0; dj < 2; ++dj) {
-          for (int dk = 0; dk < 2; ++dk) set(i0 + di, j0 + dj, k0 + dk, 0.9);
+// A random terraced map: blocks of random height (0..12 voxels) and mobility on a floor,
+// some holes, some thin posts.
+MobilityOcTree randomMap(std::mt19937& rng) {
+  MobilityOcTree t(kRes);
+  std::uniform_int_distribution<int> height(0, 12), coin(0, 9);
+  std::uniform_real_distribution<double> mob(0.0, 1.0);
+  for (int bi = 0; bi < 8; ++bi) {
+    for (int bj = 0; bj < 6; ++bj) {
+      const int h = coin(rng) < 4 ? 0 : height(rng);
+      const double m = coin(rng) < 7 ? 0.6 + 0.4 * mob(rng) : mob(rng);
+      const bool hole = coin(rng) == 0;
+      for (int i = bi * 12; i < bi * 12 + 12; ++i) {
+        for (int j = bj * 12; j < bj * 12 + 12; ++j) {
+          if (hole) continue;
+          for (int k = 0; k <= h; ++k) put(t, i, j, k, k == h ? m : 0.0);
         }
       }
     }
-    t.updateInnerOccupancy();
-    t.prune();
-    for (auto it = t.begin_leafs(); it != t.end_leafs(); ++it) pruned += it.getSize() > 1.5 * kRes;
-    ReachParams p;
-    p.max_step_m = 0.02 * (2 + static_cast<int>(u(rng) * 3));
-    p.max_gap_m = 0.02 * static_cast<int>(u(rng) * 3);
-    p.clearance_m = u(rng) < 0.5 ? 0.0 : 0.02 * static_cast<int>(1 + u(rng) * 6);
-    p.min_mobility = 0.5;
-    p.start_radius_m = 0.1;
-    p.start_rule = trial % 2 ? ReachParams::Start::kLargestLevel : ReachParams::Start::kNearest;
-    const Eigen::Vector3d start(0.16, 0.16, 0.3);
-    const Reachability r = computeReachability(t, start, p);
-    std::set<std::tuple<int, int, int>> got;
-    for (const Place& pl : r.places()) {
-      if (pl.reachable) got.insert({pl.key[0] - 32768, pl.key[1] - 32768, pl.key[2] - 32768});
-    }
-    const auto want = bruteForceReachable(occupied, mobility, p, start);
-    EXPECT_EQ(got, want);
-    nonempty += want.size() > 20;
   }
-  EXPECT_GT(nonempty, 10);  // the comparison was about something
-  EXPECT_GT(pruned, 20);    // and pruned blocks were in it
+  for (int n = 0; n < 20; ++n) {
+    std::uniform_int_distribution<int> ci(0, 95), cj(0, 71);
+    const int i = ci(rng), j = cj(rng);
+    for (int k = 0; k < 20; ++k) put(t, i, j, k, 0.0);
+  }
+  return t;
+}
+
+TEST(Reachability, ReachableSetNeverShrinksWhenLimitsLoosen) {
+  std::mt19937 rng(7);
+  int grew = 0;
+  for (int m = 0; m < 12; ++m) {
+    const MobilityOcTree t = randomMap(rng);
+    const auto columns = std::make_shared<const SurfaceColumns>(t);
+    const Eigen::Vector3d start(0.9, 0.7, 0.5);
+    std::vector<std::pair<double, double>> limits;  // (max_step, min_mobility), each looser than the last
+    for (const double step : {0.06, 0.1, 0.15, 0.2, 0.3}) limits.emplace_back(step, 0.9 - step);
+    std::optional<Reachability> before;
+    for (const auto& [step, mob] : limits) {
+      ReachParams p;
+      p.robot.max_step_m = step, p.robot.min_mobility = mob;
+      p.start_radius_m = 0.5;
+      Reachability r = computeReachability(columns, start, p);
+      if (before) {
+        ASSERT_EQ(r.footPlaces().size(), before->footPlaces().size());
+        for (std::size_t f = 0; f < r.footPlaces().size(); ++f) {
+          if (before->footPlaces()[f].reachable) ASSERT_TRUE(r.footPlaces()[f].reachable) << "map " << m << " step " << step;
+        }
+        for (std::size_t q = 0; q < r.places().size(); ++q) {
+          if (before->places()[q].reachable) ASSERT_TRUE(r.places()[q].reachable) << "map " << m << " step " << step;
+        }
+        grew += r.reachableCount() > before->reachableCount();
+      }
+      before = std::move(r);
+    }
+  }
+  EXPECT_GT(grew, 5);  // the property is not vacuous: looser limits do reach more
+}
+
+TEST(Reachability, RejectsInvalidParamsAndStartsNamingThem) {
+  const Scene s;
+  const auto fails = [&](const std::function<void(ReachParams&)>& change, const std::string& field) {
+    ReachParams p;
+    change(p);
+    try {
+      (void)computeReachability(s.tree, {1.5, 0.8, 0.1}, p);
+      ADD_FAILURE() << field << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+  };
+  fails([](ReachParams& p) { p.robot.max_step_m = -0.1; }, "max_step_m");
+  fails([](ReachParams& p) { p.robot.max_step_m = 0.03; }, "max_step_m");  // under two voxels
+  fails([](ReachParams& p) { p.robot.min_mobility = 1.5; }, "min_mobility");
+  fails([](ReachParams& p) { p.robot.sole_length_m = 0; }, "sole_length_m");
+  fails([](ReachParams& p) { p.robot.max_tilt_deg = std::nan(""); }, "max_tilt_deg");
+  fails([](ReachParams& p) { p.start_radius_m = -1; }, "start_radius_m");
+  EXPECT_THROW((void)computeReachability(s.tree, {std::nan(""), 0, 0}, {}), std::invalid_argument);
+  // Far from any surface: no start, nothing reachable.
+  const Reachability r = computeReachability(s.tree, {50, 50, 0}, {});
+  EXPECT_FALSE(r.start());
+  EXPECT_EQ(r.reachableCount(), 0u);
+}
+
+TEST(FootstepPlanner, StairsOfTenCentimetresAcrossTheFloorAndBadInput) {
+  const Scene s;
+  PlanParams p;
+  // Up the 10 cm stairs to the platform (tops 0.32).
+  const Plan up = planFootsteps(s.tree, {0.7, 0.3, 0.02}, {1.8, 0.3, 0.32}, p);
+  ASSERT_TRUE(up.found) << up.reason;
+  EXPECT_NEAR(up.footsteps.back().z, 0.32, 0.01);
+  for (std::size_t i = 1; i < up.footsteps.size(); ++i) {
+    const Footstep& a = up.footsteps[i - 1];
+    const Footstep& b = up.footsteps[i];
+    EXPECT_NE(a.side, b.side) << i;
+    EXPECT_LE(std::abs(b.z - a.z) + kRes, p.robot.max_step_m + 1e-9) << i;
+    EXPECT_LE(std::hypot(b.x - a.x, b.y - a.y), p.robot.max_stride_m + 1e-9) << i;
+    EXPECT_GE(b.min_mobility, 0.0);
+  }
+  // Every tread is stood on.
+  for (const double tread : {0.12, 0.22}) {
+    bool on = false;
+    for (const Footstep& f : up.footsteps) on = on || std::abs(f.z - tread) < 0.01;
+    EXPECT_TRUE(on) << tread;
+  }
+  // The ledge is 30 cm up: no plan, and the reason names the step.
+  const Plan ledge = planFootsteps(s.tree, {2.0, 0.3, 0.02}, {2.55, 0.3, 0.32}, p);
+  EXPECT_FALSE(ledge.found);
+  EXPECT_NE(ledge.reason.find("--max-step"), std::string::npos) << ledge.reason;
+  // The goal on the wall top: cannot be stood on.
+  const Plan wall = planFootsteps(s.tree, {1.5, 1.0, 0.02}, {2.21, 1.5, 1.0}, p);
+  EXPECT_FALSE(wall.found);
+  EXPECT_NE(wall.reason.find("cannot be stood on"), std::string::npos) << wall.reason;
+  // Outside the map, NaN, absurd robots.
+  EXPECT_THROW((void)planFootsteps(s.tree, {50, 50, 0}, {1, 1, 0}, p), PlanInputError);
+  EXPECT_THROW((void)planFootsteps(s.tree, {1, 1, 0}, {1, std::nan(""), 0}, p), std::invalid_argument);
+  PlanParams bad = p;
+  bad.robot.sole_width_m = -1;
+  EXPECT_THROW((void)planFootsteps(s.tree, {1, 1, 0}, {2, 1, 0}, bad), std::invalid_argument);
+  bad = p;
+  bad.time_limit_s = 0;
+  EXPECT_THROW((void)planFootsteps(s.tree, {1, 1, 0}, {2, 1, 0}, bad), std::invalid_argument);
 }
 
 }  // namespace

@@ -148,6 +148,8 @@ TEST(CorridorScene, DeterministicForASeedAndSeedChangesNoise) {
 TEST(CorridorScene, KinectNoiseGrowsWithTheSquareOfDepth) {
   CorridorParams p;
   p.noise = NoiseModel::kKinect;
+  p.kinect.edge_window_px = 0;  // the per-pixel noise alone: no edge smoothing, no shadow
+  p.kinect.projector_shadow = false;
   const CorridorScene scene(p);
   // Residuals binned by depth: sigma(z) = sqrt((s1 z^2)^2 + q(z)^2 / 12), q the
   // disparity quantisation step in depth, z^2 / (fx b) / 8.
@@ -178,6 +180,8 @@ TEST(CorridorScene, KinectNoiseGrowsWithTheSquareOfDepth) {
 TEST(CorridorScene, GrazingReturnsGoMissingWithKinectNoise) {
   CorridorParams p;
   p.noise = NoiseModel::kKinect;
+  p.kinect.edge_window_px = 0;  // the per-pixel noise alone: no edge smoothing, no shadow
+  p.kinect.projector_shadow = false;
   const CorridorScene scene(p);
   const auto tris = scene.trianglesAt(40);
   const auto rc = castRays(tris, p.intrinsics, scene.cameraPose(40));

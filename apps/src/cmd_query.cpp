@@ -73,26 +73,33 @@ nlohmann::json placeJson(const mapping::Place* p) {
           {"headroom_m", std::isfinite(p->headroom_m) ? nlohmann::json(p->headroom_m) : nlohmann::json(nullptr)}};
 }
 
-// The reach line of a point's answer (text). A place that cannot be stood on says which
-// of the robot's limits it fails: unknown mobility, too low a mobility, or too little
-// headroom for --clearance.
-void printPlace(const mapping::Place* p, double drop, const mapping::ReachParams& robot) {
+// The reach line of a point's answer (text).
+void printPlace(const mapping::Place* p, double drop) {
   if (!p) {
     std::printf("  reach: no surface within %.3f m below\n", drop);
   } else if (p->reachable) {
     std::printf("  reach: surface top at z = %.3f m, reachable\n", p->top_z);
   } else if (p->standable) {
     std::printf("  reach: surface top at z = %.3f m, can be stood on but not reached\n", p->top_z);
-  } else if (!p->has_mobility) {
-    std::printf("  reach: surface top at z = %.3f m, cannot be stood on (mobility unknown)\n", p->top_z);
-  } else if (p->mobility < robot.min_mobility) {
-    std::printf("  reach: surface top at z = %.3f m, cannot be stood on (mobility %.3f, under --min-mobility %g)\n",
-                p->top_z, p->mobility, robot.min_mobility);
   } else {
-    std::printf("  reach: surface top at z = %.3f m, cannot be stood on (mobility %.3f, but %.3f m free above it, under "
-                "--clearance %g)\n",
-                p->top_z, p->mobility, p->headroom_m, robot.clearance_m);
+    std::printf("  reach: surface top at z = %.3f m, cannot be stood on (no sole the robot can stand on rests on it; "
+                "ask with --foot for the reason)\n",
+                p->top_z);
   }
+}
+
+// A sole's foot-scale answer for JSON.
+nlohmann::json soleReachJson(const mapping::SoleReach& r) {
+  const mapping::Foothold& f = r.foothold;
+  nlohmann::json j{{"standable", r.standable},
+                   {"reachable", r.reachable},
+                   {"support_fraction", f.support_fraction},
+                   {"min_mobility", f.min_mobility},
+                   {"tilt_deg", f.tilt_deg},
+                   {"unevenness_m", f.unevenness_m}};
+  j["support_z"] = f.has_plane ? nlohmann::json(f.z) : nlohmann::json(nullptr);
+  j["problem"] = r.standable ? nlohmann::json(nullptr) : nlohmann::json(mapping::toString(f.problem));
+  return j;
 }
 
 void printPoint(const mapping::PointQuery& q) {
@@ -136,8 +143,9 @@ Command addQueryCommand(CLI::App& app) {
   auto* reach = cmd->add_flag(
       "--reach", o->reach,
       "Also say whether the robot can get there (as `mobmap reach`, with its options below): for a point, the surface "
-      "under it (the top of the occupied run at or below it, within --snap or one voxel); for a sole, how many of its "
-      "samples rest on reachable surfaces");
+      "under it (the top of the occupied run at or below it, within --snap or one voxel: is it under a sole the robot "
+      "can stand on, and reach?); for a sole, can the robot stand on it, and get there in one step from a reachable "
+      "sole?");
   addReachOptions(*cmd, o->robot, "--input-frame");
   for (CLI::Option* opt : o->robot.options) opt->needs(reach);
   return [o]() {
@@ -150,11 +158,11 @@ Command addQueryCommand(CLI::App& app) {
     std::optional<ReachRun> run;
     if (o->reach) {
       run = runReach(o->robot, map, o->map, o->frame == "world", cameraPath(metadataJson(metadata)));
-      const mapping::Place& s = run->result.places()[*run->result.start()];
+      const mapping::FootPlace& s = run->result.footPlaces()[*run->result.start()];
       std::fprintf(stderr,
-                   "note: reach from the surface at (%.2f, %.2f, %.2f) m, map frame (%s rule): %zu of %zu places to stand "
-                   "are reachable\n",
-                   s.x, s.y, s.top_z, o->robot.rule.c_str(), run->result.reachableCount(), run->result.standableCount());
+                   "note: reach from the surface at (%.2f, %.2f, %.2f) m, map frame (%s rule): %zu of %zu surface voxels "
+                   "under soles the robot can stand on are reachable\n",
+                   s.x, s.y, s.z, o->robot.rule.c_str(), run->result.reachableCount(), run->result.standableCount());
     }
     // A sole: X Y Z YAW LENGTH WIDTH. `where` names its source in errors.
     auto answerFoot = [&](const std::vector<double>& s, const std::string& where) {
@@ -189,11 +197,7 @@ Command addQueryCommand(CLI::App& app) {
                                                                   {"rms_m", f.support_rms_m}}
                                                  : nlohmann::json();
         if (sole_reach) {
-          j["reach"] = {{"samples", sole_reach->samples},
-                        {"on_place", sole_reach->on_place},
-                        {"standable", sole_reach->standable},
-                        {"reachable", sole_reach->reachable},
-                        {"reachable_fraction", sole_reach->reachableFraction()}};
+          j["reach"] = soleReachJson(*sole_reach);
         }
         std::cout << j.dump() << "\n";
       } else {
@@ -207,9 +211,17 @@ Command addQueryCommand(CLI::App& app) {
         }
         if (sole_reach) {
           const mapping::SoleReach& r = *sole_reach;
-          std::printf("  reach: %d of %d samples on reachable surfaces (%.0f %%); %d on surfaces that can be stood on, %d on "
-                      "any surface\n",
-                      r.reachable, r.samples, 100 * r.reachableFraction(), r.standable, r.on_place);
+          const mapping::Foothold& fh = r.foothold;
+          if (r.reachable) {
+            std::printf("  reach: the robot can stand here and get here (support z = %.3f m)\n", fh.z);
+          } else if (r.standable) {
+            std::printf("  reach: the robot can stand here (support z = %.3f m) but not get here from the start\n", fh.z);
+          } else {
+            std::printf("  reach: the robot cannot stand here: %s (known surface %.0f %% of the sole, min mobility %.2f, "
+                        "tilt %.1f deg, unevenness %.3f m)\n",
+                        mapping::toString(fh.problem), 100 * fh.support_fraction, fh.min_mobility, fh.tilt_deg,
+                        fh.unevenness_m);
+          }
         }
       }
     };
@@ -247,7 +259,7 @@ Command addQueryCommand(CLI::App& app) {
         } else {
           std::printf("no surface within %.3f m below (%.3f, %.3f, %.3f)\n", o->snap, p.x(), p.y(), p.z());
         }
-        if (run) printPlace(place, drop, o->robot.params);
+        if (run) printPlace(place, drop);
       }
     };
     if (!o->xyz.empty()) {

@@ -53,8 +53,9 @@ Command addReachCommand(CLI::App& app) {
                   "Top view of the highest surface per column: reachable in mobility colours, purple where it can be stood on "
                   "but not reached, pale where it cannot be stood on");
   cmd->add_option("--pcd", o->pcd,
-                  "Every place (the top voxel of each run of occupied voxels in a column) at its top face, with fields "
-                  "mobility (nan if unknown), standable and reachable (0 or 1); map frame, ASCII");
+                  "Every surface (the top voxel of each run of occupied voxels in a column) at its top face, with fields "
+                  "mobility (nan if unknown), standable and reachable (0 or 1: under a standable or reachable sole); map "
+                  "frame, ASCII");
   cmd->add_option("--octovis", o->octovis,
                   "A ColorOcTree .ot for stock octovis, in the picture's colours: each place reachable in mobility colours, "
                   "purple where it can be stood on but not reached, every other occupied voxel (walls, the voxels under a "
@@ -79,7 +80,7 @@ Command addReachCommand(CLI::App& app) {
     const mapping::Reachability& r = run.result;
     const Eigen::Vector3d& start = run.from;
     const std::string& rule = o->reach.rule;
-    const mapping::Place& s = r.places()[*r.start()];
+    const mapping::FootPlace& s = r.footPlaces()[*r.start()];
     const double res = r.resolution(), cell_m2 = res * res;
     // Where the standable places that cannot be reached gather.
     std::map<long, std::size_t> bins;
@@ -90,13 +91,21 @@ Command addReachCommand(CLI::App& app) {
     const std::vector<Level> levels = gatherLevels(std::move(bins), res);
     const auto& q = o->reach.params;
     if (o->json) {
-      nlohmann::json j{{"start", {{"from", {start.x(), start.y(), start.z()}}, {"rule", rule}, {"place", {s.x, s.y, s.top_z}}}},
+      nlohmann::json j{{"start", {{"from", {start.x(), start.y(), start.z()}}, {"rule", rule}, {"place", {s.x, s.y, s.z}}, {"soles", r.startFeet().size()}}},
                        {"frame", "map"},
                        {"params",
-                        {{"max_step_m", q.max_step_m},
-                         {"min_mobility", q.min_mobility},
-                         {"clearance_m", q.clearance_m},
-                         {"max_gap_m", q.max_gap_m},
+                        {{"max_step_m", q.robot.max_step_m},
+                         {"min_mobility", q.robot.min_mobility},
+                         {"clearance_m", q.robot.clearance_m},
+                         {"max_gap_m", q.robot.max_gap_m},
+                         {"sole_length_m", q.robot.sole_length_m},
+                         {"sole_width_m", q.robot.sole_width_m},
+                         {"min_support_fraction", q.robot.min_support_fraction},
+                         {"max_tilt_deg", q.robot.max_tilt_deg},
+                         {"max_unevenness_m", q.robot.max_unevenness_m},
+                         {"max_stride_m", q.robot.max_stride_m},
+                         {"swing_clearance_m", q.robot.swing_clearance_m},
+                         {"lattice_m", q.robot.lattice_m},
                          {"start_radius_m", q.start_radius_m}}},
                        {"standable", {{"places", r.standableCount()}, {"area_m2", r.standableCount() * cell_m2}}},
                        {"reachable", {{"places", r.reachableCount()}, {"area_m2", r.reachableCount() * cell_m2}}},
@@ -105,16 +114,19 @@ Command addReachCommand(CLI::App& app) {
       for (const Level& l : levels) j["unreachable_levels"].push_back({{"z_m", l.z_m}, {"places", l.count}, {"share", l.share}});
       std::cout << j.dump() << "\n";
     } else {
-      std::printf("start: the surface at (%.2f, %.2f, %.2f) m, map frame (%s within %.2f m of %s)\n", s.x, s.y, s.top_z,
-                  rule == "nearest" ? "the nearest place to stand"
-                                    : "in the largest region of the map's largest walkable level, the nearest",
+      std::printf("start: the surface at (%.2f, %.2f, %.2f) m, map frame (%zu soles: %s within %.2f m of %s)\n", s.x, s.y,
+                  s.z, r.startFeet().size(),
+                  rule == "nearest" ? "the nearest place for a sole" : "every standable sole on the map's largest level",
                   q.start_radius_m, o->reach.from.empty() ? "the first camera position" : "--from");
-      std::printf("robot: steps up to %.2f m, gaps up to %.2f m, stands on mobility >= %.2f, ", q.max_step_m, q.max_gap_m,
-                  q.min_mobility);
-      if (q.clearance_m > 0) {
-        std::printf("needs %.2f m of clearance\n", q.clearance_m);
+      const auto& b = q.robot;
+      std::printf("robot: %.2f x %.2f m soles on mobility >= %.2f (%.0f %% of the sole on known surface, tilt up to %.0f deg, "
+                  "unevenness up to %.2f m); steps up to %.2f m, strides up to %.2f m, swing %.2f m high, gaps up to %.2f m",
+                  b.sole_length_m, b.sole_width_m, b.min_mobility, 100 * b.min_support_fraction, b.max_tilt_deg,
+                  b.max_unevenness_m, b.max_step_m, b.max_stride_m, b.swing_clearance_m, b.max_gap_m);
+      if (b.clearance_m > 0) {
+        std::printf(", needs %.2f m of clearance\n", b.clearance_m);
       } else {
-        std::printf("clearance not checked\n");
+        std::printf("\n");
       }
       const double standable = static_cast<double>(r.standableCount());
       std::printf("places to stand: %zu (%.2f m2)\n", r.standableCount(), standable * cell_m2);
@@ -172,8 +184,9 @@ Command addReachCommand(CLI::App& app) {
     }
     TopViewPicture picture;
     char title[200];
-    std::snprintf(title, sizeof title, "REACHABLE FROM THE START: STEPS UP TO %.2f M, GAPS UP TO %.2f M, MOBILITY >= %.2f%s",
-                  q.max_step_m, q.max_gap_m, q.min_mobility, q.clearance_m > 0 ? ", WITH CLEARANCE" : "");
+    std::snprintf(title, sizeof title, "REACHABLE FROM THE START: %.2f X %.2f M SOLES, STEPS UP TO %.2f M, MOBILITY >= %.2f%s",
+                  q.robot.sole_length_m, q.robot.sole_width_m, q.robot.max_step_m, q.robot.min_mobility,
+                  q.robot.clearance_m > 0 ? ", WITH CLEARANCE" : "");
     picture.title = title;
     if (max_z->count() > 0) {
       std::snprintf(title, sizeof title, " (HIGHEST SURFACE AT OR BELOW Z = %.2f M)", o->max_z);

@@ -20,6 +20,7 @@ Command addSimulateCommand(CLI::App& app) {
     int frames = sim::CorridorParams{}.frames;
     std::uint64_t seed = 1;
     std::string noise = "kinect";
+    int edge_window = sim::KinectNoiseParams{}.edge_window_px;
     bool force = false;
     bool quiet = false;
   };
@@ -30,6 +31,11 @@ Command addSimulateCommand(CLI::App& app) {
   cmd->add_option("--seed", o->seed, "Noise seed")->capture_default_str();
   cmd->add_option("--noise", o->noise, "Depth noise model: none (exact depth, 1 mm PNG quantisation) or kinect")
       ->check(CLI::IsMember({"none", "kinect"}))->capture_default_str();
+  cmd->add_option("--edge-window", o->edge_window,
+                  "With --noise kinect: the depth sensor's correlation window in pixels (odd), over which depth edges "
+                  "are smoothed and mixed; 0 gives sharp edges (docs/SIMULATOR.md)")
+      ->check(CLI::Range(0, 31))
+      ->capture_default_str();
   cmd->add_flag("--force", o->force, "Write into a directory that already holds a sequence");
   cmd->add_flag("--quiet,-q", o->quiet, "No progress output");
   return [o]() {
@@ -42,6 +48,12 @@ Command addSimulateCommand(CLI::App& app) {
     p.frames = o->frames;
     p.seed = o->seed;
     p.noise = o->noise == "kinect" ? sim::NoiseModel::kKinect : sim::NoiseModel::kNone;
+    p.kinect.edge_window_px = o->edge_window;
+    try {
+      sim::validate(p);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
     const sim::CorridorScene scene(p);
     Progress progress("simulate", p.frames, o->quiet);
     const int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));

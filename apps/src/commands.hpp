@@ -54,6 +54,7 @@ Command addAnalyzeCommand(CLI::App& app);
 Command addBuildCommand(CLI::App& app);
 Command addQueryCommand(CLI::App& app);
 Command addReachCommand(CLI::App& app);
+Command addPlanCommand(CLI::App& app);
 Command addInfoCommand(CLI::App& app);
 Command addEvaluateCommand(CLI::App& app);
 Command addExportCommand(CLI::App& app);

@@ -47,6 +47,7 @@ int main(int argc, char** argv) {
   commands["build"] = mobmap::app::addBuildCommand(app);
   commands["query"] = mobmap::app::addQueryCommand(app);
   commands["reach"] = mobmap::app::addReachCommand(app);
+  commands["plan"] = mobmap::app::addPlanCommand(app);
   commands["info"] = mobmap::app::addInfoCommand(app);
   commands["evaluate"] = mobmap::app::addEvaluateCommand(app);
   commands["export"] = mobmap::app::addExportCommand(app);

@@ -24,9 +24,14 @@ struct ReachOptions {
   std::vector<CLI::Option*> options;  ///< every option added, for needs()
 };
 
-/// Adds --from, --max-step, --min-mobility, --clearance, --max-gap, --start-radius and
-/// --start to `cmd`, writing into `o` (which must outlive the parse). `from_frame_option`
-/// names the option that sets the frame --from is given in.
+/// Adds the robot's options (--sole, --max-step, --min-mobility, --min-support, --max-tilt,
+/// --max-unevenness, --clearance, --max-stride, --swing-clearance, --max-gap,
+/// --stance-width, --lattice) to `cmd`, writing into `robot`; returns them (for needs()).
+std::vector<CLI::Option*> addRobotOptions(CLI::App& cmd, mapping::RobotParams& robot);
+
+/// Adds --from, the robot's options (addRobotOptions), --start-radius and --start to
+/// `cmd`, writing into `o` (which must outlive the parse). `from_frame_option` names the
+/// option that sets the frame --from is given in.
 void addReachOptions(CLI::App& cmd, ReachOptions& o, const std::string& from_frame_option);
 
 /// Resolves the defaults (start rule and radius by whether --from was given) and checks

@@ -145,9 +145,17 @@ Canvas drawTopView(const TopView& view, const TopViewPicture& pic, int max_pixel
   std::size_t longest_label = 11;  // "CAMERA PATH"
   for (const auto& s : pic.swatches) longest_label = std::max(longest_label, s.second.size());
   longest_label = std::max(longest_label, pic.mark_label.size());
+  std::vector<std::pair<Rgb, std::string>> outline_labels;
+  for (const auto& o : pic.outlines) {
+    if (o.label.empty()) continue;
+    bool known = false;
+    for (const auto& l : outline_labels) known = known || l.second == o.label;
+    if (!known) outline_labels.emplace_back(o.colour, o.label), longest_label = std::max(longest_label, o.label.size());
+  }
   const int right = std::max(110, 20 + 6 * static_cast<int>(longest_label));  // labels start 50 px right of the map
-  const int bar_h = std::clamp(h - 60 - 18 * static_cast<int>(pic.swatches.size() + (pic.mark ? 1 : 0)), 100, 200);
-  const int legend_h = 20 + bar_h + 60 + 18 * static_cast<int>(pic.swatches.size() + (pic.mark ? 1 : 0));
+  const int extra_rows = static_cast<int>(pic.swatches.size() + (pic.mark ? 1 : 0) + outline_labels.size());
+  const int bar_h = std::clamp(h - 60 - 18 * extra_rows, 100, 200);
+  const int legend_h = 20 + bar_h + 60 + 18 * extra_rows;
   Canvas c(std::max(w + 2 * margin + right, margin + 6 * static_cast<int>(pic.title.size()) + 10),
            std::max(h, legend_h) + 2 * margin + 20);
   for (int cy = 0; cy < view.rows; ++cy) {
@@ -179,6 +187,21 @@ Canvas drawTopView(const TopView& view, const TopViewPicture& pic, int max_pixel
     }
     c.fillRect(legend_x, legend_y + 3, legend_x + 14, legend_y + 4, kPathBlue);
     c.text(legend_x + 20, legend_y, pic.path.size() > 1 ? "CAMERA PATH" : "CAMERA", kPathBlue);
+    legend_y += 18;
+  }
+  for (const auto& o : pic.outlines) {
+    for (std::size_t i = 0; i < o.corners.size(); ++i) {
+      const auto a = toPixel(o.corners[i]);
+      const auto b = toPixel(o.corners[(i + 1) % o.corners.size()]);
+      c.line(a.first, a.second, b.first, b.second, o.colour);
+      c.line(a.first + 1, a.second, b.first + 1, b.second, o.colour);
+      c.line(a.first, a.second + 1, b.first, b.second + 1, o.colour);
+    }
+  }
+  for (const auto& [colour, label] : outline_labels) {
+    c.rect(legend_x, legend_y, legend_x + 14, legend_y + 7, colour);
+    c.rect(legend_x + 1, legend_y + 1, legend_x + 13, legend_y + 6, colour);
+    c.text(legend_x + 20, legend_y, label, colour);
     legend_y += 18;
   }
   if (pic.mark) {

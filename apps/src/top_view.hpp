@@ -64,6 +64,14 @@ struct TopViewPicture {
   std::vector<std::pair<Rgb, std::string>> swatches;
   std::optional<Eigen::Vector2d> mark;     ///< drawn as a black ring, e.g. a start point
   std::string mark_label;                  ///< its legend entry
+  /// Closed outlines (map frame x, y corners) drawn two pixels wide over the cells, e.g.
+  /// footsteps; each distinct label gets one legend entry in its outline's colour.
+  struct Outline {
+    std::vector<Eigen::Vector2d> corners;
+    Rgb colour{0, 0, 0};
+    std::string label;
+  };
+  std::vector<Outline> outlines;
 };
 
 /// The picture of `export --png` and `reach --png`: the cells (x right, y up), the camera

@@ -12,247 +12,254 @@
 namespace mobmap::mapping {
 namespace {
 
-std::uint32_t columnOf(unsigned kx, unsigned ky) { return (static_cast<std::uint32_t>(kx) << 16) | ky; }
+/// A start sole's support may lie this far above the start point (a point given on the
+/// floor may be a voxel low).
+constexpr double kStartSlack = 0.1;
 
-bool inTree(long kx, long ky) { return kx >= 0 && ky >= 0 && kx <= 65535 && ky <= 65535; }
-
-// Part of a column: voxels lo..hi (z keys) of one leaf, all with the leaf's mobility.
-struct Interval {
-  int lo, hi;
-  bool has_mobility;
-  float mobility;
-};
-
-// The key of the voxel holding coordinate c, as OctoMap's coordToKey computes it (but
-// not clamped to 16 bits, so callers can tell a point outside the tree).
-long keyOf(double c, double res) { return static_cast<long>(std::floor((1.0 / res) * c)) + 32768L; }
-
-// Whole voxels in `metres`, with a little slack so 0.15 / 0.01 counts as 15 (not 14.999...).
-int voxels(double metres, double res) { return static_cast<int>(std::floor(metres / res + 1e-6)); }
+long floorDiv(long a, long b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
 
 }  // namespace
 
 void validate(const ReachParams& p) {
-  if (!(p.max_step_m >= 0) || !std::isfinite(p.max_step_m)) detail::failParam("ReachParams", "max_step_m", p.max_step_m, "must be finite and >= 0");
-  if (!(p.min_mobility >= 0 && p.min_mobility <= 1)) detail::failParam("ReachParams", "min_mobility", p.min_mobility, "must be in [0, 1]");
-  if (!(p.clearance_m >= 0) || !std::isfinite(p.clearance_m)) detail::failParam("ReachParams", "clearance_m", p.clearance_m, "must be finite and >= 0");
-  if (!(p.max_gap_m >= 0 && p.max_gap_m <= 1)) detail::failParam("ReachParams", "max_gap_m", p.max_gap_m, "must be in [0, 1]");
+  validate(p.robot);
   if (!(p.start_radius_m >= 0 && p.start_radius_m <= 100)) detail::failParam("ReachParams", "start_radius_m", p.start_radius_m, "must be in [0, 100]");
 }
 
 const Place* Reachability::placeBelow(const Eigen::Vector3d& p, double max_drop_m) const {
-  if (!p.allFinite() || !(max_drop_m >= 0) || !std::isfinite(max_drop_m) || resolution_ <= 0) return nullptr;
-  const long kx = keyOf(p.x(), resolution_), ky = keyOf(p.y(), resolution_), kz = keyOf(p.z(), resolution_);
-  const auto* col = columnAt(kx, ky);
-  if (!col) return nullptr;
-  const Place* best = nullptr;
-  for (const std::uint32_t i : *col) {  // lowest first: the last that fits is the highest
-    const Place& pl = places_[i];
-    if (pl.key[2] > kz) break;
-    if (pl.top_z >= p.z() - max_drop_m - 1e-9) best = &pl;
-  }
-  return best;
-}
-
-SoleReach Reachability::sole(const Foot& foot, double search_up_m, double search_down_m) const {
-  SoleReach out;  // a default Reachability has resolution 0: soleSamples() then gives none
-  for (const SoleSample& s : soleSamples(foot, resolution_)) {
-    ++out.samples;
-    const Place* p = placeBelow({s.x, s.y, foot.z + search_up_m}, search_up_m + search_down_m);
-    if (!p) continue;
-    ++out.on_place;
-    out.standable += p->standable ? 1 : 0;
-    out.reachable += p->reachable ? 1 : 0;
-  }
-  return out;
-}
-
-const std::vector<std::uint32_t>* Reachability::columnAt(long kx, long ky) const {
-  if (!inTree(kx, ky)) return nullptr;
-  const auto col = columns_.find(columnOf(static_cast<unsigned>(kx), static_cast<unsigned>(ky)));
-  return col == columns_.end() ? nullptr : &col->second;
+  if (!columns_ || !p.allFinite() || !(max_drop_m >= 0) || !std::isfinite(max_drop_m)) return nullptr;
+  const double res = columns_->resolution();
+  // At or below the voxel holding p: its top face may be up to a voxel above p.z.
+  const double voxel_top = columns_->centreOf(columns_->keyOf(p.z())) + res / 2;
+  const long r = columns_->runBelow(p.x(), p.y(), voxel_top, p.z() - max_drop_m);
+  return r < 0 ? nullptr : &places_[static_cast<std::size_t>(r)];
 }
 
 const Place* Reachability::placeAt(const octomap::OcTreeKey& key) const {
-  const auto* col = columnAt(key[0], key[1]);
-  if (!col) return nullptr;
-  for (const std::uint32_t i : *col) {
-    if (places_[i].key[2] == key[2]) return &places_[i];
+  if (!columns_) return nullptr;
+  const long col = columns_->columnIndex(key[0], key[1]);
+  for (std::size_t r = columns_->runBegin(col); r < columns_->runEnd(col); ++r) {
+    if (columns_->runs()[r].top == key[2]) return &places_[r];
   }
   return nullptr;
 }
 
+std::vector<std::size_t> Reachability::footPlacesNear(double x, double y, double radius_m) const {
+  std::vector<std::size_t> out;
+  if (!columns_ || lnx_ == 0 || !std::isfinite(x) || !std::isfinite(y) || !(radius_m >= 0)) return out;
+  const double cell = lattice_ * columns_->resolution();
+  const long ci = floorDiv(columns_->keyOf(x), lattice_) - lx0_, cj = floorDiv(columns_->keyOf(y), lattice_) - ly0_;
+  const long rad = static_cast<long>(std::ceil(radius_m / cell)) + 1;
+  for (long i = std::max(0L, ci - rad); i <= std::min(lnx_ - 1, ci + rad); ++i) {
+    for (long j = std::max(0L, cj - rad); j <= std::min(lny_ - 1, cj + rad); ++j) {
+      const auto c = static_cast<std::size_t>(i * lny_ + j);
+      for (std::size_t f = feet_offsets_[c]; f < feet_offsets_[c + 1]; ++f) {
+        if (std::hypot(feet_[f].x - x, feet_[f].y - y) <= radius_m + 1e-9) out.push_back(f);
+      }
+    }
+  }
+  return out;
+}
+
+bool Reachability::canStep(std::size_t a, std::size_t b) const {
+  const FootPlace& fa = feet_[a];
+  const FootPlace& fb = feet_[b];
+  const RobotParams& robot = params_.robot;
+  return fa.isStandable() && fb.isStandable() && std::hypot(fa.x - fb.x, fa.y - fb.y) <= robot.max_stride_m + 1e-9 &&
+         stepHeightOk(fa.z, fb.z, robot, columns_->resolution()) &&
+         swingProblem(*columns_, fa.x, fa.y, fa.z, fb.x, fb.y, fb.z, robot) == FootholdProblem::kNone;
+}
+
+SoleReach Reachability::sole(const Foot& foot, double search_up_m, double search_down_m) const {
+  SoleReach out;
+  if (!columns_ || !std::isfinite(foot.z) || !(search_up_m >= 0) || !(search_down_m >= 0)) return out;
+  // The surface under the sole's centre in the band searched, else the sole's own height.
+  const long r = columns_->runBelow(foot.x, foot.y, foot.z + search_up_m, foot.z - search_down_m);
+  const double z_ref = r >= 0 ? columns_->topFace(columns_->runs()[static_cast<std::size_t>(r)]) : foot.z;
+  RobotParams robot = params_.robot;
+  robot.sole_length_m = foot.length, robot.sole_width_m = foot.width;
+  out.foothold = evaluateFoothold(*columns_, foot.x, foot.y, foot.yaw, z_ref, robot);
+  out.standable = out.foothold.standable();
+  if (!out.standable) return out;
+  for (const std::size_t f : footPlacesNear(foot.x, foot.y, robot.max_stride_m)) {
+    const FootPlace& from = feet_[f];
+    if (!from.reachable || !stepHeightOk(from.z, out.foothold.z, robot, columns_->resolution())) continue;
+    if (swingProblem(*columns_, from.x, from.y, from.z, foot.x, foot.y, out.foothold.z, robot) == FootholdProblem::kNone) {
+      out.reachable = true;
+      break;
+    }
+  }
+  return out;
+}
+
 Reachability computeReachability(const MobilityOcTree& tree, const Eigen::Vector3d& start, const ReachParams& params) {
   validate(params);
+  return computeReachability(std::make_shared<const SurfaceColumns>(tree), start, params);
+}
+
+Reachability computeReachability(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start,
+                                 const ReachParams& params) {
+  validate(params);
   if (!start.allFinite()) throw std::invalid_argument("computeReachability: the start point is not finite");
-  Reachability r;
-  r.params_ = params;
-  const double res = tree.getResolution();
-  r.resolution_ = res;
-
-  // Every occupied leaf as one interval in each of the columns it covers.
-  std::unordered_map<std::uint32_t, std::vector<Interval>> columns;
-  std::size_t cells = 0;
-  for (auto it = tree.begin_leafs(); it != tree.end_leafs(); ++it) {
-    if (!tree.isNodeOccupied(*it)) continue;
-    const int span = static_cast<int>(std::lround(it.getSize() / res));
-    const double half = it.getSize() / 2 - res / 2;  // leaf centre to its first voxel's centre
-    const octomap::OcTreeKey k0 = tree.coordToKey(octomap::point3d(static_cast<float>(it.getX() - half),
-                                                                   static_cast<float>(it.getY() - half),
-                                                                   static_cast<float>(it.getZ() - half)));
-    cells += static_cast<std::size_t>(span) * static_cast<std::size_t>(span);
-    if (cells > (std::size_t{1} << 26)) throw std::length_error("computeReachability: the map has more than 2^26 columns");
-    const Interval in{k0[2], k0[2] + span - 1, it->hasMobility(), static_cast<float>(it->hasMobility() ? it->mobility() : 0.0)};
-    for (int dx = 0; dx < span; ++dx) {
-      for (int dy = 0; dy < span; ++dy) {
-        columns[columnOf(static_cast<unsigned>(k0[0] + dx), static_cast<unsigned>(k0[1] + dy))].push_back(in);
-      }
-    }
-  }
-
-  // Runs of adjacent occupied voxels, one place each.
-  const int clear_vox = static_cast<int>(std::ceil(params.clearance_m / res - 1e-6));
-  for (auto& [col, ivs] : columns) {
-    std::sort(ivs.begin(), ivs.end(), [](const Interval& a, const Interval& b) { return a.lo < b.lo; });
-    auto& ids = r.columns_[col];
-    const unsigned kx = col >> 16, ky = col & 0xffffu;
-    std::size_t i = 0;
-    while (i < ivs.size()) {
-      int lo = ivs[i].lo, hi = ivs[i].hi;
-      const Interval* top = &ivs[i];   // holds the run's top voxel
-      const Interval* known = nullptr;  // the highest interval with a mobility
-      for (; i < ivs.size() && ivs[i].lo <= hi + 1; ++i) {
-        if (ivs[i].hi >= hi) hi = ivs[i].hi, top = &ivs[i];
-        if (ivs[i].has_mobility && (!known || ivs[i].hi > known->hi)) known = &ivs[i];
-      }
-      Place pl;
-      pl.key = octomap::OcTreeKey(static_cast<octomap::key_type>(kx), static_cast<octomap::key_type>(ky),
-                                  static_cast<octomap::key_type>(hi));
-      pl.x = tree.keyToCoord(pl.key[0]);
-      pl.y = tree.keyToCoord(pl.key[1]);
-      pl.top_z = tree.keyToCoord(pl.key[2]) + res / 2;
-      const Interval* m = top->has_mobility ? top : known;
-      pl.has_mobility = m != nullptr;
-      pl.mobility = m ? m->mobility : 0.0;
-      pl.headroom_m = i < ivs.size() ? (ivs[i].lo - hi - 1) * res : std::numeric_limits<double>::infinity();
-      pl.standable = pl.has_mobility && pl.mobility >= params.min_mobility && (ivs.size() == i || ivs[i].lo - hi - 1 >= clear_vox);
-      ids.push_back(static_cast<std::uint32_t>(r.places_.size()));
-      r.places_.push_back(pl);
-      r.run_bottom_.push_back(static_cast<std::uint16_t>(lo));
-      r.standable_ += pl.standable ? 1 : 0;
-    }
-  }
-
-  // Regions: flood fill from every standable place not yet in one. A hop across empty
-  // columns needs every column in between to hold no occupied voxel from a step below
-  // the lower place to a step (or the clearance) above the higher one: a wall, an
-  // obstacle or a surface too poor to stand on blocks it. The rule is symmetric, so the
-  // regions do not depend on where a fill starts.
-  // Tops are voxel faces: tops n voxels apart can hide a true step of nearly n + 1
-  // voxels (a floor at the bottom of its voxel, a tread at the top of its own). A join
-  // needs n + 1 voxels within max_step_m, so the step is surely within it; otherwise a
-  // 17 cm riser read as 14 cm (floor noise one voxel up) passed a 15 cm limit.
-  const int step_vox = voxels(params.max_step_m, res) - 1;
-  if (step_vox < 1) {
+  if (!columns) throw std::invalid_argument("computeReachability: no columns");
+  const SurfaceColumns& cols = *columns;
+  const double res = cols.resolution();
+  const RobotParams& robot = params.robot;
+  if (robot.max_step_m < 2 * res - 1e-9) {
     std::ostringstream msg;
-    msg << "ReachParams: max_step_m is " << params.max_step_m << " (must be at least two voxels, " << 2 * res
-        << " m in this map: tops are known to a voxel, and a floor's tops differ by one)";
+    msg << "ReachParams: max_step_m is " << robot.max_step_m << " (must be at least two voxels, " << 2 * res
+        << " m in this map: support heights are known to a voxel)";
     throw std::invalid_argument(msg.str());
   }
-  const int gap_vox = voxels(params.max_gap_m, res);
-  const auto clearColumn = [&](long kx, long ky, int band_lo, int band_hi) {
-    if (!inTree(kx, ky)) return false;
-    const auto* col = r.columnAt(kx, ky);
-    if (!col) return true;
-    for (const std::uint32_t i : *col) {
-      if (r.run_bottom_[i] <= band_hi && r.places_[i].key[2] >= band_lo) return false;
-    }
-    return true;
-  };
-  std::vector<std::int32_t> region(r.places_.size(), -1);
-  std::vector<std::size_t> region_size;
-  std::deque<std::uint32_t> queue;
-  for (std::size_t seed = 0; seed < r.places_.size(); ++seed) {
-    if (!r.places_[seed].standable || region[seed] >= 0) continue;
-    const auto label = static_cast<std::int32_t>(region_size.size());
-    region_size.push_back(1);
-    region[seed] = label;
-    queue.push_back(static_cast<std::uint32_t>(seed));
-    while (!queue.empty()) {
-      const Place& from = r.places_[queue.front()];
-      queue.pop_front();
-      const int kz = from.key[2];
-      for (int dx = -1; dx <= 1; ++dx) {
-        for (int dy = -1; dy <= 1; ++dy) {
-          if (dx == 0 && dy == 0) continue;
-          for (int n = 1; n <= 1 + gap_vox; ++n) {
-            const long kx = static_cast<long>(from.key[0]) + n * dx, ky = static_cast<long>(from.key[1]) + n * dy;
-            if (!inTree(kx, ky)) break;
-            const auto* col = r.columnAt(kx, ky);
-            if (!col) continue;  // nothing to land on here; perhaps further on
-            for (const std::uint32_t j : *col) {
-              const int kz_to = r.places_[j].key[2];
-              if (region[j] >= 0 || !r.places_[j].standable || std::abs(kz_to - kz) > step_vox) continue;
-              bool clear = true;
-              const int band_lo = std::min(kz, kz_to) - step_vox, band_hi = std::max(kz, kz_to) + std::max(step_vox, clear_vox);
-              for (int m = 1; m < n && clear; ++m) {
-                clear = clearColumn(static_cast<long>(from.key[0]) + m * dx, static_cast<long>(from.key[1]) + m * dy, band_lo, band_hi);
-              }
-              if (!clear) continue;
-              region[j] = label;
-              ++region_size[static_cast<std::size_t>(label)];
-              queue.push_back(j);
-            }
+  Reachability r;
+  r.params_ = params;
+  r.columns_ = columns;
+  const auto& runs = cols.runs();
+
+  // Places: one per run.
+  r.places_.resize(runs.size());
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    const long col = static_cast<long>(cols.runColumn(i));
+    const long kx = cols.keyX0() + col / cols.columnsY(), ky = cols.keyY0() + col % cols.columnsY();
+    Place& p = r.places_[i];
+    p.key = octomap::OcTreeKey(static_cast<octomap::key_type>(kx), static_cast<octomap::key_type>(ky),
+                               static_cast<octomap::key_type>(runs[i].top));
+    p.x = cols.centreOf(kx), p.y = cols.centreOf(ky), p.top_z = cols.topFace(runs[i]);
+    p.has_mobility = runs[i].hasMobility();
+    p.mobility = p.has_mobility ? runs[i].mobility : 0.0;
+    const bool last = i + 1 == runs.size() || cols.runColumn(i + 1) != cols.runColumn(i);
+    p.headroom_m = last ? std::numeric_limits<double>::infinity() : cols.bottomFace(runs[i + 1]) - p.top_z;
+  }
+
+  // Foot places: every lattice column (key a multiple of the lattice step), every run in
+  // it, the eight distinct headings of a symmetric sole.
+  const long s = std::max(1L, std::lround(robot.lattice_m / res));
+  r.lattice_ = s;
+  if (cols.columnsX() > 0) {
+    r.lx0_ = floorDiv(cols.keyX0() + s - 1, s), r.ly0_ = floorDiv(cols.keyY0() + s - 1, s);
+    r.lnx_ = std::max(0L, floorDiv(cols.keyX0() + cols.columnsX() - 1, s) - r.lx0_ + 1);
+    r.lny_ = std::max(0L, floorDiv(cols.keyY0() + cols.columnsY() - 1, s) - r.ly0_ + 1);
+  }
+  r.feet_offsets_.assign(static_cast<std::size_t>(r.lnx_ * r.lny_) + 1, 0);
+  for (long i = 0; i < r.lnx_; ++i) {
+    for (long j = 0; j < r.lny_; ++j) {
+      r.feet_offsets_[static_cast<std::size_t>(i * r.lny_ + j)] = static_cast<std::uint32_t>(r.feet_.size());
+      const long kx = (r.lx0_ + i) * s, ky = (r.ly0_ + j) * s;
+      const long col = cols.columnIndex(kx, ky);
+      for (std::size_t run = cols.runBegin(col); run < cols.runEnd(col); ++run) {
+        FootPlace fp;
+        fp.x = cols.centreOf(kx), fp.y = cols.centreOf(ky), fp.place = run;
+        double z_sum = 0;
+        int z_n = 0;
+        for (int h = 0; h < kHeadings / 2; ++h) {
+          const Foothold f = evaluateFoothold(cols, fp.x, fp.y, headingYaw(h), cols.topFace(runs[run]), robot);
+          if (!f.geometryOk()) continue;
+          fp.geometry_ok |= static_cast<std::uint8_t>(1u << h);
+          z_sum += f.z, ++z_n;
+          if (f.standable()) {
+            fp.standable |= static_cast<std::uint8_t>(1u << h);
+            fp.min_mobility = std::max(fp.min_mobility, static_cast<float>(f.min_mobility));
           }
         }
+        if (!fp.geometry_ok) continue;
+        fp.z = z_sum / z_n;
+        r.feet_.push_back(fp);
+      }
+    }
+  }
+  r.feet_offsets_.back() = static_cast<std::uint32_t>(r.feet_.size());
+
+  // The start soles, chosen by geometry alone (see ReachParams::Start).
+  const double level_tol = std::max(0.05, 2 * res);
+  const auto near = r.footPlacesNear(start.x(), start.y(), params.start_radius_m);
+  const auto dist2 = [&](const FootPlace& f) {
+    return (f.x - start.x()) * (f.x - start.x()) + (f.y - start.y()) * (f.y - start.y());
+  };
+  if (params.start_rule == ReachParams::Start::kNearest) {
+    std::optional<std::size_t> ref;
+    for (const std::size_t f : near) {
+      const FootPlace& fp = r.feet_[f];
+      if (fp.z > start.z() + kStartSlack) continue;
+      if (!ref || dist2(fp) < dist2(r.feet_[*ref]) - 1e-12 ||
+          (dist2(fp) <= dist2(r.feet_[*ref]) + 1e-12 && fp.z > r.feet_[*ref].z)) {
+        ref = f;
+      }
+    }
+    if (ref) {
+      const FootPlace& c = r.feet_[*ref];
+      const double around = std::max(0.5 * robot.sole_length_m, s * res);
+      for (const std::size_t f : r.footPlacesNear(c.x, c.y, around)) {
+        if (r.feet_[f].isStandable() && std::abs(r.feet_[f].z - c.z) <= level_tol) r.start_feet_.push_back(f);
+      }
+    }
+  } else {
+    // The largest level: most sole centres (any heading's geometry passes) within 4 cm.
+    const double window = std::max(0.04, res);
+    std::vector<double> zs;
+    zs.reserve(r.feet_.size());
+    for (const FootPlace& f : r.feet_) zs.push_back(f.z);
+    std::sort(zs.begin(), zs.end());
+    std::size_t best = 0, lo = 0, hi = 0;
+    double level = 0;
+    for (std::size_t i = 0; i < zs.size(); ++i) {
+      while (zs[lo] < zs[i] - window - 1e-9) ++lo;
+      while (hi < zs.size() && zs[hi] <= zs[i] + window + 1e-9) ++hi;
+      if (hi - lo > best) best = hi - lo, level = zs[i];
+    }
+    for (const std::size_t f : near) {
+      if (r.feet_[f].isStandable() && std::abs(r.feet_[f].z - level) <= level_tol) r.start_feet_.push_back(f);
+    }
+  }
+  for (const std::size_t f : r.start_feet_) {
+    if (!r.start_ || dist2(r.feet_[f]) < dist2(r.feet_[*r.start_]) - 1e-12) r.start_ = f;
+  }
+
+  // Walk: breadth first over steps between standable soles.
+  std::vector<std::pair<long, long>> offsets;
+  const long rad = static_cast<long>(std::floor(robot.max_stride_m / (s * res) + 1e-9));
+  for (long di = -rad; di <= rad; ++di) {
+    for (long dj = -rad; dj <= rad; ++dj) {
+      if ((di || dj) && std::hypot(di, dj) * s * res <= robot.max_stride_m + 1e-9) offsets.emplace_back(di, dj);
+    }
+  }
+  std::deque<std::size_t> queue;
+  for (const std::size_t f : r.start_feet_) {
+    r.feet_[f].reachable = true;
+    queue.push_back(f);
+  }
+  while (!queue.empty()) {
+    const std::size_t a = queue.front();
+    queue.pop_front();
+    const FootPlace& from = r.feet_[a];
+    const long ci = floorDiv(cols.keyOf(from.x), s) - r.lx0_, cj = floorDiv(cols.keyOf(from.y), s) - r.ly0_;
+    for (const auto& [di, dj] : offsets) {
+      const long i = ci + di, j = cj + dj;
+      if (i < 0 || j < 0 || i >= r.lnx_ || j >= r.lny_) continue;
+      const auto c = static_cast<std::size_t>(i * r.lny_ + j);
+      for (std::size_t b = r.feet_offsets_[c]; b < r.feet_offsets_[c + 1]; ++b) {
+        FootPlace& to = r.feet_[b];
+        if (to.reachable || !to.isStandable() || !stepHeightOk(from.z, to.z, robot, res)) continue;
+        if (swingProblem(cols, from.x, from.y, from.z, to.x, to.y, to.z, robot) != FootholdProblem::kNone) continue;
+        to.reachable = true;
+        queue.push_back(b);
       }
     }
   }
 
-  // The start among the standable places near the start point.
-  const long sx = keyOf(start.x(), res), sy = keyOf(start.y(), res);
-  const long rad = static_cast<long>(std::ceil(params.start_radius_m / res));
-  const double max_top = start.z() + params.max_step_m + 1e-9;
-  // kLargestLevel: the height with the most standable places within 4 cm (at least a
-  // voxel) of it, the lowest of equals; noise spreads a floor over a few voxels.
-  const bool by_level = params.start_rule == ReachParams::Start::kLargestLevel;
-  const int level_vox = std::max(1, voxels(0.04, res));
-  int level_kz = 0;
-  if (by_level) {
-    std::vector<std::size_t> below(65537, 0);  // below[k]: standable places with top key < k
-    for (const Place& pl : r.places_) below[pl.key[2] + 1u] += pl.standable ? 1 : 0;
-    for (std::size_t k = 1; k < below.size(); ++k) below[k] += below[k - 1];
-    std::size_t most = 0;
-    for (int k = 0; k < 65536; ++k) {
-      const std::size_t n = below[static_cast<std::size_t>(std::min(65535, k + level_vox) + 1)] -
-                            below[static_cast<std::size_t>(std::max(0, k - level_vox))];
-      if (n > most) most = n, level_kz = k;
-    }
-  }
-  // Better: a larger region (on the largest level, if asked), then nearer, then higher.
-  std::size_t best_region = 0;
-  double best_d2 = std::numeric_limits<double>::infinity(), best_z = -best_d2;
-  for (long dx = -rad; dx <= rad; ++dx) {
-    for (long dy = -rad; dy <= rad; ++dy) {
-      const long kx = sx + dx, ky = sy + dy;
-      const auto* col = r.columnAt(kx, ky);
-      if (!col) continue;
-      for (const std::uint32_t i : *col) {
-        const Place& pl = r.places_[i];
-        const double d2 = (pl.x - start.x()) * (pl.x - start.x()) + (pl.y - start.y()) * (pl.y - start.y());
-        if (!pl.standable || pl.top_z > max_top || d2 > params.start_radius_m * params.start_radius_m + 1e-12) continue;
-        if (by_level && std::abs(static_cast<int>(pl.key[2]) - level_kz) > level_vox) continue;
-        const std::size_t size = by_level ? region_size[static_cast<std::size_t>(region[i])] : 0;
-        const bool better = size > best_region ||
-                            (size == best_region && (d2 < best_d2 - 1e-12 || (d2 <= best_d2 + 1e-12 && pl.top_z > best_z)));
-        if (better) best_region = size, best_d2 = d2, best_z = pl.top_z, r.start_ = i;
+  // The surfaces under standable and reachable soles.
+  std::vector<std::size_t> supports;
+  for (const FootPlace& f : r.feet_) {
+    if (!f.isStandable()) continue;
+    for (int h = 0; h < kHeadings / 2; ++h) {
+      if (!(f.standable & (1u << h))) continue;
+      (void)evaluateFoothold(cols, f.x, f.y, headingYaw(h), cols.topFace(runs[f.place]), robot, &supports);
+      for (const std::size_t run : supports) {
+        Place& p = r.places_[run];
+        if (!p.standable) ++r.standable_;
+        p.standable = true;
+        if (f.reachable && !p.reachable) ++r.reachable_, p.reachable = true;
       }
     }
   }
-  if (!r.start_) return r;
-  const std::int32_t start_region = region[*r.start_];
-  for (std::size_t i = 0; i < r.places_.size(); ++i) r.places_[i].reachable = region[i] == start_region;
-  r.reachable_ = region_size[static_cast<std::size_t>(start_region)];
   return r;
 }
 

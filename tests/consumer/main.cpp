@@ -4,6 +4,7 @@
 #include <mobmap/gp/mobility_model.hpp>
 #include <mobmap/mapping/gravity.hpp>
 #include <mobmap/mapping/mobility_map.hpp>
+#include <mobmap/mapping/footstep_planner.hpp>
 #include <mobmap/mapping/reachability.hpp>
 
 #include <cmath>
@@ -28,10 +29,13 @@ int main(int argc, char** argv) {
     const auto foot = map.footprint(sole);
     // Can a robot standing 0.5 m further along the floor walk there?
     const auto reach = mobmap::mapping::computeReachability(map.tree(), map.worldToMap({2.5, 0.0, 0.5}));
-    const double reachable = reach.sole(sole).reachableFraction();
-    std::printf("%d frames; sole at 2 m: min mobility %.3f over %.0f %% known, %.0f %% on reachable surfaces\n",
-                map.framesIntegrated(), foot.min_mobility, 100 * foot.known_fraction, 100 * reachable);
-    return map.framesIntegrated() == 2 && foot.known_fraction > 0.9 && foot.min_mobility > 0.9 && reachable > 0.9 ? 0 : 1;
+    const bool reachable = reach.sole(sole).reachable;
+    // And footsteps from there back to the sole.
+    const auto plan = mobmap::mapping::planFootsteps(map.tree(), map.worldToMap({2.5, 0.0, 0.0}), at);
+    std::printf("%d frames; sole at 2 m: min mobility %.3f over %.0f %% known, %s; plan: %s, %zu footsteps\n",
+                map.framesIntegrated(), foot.min_mobility, 100 * foot.known_fraction, reachable ? "reachable" : "NOT reachable",
+                plan.found ? "found" : plan.reason.c_str(), plan.footsteps.size());
+    return map.framesIntegrated() == 2 && foot.known_fraction > 0.9 && foot.min_mobility > 0.9 && reachable && plan.found ? 0 : 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "%s\n", e.what());
     return 1;

@@ -150,6 +150,13 @@ void validate(const CorridorParams& p) {
   if (!(p.kinect.baseline_m > 0)) fail("kinect.baseline_m", p.kinect.baseline_m, "must be > 0");
   if (!(p.kinect.disparity_subpixel >= 0)) fail("kinect.disparity_subpixel", p.kinect.disparity_subpixel, "must be >= 0");
   if (!(p.kinect.dropout_full_deg > p.kinect.dropout_start_deg)) fail("kinect.dropout_full_deg", p.kinect.dropout_full_deg, "must exceed dropout_start_deg");
+  if (p.kinect.edge_window_px < 0 || p.kinect.edge_window_px > 31 || (p.kinect.edge_window_px > 0 && p.kinect.edge_window_px % 2 == 0)) {
+    fail("kinect.edge_window_px", p.kinect.edge_window_px, "must be 0 or odd, at most 31");
+  }
+  if (!(p.kinect.flying_pixel_probability >= 0 && p.kinect.flying_pixel_probability <= 1)) {
+    fail("kinect.flying_pixel_probability", p.kinect.flying_pixel_probability, "must be in [0, 1]");
+  }
+  if (!(p.kinect.edge_jump_px > 0) || !std::isfinite(p.kinect.edge_jump_px)) fail("kinect.edge_jump_px", p.kinect.edge_jump_px, "must be > 0");
   perception::validate(p.intrinsics);
 }
 
@@ -416,10 +423,103 @@ RayCastResult castRays(const std::vector<Triangle>& triangles, const PinholeIntr
   return out;
 }
 
+namespace {
+
+// The projector, baseline_m to the camera's right, lights a row's surfaces in the order
+// of their projector columns u - disparity; scanned from the right, a pixel whose
+// projector column is not left of every lit one so far lies in a foreground's shadow.
+void castProjectorShadow(perception::DepthImage& depth, double fb) {
+  std::vector<float> shadowed(depth.depth_m.size(), 0.f);
+  for (int v = 0; v < depth.height; ++v) {
+    double lit_min = std::numeric_limits<double>::infinity();
+    for (int u = depth.width - 1; u >= 0; --u) {
+      const float z = depth.at(u, v);
+      if (!(z > 0.f)) continue;
+      const double up = u - fb / z;
+      // Half a pixel of slack: a plane seen at grazing angles must not shadow itself.
+      if (up >= lit_min + 0.5) {
+        shadowed[static_cast<std::size_t>(v) * depth.width + u] = 1.f;
+      } else {
+        lit_min = std::min(lit_min, up);
+      }
+    }
+  }
+  for (std::size_t i = 0; i < shadowed.size(); ++i) {
+    if (shadowed[i] > 0.f) depth.depth_m[i] = 0.f;
+  }
+}
+
+// Mean of the valid disparities in the window x window box around each valid pixel
+// (separable running sums of value and count), as a block-matching sensor reports it.
+std::vector<double> windowMeanDisparity(const std::vector<double>& disparity, int width, int height, int window) {
+  const int r = window / 2;
+  const auto idx = [width](int u, int v) { return static_cast<std::size_t>(v) * width + u; };
+  std::vector<double> row_sum(disparity.size(), 0.0), row_n(disparity.size(), 0.0);
+  for (int v = 0; v < height; ++v) {
+    double sum = 0, n = 0;
+    for (int u = -r; u < width; ++u) {
+      const int in = u + r, out = u - r - 1;
+      if (in < width && disparity[idx(in, v)] > 0) sum += disparity[idx(in, v)], n += 1;
+      if (out >= 0 && disparity[idx(out, v)] > 0) sum -= disparity[idx(out, v)], n -= 1;
+      if (u >= 0) row_sum[idx(u, v)] = sum, row_n[idx(u, v)] = n;
+    }
+  }
+  std::vector<double> mean(disparity.size(), 0.0);
+  for (int u = 0; u < width; ++u) {
+    double sum = 0, n = 0;
+    for (int v = -r; v < height; ++v) {
+      const int in = v + r, out = v - r - 1;
+      if (in < height) sum += row_sum[idx(u, in)], n += row_n[idx(u, in)];
+      if (out >= 0) sum -= row_sum[idx(u, out)], n -= row_n[idx(u, out)];
+      if (v >= 0 && disparity[idx(u, v)] > 0 && n > 0.5) mean[idx(u, v)] = sum / n;
+    }
+  }
+  return mean;
+}
+
+// The edge model: shadow, window-mean disparity, mixed pixels on discontinuities.
+void applyEdgeModel(perception::DepthImage& depth, const KinectNoiseParams& p, double fb, std::mt19937_64& rng) {
+  if (p.projector_shadow) castProjectorShadow(depth, fb);
+  if (p.edge_window_px <= 0) return;
+  const int w = depth.width, h = depth.height;
+  std::vector<double> disparity(depth.depth_m.size(), 0.0);
+  for (std::size_t i = 0; i < disparity.size(); ++i) {
+    const float z = depth.depth_m[i];
+    if (z > 0.f) disparity[i] = fb / z;
+  }
+  const std::vector<double> mean = windowMeanDisparity(disparity, w, h, p.edge_window_px);
+  for (int v = 0; v < h; ++v) {
+    for (int u = 0; u < w; ++u) {
+      const std::size_t i = static_cast<std::size_t>(v) * w + u;
+      const double mix_draw = uniform01(rng), where = uniform01(rng);
+      if (!(disparity[i] > 0)) continue;
+      double d = mean[i];
+      double lo = disparity[i], hi = disparity[i];
+      for (int dv = -1; dv <= 1; ++dv) {
+        for (int du = -1; du <= 1; ++du) {
+          const int uu = u + du, vv = v + dv;
+          if (uu < 0 || vv < 0 || uu >= w || vv >= h) continue;
+          const double n = disparity[static_cast<std::size_t>(vv) * w + uu];
+          if (n > 0) lo = std::min(lo, n), hi = std::max(hi, n);
+        }
+      }
+      if (hi - lo > p.edge_jump_px && mix_draw < p.flying_pixel_probability) d = lo + where * (hi - lo);
+      depth.depth_m[i] = static_cast<float>(fb / d);
+    }
+  }
+}
+
+}  // namespace
+
 void applyKinectNoise(perception::DepthImage& depth, const std::vector<float>& incidence_cos,
                       const KinectNoiseParams& p, double fx, std::uint64_t seed, int frame) {
   std::mt19937_64 rng(mix(seed ^ mix(static_cast<std::uint64_t>(frame) + 1)));
   const double fb = fx * p.baseline_m;  // disparity (px) = fb / z
+  {
+    // Its own stream, so the per-pixel noise below is the same with the edge model on or off.
+    std::mt19937_64 edge_rng(mix(seed ^ mix(static_cast<std::uint64_t>(frame) + 1) ^ 0xED6EULL));
+    applyEdgeModel(depth, p, fb, edge_rng);
+  }
   const double cos_start = std::cos(p.dropout_start_deg * kDeg);
   for (std::size_t i = 0; i < depth.depth_m.size(); ++i) {
     // Draw the same number of variates per pixel so pixels do not shift each other's noise.

@@ -77,6 +77,21 @@ struct KinectNoiseParams {
   double dropout_start_deg = 70.0;      ///< incidence angle where returns start to go missing
   double dropout_full_deg = 85.0;       ///< incidence angle beyond which none return
   double max_depth_m = 10.0;            ///< farther returns are missing
+  /// Depth edges as a structured-light sensor draws them. The disparity is found by
+  /// correlating a window of the speckle pattern, so it is the mean over that window:
+  /// exact on a plane (its disparity is affine in the pixel), rounded over a crease and
+  /// smeared into a skirt of points between foreground and background at a
+  /// discontinuity. Window edge in pixels (odd; Kinect v1 correlates about 9x9); 0
+  /// turns the edge model (this and the mixed pixels below) off.
+  int edge_window_px = 9;
+  /// Mixed ("flying") pixels: on a depth discontinuity (neighbours' disparities differ by
+  /// more than edge_jump_px) a pixel takes, with this probability, a random mix of the
+  /// nearest and farthest disparity among its 3x3 neighbours.
+  double flying_pixel_probability = 0.5;
+  double edge_jump_px = 1.0;            ///< disparity jump (pixels) that makes a discontinuity
+  /// The projector's shadow: the projector sits baseline_m to the camera's right (+x), so
+  /// surfaces just left of a foreground edge that it cannot light return nothing.
+  bool projector_shadow = true;
 };
 
 /// Parameters of the corridor walk.
@@ -155,8 +170,10 @@ RayCastResult castRays(const std::vector<Triangle>& triangles,
                        const perception::PinholeIntrinsics& k,
                        const Eigen::Isometry3d& T_world_camera);
 
-/// Applies the Kinect v1 model to `depth` in place: Gaussian axial noise, disparity
-/// quantisation and dropout at grazing incidence. Deterministic for (seed, frame).
+/// Applies the Kinect v1 model to `depth` in place: the projector's shadow, edges smoothed
+/// over the correlation window and mixed pixels (KinectNoiseParams), then dropout at
+/// grazing incidence, Gaussian axial noise and disparity quantisation. Deterministic for
+/// (seed, frame).
 void applyKinectNoise(perception::DepthImage& depth, const std::vector<float>& incidence_cos,
                       const KinectNoiseParams& params, double fx, std::uint64_t seed, int frame);
 

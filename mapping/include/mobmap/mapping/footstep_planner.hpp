@@ -1,0 +1,84 @@
+#pragma once
+/// @file footstep_planner.hpp
+/// A reference footstep planner: alternating left and right footsteps from a start stance
+/// to a goal over the soles and steps of footholds.hpp, found by A* with an admissible
+/// heuristic (optimal for the cost below on the lattice of sole centres and headings).
+
+#include "mobmap/mapping/footholds.hpp"
+#include "mobmap/mapping/mobility_octree.hpp"
+
+#include <Eigen/Core>
+
+#include <cstddef>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace mobmap::mapping {
+
+/// What the planner optimises and how long it may take, units in the names. A step's
+/// cost is its length (3D, between successive sole centres) + step_cost_m +
+/// mobility_weight_m * (1 - the new sole's lowest mobility) + variance_weight_m * its
+/// mean mobility variance, all in metres of walking.
+struct PlanParams {
+  RobotParams robot;
+  double goal_tolerance_m = 0.1;  ///< a footstep whose centre lies this close to the goal (horizontally) ends the plan
+  double step_cost_m = 0.1;
+  double mobility_weight_m = 0.5;
+  double variance_weight_m = 1.0;
+  /// The start stance: soles are looked for this far around the positions of a square
+  /// stance (stance_width_m apart, facing the goal) at the start point.
+  double start_radius_m = 0.3;
+  double time_limit_s = 10.0;            ///< then the search gives up (found = false, with the reason)
+  std::size_t max_expansions = 5000000;  ///< likewise
+};
+
+/// std::invalid_argument naming the field.
+void validate(const PlanParams& params);
+
+enum class Side { kLeft, kRight };
+const char* toString(Side side);
+
+/// One footstep: the sole's centre on its support and its heading (map frame).
+struct Footstep {
+  Side side = Side::kLeft;
+  double x = 0, y = 0, z = 0, yaw = 0;
+  double min_mobility = 0;  ///< lowest mobility under the sole
+  double tilt_deg = 0;      ///< of its support plane
+};
+
+/// The planner's answer.
+struct Plan {
+  bool found = false;
+  /// Why there is no plan, in words a person can act on (empty when found).
+  std::string reason;
+  /// The start stance (two soles), then one footstep after another, alternating feet,
+  /// the last two side by side at the goal when they fit there.
+  std::vector<Footstep> footsteps;
+  double cost = 0;              ///< sum of the steps' costs (PlanParams)
+  double length_m = 0;          ///< sum of the distances between successive footsteps
+  double max_step_height_m = 0; ///< largest height difference between successive footsteps
+  std::size_t expansions = 0;   ///< states expanded by the search
+  double planning_time_s = 0;
+};
+
+/// The start or goal lies where no surface is (outside the map, in free or unknown space):
+/// the message names which and where.
+class PlanInputError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Plans from `start_map` (a point on or above the surface the robot stands on) to
+/// `goal_map` (likewise), map frame. No plan (the goal cannot be stood on, a step is too
+/// high, the time limit): found = false and the reason. std::invalid_argument for invalid
+/// params or a non-finite point; PlanInputError when no surface lies within 2 m below the
+/// start or the goal; std::length_error for a map too large (SurfaceColumns).
+[[nodiscard]] Plan planFootsteps(const MobilityOcTree& tree, const Eigen::Vector3d& start_map,
+                                 const Eigen::Vector3d& goal_map, const PlanParams& params = {});
+/// The same over columns already made from the map.
+[[nodiscard]] Plan planFootsteps(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start_map,
+                                 const Eigen::Vector3d& goal_map, const PlanParams& params = {});
+
+}  // namespace mobmap::mapping

@@ -1,0 +1,479 @@
+#include "mobmap/mapping/footstep_planner.hpp"
+
+#include "mobmap/mapping/reachability.hpp"
+#include "param_error.hpp"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <queue>
+#include <optional>
+#include <set>
+#include <tuple>
+#include <unordered_map>
+
+namespace mobmap::mapping {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kSurfaceSearch = 2.0;  ///< how far below the start and goal points to look for a surface
+constexpr double kLevelSlack = 0.1;     ///< a sole's support this close to a level counts as on it
+
+long floorDiv(long a, long b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
+
+std::string format(const char* fmt, double a = 0, double b = 0, double c = 0, double d = 0, double e = 0, double f = 0) {
+  char buf[512];
+  std::snprintf(buf, sizeof buf, fmt, a, b, c, d, e, f);
+  return buf;
+}
+
+// Two soles (centre, heading, length, width) overlap: separating axis test of two rectangles.
+bool solesOverlap(double xa, double ya, double ta, double xb, double yb, double tb, double length, double width) {
+  const Eigen::Vector2d d(xb - xa, yb - ya);
+  const std::array<Eigen::Vector2d, 4> axes = {Eigen::Vector2d(std::cos(ta), std::sin(ta)),
+                                               Eigen::Vector2d(-std::sin(ta), std::cos(ta)),
+                                               Eigen::Vector2d(std::cos(tb), std::sin(tb)),
+                                               Eigen::Vector2d(-std::sin(tb), std::cos(tb))};
+  const auto extent = [&](const Eigen::Vector2d& axis, double t) {
+    const Eigen::Vector2d u(std::cos(t), std::sin(t)), v(-std::sin(t), std::cos(t));
+    return 0.5 * length * std::abs(axis.dot(u)) + 0.5 * width * std::abs(axis.dot(v));
+  };
+  for (const auto& axis : axes) {
+    if (std::abs(axis.dot(d)) > extent(axis, ta) + extent(axis, tb)) return false;
+  }
+  return true;
+}
+
+// Why a sole cannot be stood on, with its numbers and the option that sets the limit.
+std::string describeProblem(const Foothold& f, const RobotParams& r) {
+  switch (f.problem) {
+    case FootholdProblem::kNoSurface:
+      return format("only %.0f %% of a sole there rests on known surface (--min-support %.0f %%)", 100 * f.support_fraction,
+                    100 * r.min_support_fraction);
+    case FootholdProblem::kTooSteep: return format("its surface tilts %.1f degrees, over --max-tilt %.1f", f.tilt_deg, r.max_tilt_deg);
+    case FootholdProblem::kUneven:
+      return format("the surface under a sole is uneven by %.3f m, over --max-unevenness %.3f", f.unevenness_m, r.max_unevenness_m);
+    case FootholdProblem::kObstacle:
+      return "something occupied stands inside the sole's space (within --swing-clearance or --clearance above it)";
+    case FootholdProblem::kLowMobility:
+      return format("%.0f %% of the surface under the sole has mobility under --min-mobility %.2f (at most %.0f %% may: "
+                    "--max-poor)", 100 * f.poor_fraction, r.min_mobility, 100 * r.max_poor_fraction);
+    case FootholdProblem::kNone: break;
+  }
+  return "it can be stood on";
+}
+
+struct State {
+  std::size_t run = 0;
+  int heading = 0;
+  Side side = Side::kLeft;
+  [[nodiscard]] std::uint64_t key() const {
+    return (static_cast<std::uint64_t>(run) << 5) | (static_cast<std::uint64_t>(heading) << 1) | (side == Side::kRight ? 1u : 0u);
+  }
+};
+
+class Search {
+ public:
+  Search(const SurfaceColumns& cols, const PlanParams& p) : cols_(cols), p_(p), r_(p.robot), res_(cols.resolution()) {
+    s_ = std::max(1L, std::lround(r_.lattice_m / res_));
+    // Swing-foot placements relative to the stance foot, per heading and side, as distinct
+    // lattice offsets: forward -2..9 lattice steps, sideways the stance width -1..+2
+    // lattice steps.
+    const double cell = s_ * res_;
+    for (int k = 0; k < kHeadings; ++k) {
+      const double t = headingYaw(k), c = std::cos(t), s = std::sin(t);
+      for (int side = 0; side < 2; ++side) {
+        const double sgn = side == 0 ? 1.0 : -1.0;  // the new foot is left (+) or right (-) of the stance
+        std::set<std::pair<long, long>> seen;
+        for (int fx = -2; fx <= 9; ++fx) {
+          for (int fy = -1; fy <= 2; ++fy) {
+            const double a = fx * cell, b = sgn * (r_.stance_width_m + fy * cell);
+            if (std::hypot(a, b) > r_.max_stride_m + 1e-9) continue;
+            const long di = std::lround((c * a - s * b) / cell), dj = std::lround((s * a + c * b) / cell);
+            if (seen.insert({di, dj}).second) moves_[k][side].emplace_back(di, dj);
+          }
+        }
+      }
+    }
+  }
+
+  const Foothold& foothold(std::size_t run, int heading) {
+    const std::uint64_t key = (static_cast<std::uint64_t>(run) << 3) | static_cast<std::uint64_t>(heading % (kHeadings / 2));
+    const auto it = cache_.find(key);
+    if (it != cache_.end()) return it->second;
+    const auto [x, y] = centre(run);
+    return cache_.emplace(key, evaluateFoothold(cols_, x, y, headingYaw(heading), cols_.topFace(cols_.runs()[run]), r_))
+        .first->second;
+  }
+
+  [[nodiscard]] std::pair<double, double> centre(std::size_t run) const {
+    const long col = static_cast<long>(cols_.runColumn(run));
+    return {cols_.centreOf(cols_.keyX0() + col / cols_.columnsY()), cols_.centreOf(cols_.keyY0() + col % cols_.columnsY())};
+  }
+
+  /// Lattice column nearest (x, y): its key pair.
+  [[nodiscard]] std::pair<long, long> latticeKey(double x, double y) const {
+    const long kx = cols_.keyOf(x), ky = cols_.keyOf(y);
+    return {s_ * floorDiv(kx + s_ / 2, s_), s_ * floorDiv(ky + s_ / 2, s_)};
+  }
+
+  /// Runs of the lattice column (kx, ky) whose top lies within `slack` of z.
+  template <class F>
+  void runsNear(long kx, long ky, double z, double slack, F&& visit) const {
+    const long col = cols_.columnIndex(kx, ky);
+    for (std::size_t r = cols_.runBegin(col); r < cols_.runEnd(col); ++r) {
+      if (std::abs(cols_.topFace(cols_.runs()[r]) - z) <= slack) visit(r);
+    }
+  }
+
+  /// A standable sole of `heading` as near (x, y) as possible within `radius`, on the
+  /// level z; false if none.
+  bool nearestStandable(double x, double y, double z, double radius, const std::vector<int>& headings, State& out) {
+    const long rad = static_cast<long>(std::ceil(radius / (s_ * res_)));
+    const auto [kx0, ky0] = latticeKey(x, y);
+    double best = std::numeric_limits<double>::infinity();
+    for (long di = -rad; di <= rad; ++di) {
+      for (long dj = -rad; dj <= rad; ++dj) {
+        const long kx = kx0 + di * s_, ky = ky0 + dj * s_;
+        const double d = std::hypot(cols_.centreOf(kx) - x, cols_.centreOf(ky) - y);
+        if (d > radius + 1e-9) continue;
+        runsNear(kx, ky, z, kLevelSlack + r_.max_unevenness_m, [&](std::size_t run) {
+          for (std::size_t i = 0; i < headings.size(); ++i) {
+            const double score = d + 0.01 * static_cast<double>(i);
+            if (score >= best || !foothold(run, headings[i]).standable()) continue;
+            best = score;
+            out.run = run, out.heading = headings[i];
+          }
+        });
+      }
+    }
+    return std::isfinite(best);
+  }
+
+  const SurfaceColumns& cols_;
+  const PlanParams& p_;
+  const RobotParams& r_;
+  double res_;
+  long s_ = 1;
+  std::array<std::array<std::vector<std::pair<long, long>>, 2>, kHeadings> moves_;
+  std::unordered_map<std::uint64_t, Foothold> cache_;
+};
+
+// The surface height under a point: the highest top at most kLevelSlack above it, within
+// kSurfaceSearch below, in its column or the nearest column within `radius` that has one.
+std::optional<double> surfaceUnder(const SurfaceColumns& cols, const Eigen::Vector3d& p, double radius) {
+  const long r = cols.runBelow(p.x(), p.y(), p.z() + kLevelSlack, p.z() - kSurfaceSearch);
+  if (r >= 0) return cols.topFace(cols.runs()[static_cast<std::size_t>(r)]);
+  const double res = cols.resolution();
+  const long n = static_cast<long>(std::ceil(radius / res));
+  double best_d = std::numeric_limits<double>::infinity();
+  std::optional<double> z;
+  for (long i = -n; i <= n; ++i) {
+    for (long j = -n; j <= n; ++j) {
+      const double d = std::hypot(i * res, j * res);
+      if (d > radius || d >= best_d) continue;
+      const long q = cols.runBelow(p.x() + i * res, p.y() + j * res, p.z() + kLevelSlack, p.z() - kSurfaceSearch);
+      if (q >= 0) best_d = d, z = cols.topFace(cols.runs()[static_cast<std::size_t>(q)]);
+    }
+  }
+  return z;
+}
+
+// Why the goal cannot be reached over the soles and steps (the search found nothing).
+std::string diagnose(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start, const Eigen::Vector3d& goal,
+                     double z_goal, const PlanParams& p) {
+  const RobotParams& robot = p.robot;
+  const double res = columns->resolution();
+  ReachParams rp;
+  rp.robot = robot;
+  rp.start_radius_m = p.start_radius_m + 0.5 * robot.stance_width_m;
+  const Reachability reach = computeReachability(columns, start, rp);
+  std::vector<std::size_t> goals;
+  for (const std::size_t f : reach.footPlacesNear(goal.x(), goal.y(), p.goal_tolerance_m)) {
+    if (reach.footPlaces()[f].isStandable() && std::abs(reach.footPlaces()[f].z - z_goal) <= kLevelSlack + robot.max_unevenness_m) {
+      goals.push_back(f);
+    }
+  }
+  for (const std::size_t g : goals) {
+    if (reach.footPlaces()[g].reachable) {
+      return "no footstep sequence found: the goal's surface can be reached, but not with the planner's strides and turns "
+             "(a narrow passage or a tight turn); try a larger --max-stride or --goal-tolerance";
+    }
+  }
+  // The easiest way there: the smallest possible highest step (minimax Dijkstra over the
+  // soles, every other limit kept).
+  const auto& feet = reach.footPlaces();
+  std::vector<double> worst(feet.size(), std::numeric_limits<double>::infinity());
+  std::vector<std::size_t> parent(feet.size(), feet.size());
+  using Item = std::pair<double, std::size_t>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> open;
+  for (const std::size_t f : reach.startFeet()) worst[f] = 0, open.push({0.0, f});
+  std::vector<bool> is_goal(feet.size(), false);
+  for (const std::size_t g : goals) is_goal[g] = true;
+  std::optional<std::size_t> reached;
+  while (!open.empty()) {
+    const auto [w, a] = open.top();
+    open.pop();
+    if (w > worst[a]) continue;
+    if (is_goal[a]) {
+      reached = a;
+      break;
+    }
+    for (const std::size_t b : reach.footPlacesNear(feet[a].x, feet[a].y, robot.max_stride_m)) {
+      if (!feet[b].isStandable()) continue;
+      const double wb = std::max(w, std::abs(feet[a].z - feet[b].z));
+      if (wb >= worst[b]) continue;
+      if (swingProblem(*columns, feet[a].x, feet[a].y, feet[a].z, feet[b].x, feet[b].y, feet[b].z, robot) != FootholdProblem::kNone) {
+        continue;
+      }
+      worst[b] = wb, parent[b] = a;
+      open.push({wb, b});
+    }
+  }
+  if (!reached) {
+    return "the goal is cut off from the start: every way there crosses a wall or an obstacle higher than "
+           "--swing-clearance, a stretch over --max-gap without surface, or surface the robot cannot stand on "
+           "(--min-mobility, --max-tilt)";
+  }
+  // The first step on that way (from the start) over the limit.
+  std::vector<std::size_t> path;
+  for (std::size_t b = *reached; b < feet.size(); b = parent[b]) path.push_back(b);
+  std::reverse(path.begin(), path.end());
+  for (std::size_t i = 1; i < path.size(); ++i) {
+    const FootPlace& from = feet[path[i - 1]];
+    const FootPlace& to = feet[path[i]];
+    if (stepHeightOk(from.z, to.z, robot, res)) continue;
+    return std::string(to.z > from.z ? "the step up" : "the step down") +
+           format(" on the easiest way there is %.2f m", std::abs(to.z - from.z)) +
+           format(" (from z = %.2f m to z = %.2f m near x = %.2f, y = %.2f), over --max-step %.2f", from.z, to.z, to.x, to.y,
+                  robot.max_step_m) +
+           format(" (a step must pass with one voxel, %.2f m, to spare: heights are known to a voxel)", res);
+  }
+  return "the goal is cut off from the start (no step over the limits found on the way; --max-gap or --swing-clearance "
+         "may block it)";
+}
+
+}  // namespace
+
+void validate(const PlanParams& p) {
+  validate(p.robot);
+  if (!(p.goal_tolerance_m > 0 && p.goal_tolerance_m <= 10)) detail::failParam("PlanParams", "goal_tolerance_m", p.goal_tolerance_m, "must be in (0, 10]");
+  if (!(p.step_cost_m >= 0 && p.step_cost_m <= 100)) detail::failParam("PlanParams", "step_cost_m", p.step_cost_m, "must be in [0, 100]");
+  if (!(p.mobility_weight_m >= 0 && p.mobility_weight_m <= 100)) detail::failParam("PlanParams", "mobility_weight_m", p.mobility_weight_m, "must be in [0, 100]");
+  if (!(p.variance_weight_m >= 0 && p.variance_weight_m <= 100)) detail::failParam("PlanParams", "variance_weight_m", p.variance_weight_m, "must be in [0, 100]");
+  if (!(p.start_radius_m >= 0 && p.start_radius_m <= 10)) detail::failParam("PlanParams", "start_radius_m", p.start_radius_m, "must be in [0, 10]");
+  if (!(p.time_limit_s > 0 && p.time_limit_s <= 86400)) detail::failParam("PlanParams", "time_limit_s", p.time_limit_s, "must be in (0, 86400]");
+  if (p.max_expansions < 1) detail::failParam("PlanParams", "max_expansions", static_cast<double>(p.max_expansions), "must be >= 1");
+}
+
+const char* toString(Side side) { return side == Side::kLeft ? "left" : "right"; }
+
+Plan planFootsteps(const MobilityOcTree& tree, const Eigen::Vector3d& start, const Eigen::Vector3d& goal, const PlanParams& params) {
+  validate(params);
+  return planFootsteps(std::make_shared<const SurfaceColumns>(tree), start, goal, params);
+}
+
+Plan planFootsteps(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start, const Eigen::Vector3d& goal,
+                   const PlanParams& params) {
+  const auto t0 = std::chrono::steady_clock::now();
+  validate(params);
+  if (!columns) throw std::invalid_argument("planFootsteps: no columns");
+  if (!start.allFinite()) throw std::invalid_argument("planFootsteps: the start is not finite");
+  if (!goal.allFinite()) throw std::invalid_argument("planFootsteps: the goal is not finite");
+  const SurfaceColumns& cols = *columns;
+  const RobotParams& robot = params.robot;
+  const double res = cols.resolution();
+  if (robot.max_step_m < 2 * res - 1e-9) {
+    throw std::invalid_argument(format("PlanParams: robot.max_step_m is %g (must be at least two voxels, %g m in this map)",
+                                       robot.max_step_m, 2 * res));
+  }
+  Plan plan;
+  const auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
+  const auto finish = [&](std::string reason) {
+    plan.reason = std::move(reason);
+    plan.planning_time_s = elapsed();
+    return plan;
+  };
+  const auto z_start = surfaceUnder(cols, start, params.start_radius_m);
+  if (!z_start) {
+    throw PlanInputError(format("the start (%.2f, %.2f, %.2f) has no surface within 2 m below it", start.x(), start.y(), start.z()) +
+                         format(" or %.2f m around it: it lies outside the map, or in free or unknown space", params.start_radius_m));
+  }
+  const auto z_goal = surfaceUnder(cols, goal, params.goal_tolerance_m);
+  if (!z_goal) {
+    throw PlanInputError(format("the goal (%.2f, %.2f, %.2f) has no surface within 2 m below it", goal.x(), goal.y(), goal.z()) +
+                         format(" or %.2f m around it: it lies outside the map, or in free or unknown space", params.goal_tolerance_m));
+  }
+  Search search(cols, params);
+  const double step_yaw = 2 * kPi / kHeadings;
+  const double to_goal = std::atan2(goal.y() - start.y(), goal.x() - start.x());
+  const int k0 = ((static_cast<int>(std::lround(to_goal / step_yaw)) % kHeadings) + kHeadings) % kHeadings;
+  const auto headingsAround = [&](int k) {
+    std::vector<int> hs;
+    for (const int d : {0, 1, -1, 2, -2, 3, -3, 4, -4}) hs.push_back(((k + d) % kHeadings + kHeadings) % kHeadings);
+    return hs;
+  };
+
+  // The goal must carry a sole.
+  {
+    State g;
+    const std::vector<int> all = headingsAround(k0);
+    if (!search.nearestStandable(goal.x(), goal.y(), *z_goal, params.goal_tolerance_m, all, g)) {
+      const auto [gx, gy] = search.latticeKey(goal.x(), goal.y());
+      Foothold f = evaluateFoothold(cols, cols.centreOf(gx), cols.centreOf(gy), headingYaw(k0), *z_goal, robot);
+      return finish(format("the goal (%.2f, %.2f, %.2f) cannot be stood on: ", goal.x(), goal.y(), goal.z()) + describeProblem(f, robot));
+    }
+  }
+  // The start stance: a left and a right sole either side of the start point, facing the goal.
+  const double c0 = std::cos(headingYaw(k0)), s0 = std::sin(headingYaw(k0));
+  const double half = 0.5 * robot.stance_width_m;
+  State left, right;
+  left.side = Side::kLeft, right.side = Side::kRight;
+  const std::vector<int> near_k0 = headingsAround(k0);
+  const bool have_left = search.nearestStandable(start.x() - s0 * half, start.y() + c0 * half, *z_start, params.start_radius_m, near_k0, left);
+  const bool have_right = search.nearestStandable(start.x() + s0 * half, start.y() - c0 * half, *z_start, params.start_radius_m, near_k0, right);
+  if (!have_left || !have_right) {
+    const auto [sx, sy] = search.latticeKey(start.x(), start.y());
+    Foothold f = evaluateFoothold(cols, cols.centreOf(sx), cols.centreOf(sy), headingYaw(k0), *z_start, robot);
+    return finish(format("the robot cannot stand at the start (%.2f, %.2f, %.2f): no place for its ", start.x(), start.y(), start.z()) +
+                  std::string(have_left ? "right" : "left") + format(" sole within %.2f m", params.start_radius_m) +
+                  (f.standable() ? std::string() : ": " + describeProblem(f, robot)));
+  }
+
+  const auto footstepOf = [&](const State& st) {
+    const Foothold& f = search.foothold(st.run, st.heading);
+    Footstep fs;
+    fs.side = st.side;
+    std::tie(fs.x, fs.y) = search.centre(st.run);
+    fs.z = f.z, fs.yaw = headingYaw(st.heading), fs.min_mobility = f.min_mobility, fs.tilt_deg = f.tilt_deg;
+    if (fs.yaw > kPi) fs.yaw -= 2 * kPi;
+    return fs;
+  };
+  const double per_metre = 1.0 + params.step_cost_m / robot.max_stride_m;
+  const auto heuristic = [&](const State& st) {
+    const auto [x, y] = search.centre(st.run);
+    return per_metre * std::max(0.0, std::hypot(goal.x() - x, goal.y() - y) - params.goal_tolerance_m);
+  };
+  const auto atGoal = [&](const State& st) {
+    const auto [x, y] = search.centre(st.run);
+    return std::hypot(goal.x() - x, goal.y() - y) <= params.goal_tolerance_m + 1e-9 &&
+           std::abs(search.foothold(st.run, st.heading).z - *z_goal) <= kLevelSlack + robot.max_unevenness_m;
+  };
+  struct Node {
+    double g;
+    std::uint64_t parent;
+    State state;
+    bool closed;
+  };
+  constexpr std::uint64_t kNoParent = std::numeric_limits<std::uint64_t>::max();
+  std::unordered_map<std::uint64_t, Node> nodes;
+  using Item = std::pair<double, std::uint64_t>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> open;
+  // Either foot may step first: each start sole is a root, the other foot standing beside it.
+  const auto root_of = [&](const State& stance) {
+    nodes[stance.key()] = Node{0.0, kNoParent, stance, false};
+    open.push({heuristic(stance), stance.key()});
+  };
+  root_of(left);
+  root_of(right);
+  std::optional<std::uint64_t> goal_key;
+  bool out_of_time = false;
+  while (!open.empty()) {
+    const auto [f_score, key] = open.top();
+    open.pop();
+    Node& node = nodes[key];
+    if (node.closed) continue;
+    node.closed = true;
+    const State st = node.state;
+    const double g = node.g;
+    if (atGoal(st)) {
+      goal_key = key;
+      break;
+    }
+    if (++plan.expansions >= params.max_expansions || ((plan.expansions & 255u) == 0 && elapsed() > params.time_limit_s)) {
+      out_of_time = true;
+      break;
+    }
+    const Foothold& from = search.foothold(st.run, st.heading);
+    const auto [x, y] = search.centre(st.run);
+    const auto [kx, ky] = search.latticeKey(x, y);
+    const Side next = st.side == Side::kLeft ? Side::kRight : Side::kLeft;
+    const int side_index = next == Side::kLeft ? 0 : 1;
+    for (const int dk : {-1, 0, 1}) {
+      const int k = ((st.heading + dk) % kHeadings + kHeadings) % kHeadings;
+      for (const auto& [di, dj] : search.moves_[static_cast<std::size_t>(st.heading)][static_cast<std::size_t>(side_index)]) {
+        const long nkx = kx + di * search.s_, nky = ky + dj * search.s_;
+        const double nx = cols.centreOf(nkx), ny = cols.centreOf(nky);
+        search.runsNear(nkx, nky, from.z, robot.max_step_m + robot.max_unevenness_m + res, [&](std::size_t run) {
+          const State to{run, k, next};
+          const std::uint64_t to_key = to.key();
+          const auto it = nodes.find(to_key);
+          if (it != nodes.end() && it->second.closed) return;
+          const Foothold& f = search.foothold(run, k);
+          if (!f.standable() || !stepHeightOk(from.z, f.z, robot, res)) return;
+          const double stride = std::hypot(nx - x, ny - y);
+          if (stride > robot.max_stride_m + 1e-9) return;
+          if (solesOverlap(x, y, headingYaw(st.heading), nx, ny, headingYaw(k), robot.sole_length_m, robot.sole_width_m)) return;
+          const double cost = std::hypot(stride, f.z - from.z) + params.step_cost_m +
+                              params.mobility_weight_m * (1.0 - f.min_mobility) + params.variance_weight_m * f.mean_variance;
+          const double g_to = g + cost;
+          if (it != nodes.end() && it->second.g <= g_to) return;
+          if (swingProblem(cols, x, y, from.z, nx, ny, f.z, robot) != FootholdProblem::kNone) return;
+          nodes[to_key] = Node{g_to, key, to, false};
+          open.push({g_to + heuristic(to), to_key});
+        });
+      }
+    }
+  }
+  if (!goal_key) {
+    plan.planning_time_s = elapsed();
+    if (out_of_time) {
+      return finish(format("no plan within the limits (%.1f s, ", params.time_limit_s) +
+                    std::to_string(plan.expansions) + " states expanded); raise --time-limit");
+    }
+    std::string why = diagnose(columns, start, goal, *z_goal, params);
+    return finish(why);
+  }
+  // The footsteps: the other start sole, then the chain from the root.
+  std::vector<State> chain;
+  for (std::uint64_t k = *goal_key; k != kNoParent; k = nodes[k].parent) chain.push_back(nodes[k].state);
+  std::reverse(chain.begin(), chain.end());
+  plan.footsteps.push_back(footstepOf(chain.front().side == Side::kLeft ? right : left));
+  for (const State& st : chain) plan.footsteps.push_back(footstepOf(st));
+  plan.cost = nodes[*goal_key].g;
+  // Square up at the goal: the other foot beside the last one, if it can stand there.
+  {
+    const State& last = chain.back();
+    const Footstep lf = footstepOf(last);
+    const double t = headingYaw(last.heading);
+    const double sgn = last.side == Side::kLeft ? -1.0 : 1.0;  // the other foot's side
+    const auto [kx, ky] = search.latticeKey(lf.x - std::sin(t) * sgn * robot.stance_width_m, lf.y + std::cos(t) * sgn * robot.stance_width_m);
+    const double nx = cols.centreOf(kx), ny = cols.centreOf(ky);
+    bool placed = false;
+    search.runsNear(kx, ky, lf.z, robot.max_step_m, [&](std::size_t run) {
+      if (placed) return;
+      const Foothold& f = search.foothold(run, last.heading);
+      if (!f.standable() || !stepHeightOk(lf.z, f.z, robot, res) ||
+          solesOverlap(lf.x, lf.y, t, nx, ny, t, robot.sole_length_m, robot.sole_width_m) ||
+          swingProblem(cols, lf.x, lf.y, lf.z, nx, ny, f.z, robot) != FootholdProblem::kNone) {
+        return;
+      }
+      placed = true;
+      plan.footsteps.push_back(footstepOf(State{run, last.heading, last.side == Side::kLeft ? Side::kRight : Side::kLeft}));
+    });
+  }
+  for (std::size_t i = 1; i < plan.footsteps.size(); ++i) {
+    const Footstep& a = plan.footsteps[i - 1];
+    const Footstep& b = plan.footsteps[i];
+    plan.length_m += std::hypot(std::hypot(b.x - a.x, b.y - a.y), b.z - a.z);
+    plan.max_step_height_m = std::max(plan.max_step_height_m, std::abs(b.z - a.z));
+  }
+  plan.found = true;
+  plan.planning_time_s = elapsed();
+  return plan;
+}
+
+}  // namespace mobmap::mapping
