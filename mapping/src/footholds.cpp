@@ -2,10 +2,8 @@
 
 #include "mobmap/mapping/foot.hpp"
 #include "param_error.hpp"
+#include "support_plane.hpp"
 
-#include <Eigen/Cholesky>
-#include <Eigen/Core>
-#include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <cmath>
@@ -171,13 +169,11 @@ Foothold evaluateFoothold(const SurfaceColumns& cols, double x, double y, double
   if (samples.empty()) return f;
   const double tan_tilt = std::tan(robot.max_tilt_deg * kPi / 180);
   const double band = 0.5 * std::hypot(robot.sole_length_m, robot.sole_width_m) * tan_tilt + robot.max_unevenness_m + res;
-  struct Supported {
-    double a, b, top;
-    std::size_t run;
-  };
-  thread_local std::vector<Supported> sup;
+  thread_local std::vector<detail::SupportSample> sup;
+  thread_local std::vector<std::size_t> sup_run;  // the run each supported sample rests on
   thread_local std::vector<long> sample_col;
   sup.clear();
+  sup_run.clear();
   sample_col.clear();
   const auto& runs = cols.runs();
   int known = 0, poor = 0;
@@ -190,7 +186,8 @@ Foothold evaluateFoothold(const SurfaceColumns& cols, double x, double y, double
       const double top = cols.topFace(run);
       if (top > z_ref + band) continue;
       if (top >= z_ref - band) {
-        sup.push_back({s.a, s.b, top, r - 1});
+        sup.push_back({s.a, s.b, top});
+        sup_run.push_back(r - 1);
         if (run.hasMobility()) {
           ++known;
           mob_sum += run.mobility;
@@ -207,35 +204,19 @@ Foothold evaluateFoothold(const SurfaceColumns& cols, double x, double y, double
   f.mean_mobility = known ? mob_sum / known : 0.0;
   f.mean_variance = known ? var_sum / known : 0.0;
   f.poor_fraction = known ? static_cast<double>(poor) / known : 0.0;
-  if (supports) {
-    for (const Supported& s : sup) supports->push_back(s.run);
-  }
-  if (sup.size() < 3) return f;
-  // z = h + ga a + gb b through the supported tops (sole coordinates a along the heading).
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const Supported& s : sup) mean += Eigen::Vector3d(s.a, s.b, s.top);
-  mean /= static_cast<double>(sup.size());
-  Eigen::Matrix2d ab = Eigen::Matrix2d::Zero();
-  Eigen::Vector2d abz = Eigen::Vector2d::Zero();
-  for (const Supported& s : sup) {
-    const Eigen::Vector2d d(s.a - mean.x(), s.b - mean.y());
-    ab += d * d.transpose();
-    abz += d * (s.top - mean.z());
-  }
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(ab, Eigen::EigenvaluesOnly);
-  if (eig.eigenvalues()(0) <= 1e-9 * std::max(1e-12, eig.eigenvalues()(1))) return f;  // samples on one line
-  const Eigen::Vector2d g = ab.ldlt().solve(abz);
-  const auto planeAt = [&](double a, double b) { return mean.z() + g.x() * (a - mean.x()) + g.y() * (b - mean.y()); };
+  if (supports) *supports = sup_run;
+  const auto plane = detail::fitSupportPlane(sup);
+  if (!plane) return f;
   f.has_plane = true;
-  f.z = planeAt(0, 0);
-  f.tilt_deg = std::atan(g.norm()) * 180 / kPi;
-  for (const Supported& s : sup) f.unevenness_m = std::max(f.unevenness_m, std::abs(s.top - planeAt(s.a, s.b)));
+  f.z = plane->at(0, 0);
+  f.tilt_deg = plane->tiltDeg();
+  for (const detail::SupportSample& s : sup) f.unevenness_m = std::max(f.unevenness_m, std::abs(s.top - plane->at(s.a, s.b)));
   // Inside the sole's volume: from just above the tops it may rest on up to the swing
   // clearance (or the robot's clearance) above its plane.
   const double above = std::max(robot.clearance_m, robot.swing_clearance_m);
   bool obstacle = false;
   for (std::size_t i = 0; i < samples.size() && !obstacle; ++i) {
-    const double pz = planeAt(samples[i].a, samples[i].b);
+    const double pz = plane->at(samples[i].a, samples[i].b);
     for (std::size_t r = cols.runBegin(sample_col[i]); r < cols.runEnd(sample_col[i]); ++r) {
       if (cols.topFace(runs[r]) > pz + robot.max_unevenness_m + 1e-9 && cols.bottomFace(runs[r]) < pz + above) {
         obstacle = true;

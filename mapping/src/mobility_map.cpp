@@ -2,9 +2,8 @@
 
 #include "mobmap/mapping/gravity.hpp"
 #include "param_error.hpp"
+#include "support_plane.hpp"
 
-#include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 #include <mrpt/math/CMatrixFixed.h>
 #include <mrpt/poses/CPose3D.h>
 
@@ -357,40 +356,23 @@ std::optional<PointQuery> MobilityMap::snapDown(const Eigen::Vector3d& p, double
 
 namespace {
 
-// One supported sample: its place in the sole's frame (a along the yaw, b across, from the
-// sole's centre) and the top face of the voxel it rests on.
-struct SupportSample {
-  double a, b, top;
-};
-
-// z = h + ga * a + gb * b by least squares over the supported samples; the gradient is
-// turned into the map frame by the sole's yaw.
-void fitSupportPlane(const std::vector<SupportSample>& support, double cos_yaw, double sin_yaw, FootprintQuery& out) {
-  if (support.size() < 3) return;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const auto& p : support) mean += Eigen::Vector3d(p.a, p.b, p.top);
-  mean /= static_cast<double>(support.size());
-  Eigen::Matrix2d ab = Eigen::Matrix2d::Zero();
-  Eigen::Vector2d abz = Eigen::Vector2d::Zero();
-  for (const auto& p : support) {
-    const Eigen::Vector2d d(p.a - mean.x(), p.b - mean.y());
-    ab += d * d.transpose();
-    abz += d * (p.top - mean.z());
-  }
-  // Samples on one line (a sole one voxel wide) leave the plane undetermined.
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(ab);
-  if (eig.eigenvalues()(0) <= 1e-9 * std::max(1e-12, eig.eigenvalues()(1))) return;
-  const Eigen::Vector2d g = ab.ldlt().solve(abz);  // dz/da, dz/db
+// The support plane's answers for footprint(): its gradient turned into the map frame by
+// the sole's yaw, its height at the centre, tilt and the RMS of the tops about it.
+void describeSupportPlane(const std::vector<detail::SupportSample>& support, double cos_yaw, double sin_yaw,
+                          FootprintQuery& out) {
+  const auto plane = detail::fitSupportPlane(support);
+  if (!plane) return;
   double sq = 0.0;
   for (const auto& p : support) {
-    const double r = p.top - (mean.z() + g.dot(Eigen::Vector2d(p.a - mean.x(), p.b - mean.y())));
+    const double r = p.top - plane->at(p.a, p.b);
     sq += r * r;
   }
+  const Eigen::Vector2d& g = plane->gradient;
   const double gx = cos_yaw * g.x() - sin_yaw * g.y(), gy = sin_yaw * g.x() + cos_yaw * g.y();
   out.has_support_plane = true;
-  out.support_height_m = mean.z() - g.dot(mean.head<2>());  // at a = b = 0, the sole's centre
+  out.support_height_m = plane->at(0, 0);  // the sole's centre
   out.support_normal = Eigen::Vector3d(-gx, -gy, 1.0).normalized();
-  out.support_tilt_deg = std::atan(g.norm()) * 180.0 / M_PI;
+  out.support_tilt_deg = plane->tiltDeg();
   out.support_rms_m = std::sqrt(sq / static_cast<double>(support.size()));
 }
 
@@ -423,7 +405,7 @@ FootprintQuery MobilityMap::footprint(const Foot& f, double search_up_m, double 
   out.min_mobility = 1.0;
   // Supported samples for the plane: sole coordinates and the top face of the voxel
   // each rests on.
-  std::vector<SupportSample> support;
+  std::vector<detail::SupportSample> support;
   support.reserve(samples.size());
   for (const SoleSample& sample : samples) {
     ++out.samples;
@@ -441,7 +423,7 @@ FootprintQuery MobilityMap::footprint(const Foot& f, double search_up_m, double 
   out.mean_mobility = known ? sum / known : 0.0;
   if (!known) out.min_mobility = 0.0;
   out.max_height_difference_m = std::isfinite(zmin) ? zmax - zmin : 0.0;
-  fitSupportPlane(support, std::cos(f.yaw), std::sin(f.yaw), out);
+  describeSupportPlane(support, std::cos(f.yaw), std::sin(f.yaw), out);
   return out;
 }
 
