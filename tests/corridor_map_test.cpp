@@ -243,7 +243,9 @@ void CorridorMap::footstepPlansAgreeWithTheTruth() const {
       const auto [z, mobility] = trueSupport(f.x, f.y);
       EXPECT_NEAR(f.z, z + 0.01, 0.025) << "footstep " << i << " at " << f.x << " " << f.y;
       EXPECT_GE(mobility, p.robot.min_mobility) << "footstep " << i;
-      if (i > 0) EXPECT_LE(std::abs(f.z - plan.footsteps[i - 1].z), p.robot.max_step_m) << "footstep " << i;
+      if (i > 0) {
+        EXPECT_LE(std::abs(f.z - plan.footsteps[i - 1].z), p.robot.max_step_m) << "footstep " << i;
+      }
     }
   };
   mapping::PlanParams p;

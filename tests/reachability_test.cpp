@@ -167,7 +167,9 @@ TEST(Footholds, RampTiltIsMeasuredAndLimited) {
     ASSERT_TRUE(f.has_plane) << deg;
     EXPECT_NEAR(f.tilt_deg, deg, 3.0);  // voxel tops step: a few degrees over a 25 cm sole
     EXPECT_EQ(f.standable(), deg < 20) << deg << ": " << toString(f.problem);
-    if (deg > 20) EXPECT_EQ(f.problem, FootholdProblem::kTooSteep);
+    if (deg > 20) {
+      EXPECT_EQ(f.problem, FootholdProblem::kTooSteep);
+    }
   }
 }
 
@@ -300,10 +302,14 @@ TEST(Reachability, ReachableSetNeverShrinksWhenLimitsLoosen) {
       if (before) {
         ASSERT_EQ(r.footPlaces().size(), before->footPlaces().size());
         for (std::size_t f = 0; f < r.footPlaces().size(); ++f) {
-          if (before->footPlaces()[f].reachable) ASSERT_TRUE(r.footPlaces()[f].reachable) << "map " << m << " step " << step;
+          if (before->footPlaces()[f].reachable) {
+            ASSERT_TRUE(r.footPlaces()[f].reachable) << "map " << m << " step " << step;
+          }
         }
         for (std::size_t q = 0; q < r.places().size(); ++q) {
-          if (before->places()[q].reachable) ASSERT_TRUE(r.places()[q].reachable) << "map " << m << " step " << step;
+          if (before->places()[q].reachable) {
+            ASSERT_TRUE(r.places()[q].reachable) << "map " << m << " step " << step;
+          }
         }
         grew += r.reachableCount() > before->reachableCount();
       }

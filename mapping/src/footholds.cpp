@@ -245,6 +245,12 @@ bool stepHeightOk(double za, double zb, const RobotParams& robot, double resolut
   return std::abs(za - zb) + resolution <= robot.max_step_m + 1e-9;
 }
 
+bool canStep(const SurfaceColumns& cols, double xa, double ya, double za, double xb, double yb, double zb,
+             const RobotParams& robot) {
+  return std::hypot(xb - xa, yb - ya) <= robot.max_stride_m + 1e-9 && stepHeightOk(za, zb, robot, cols.resolution()) &&
+         swingProblem(cols, xa, ya, za, xb, yb, zb, robot) == FootholdProblem::kNone;
+}
+
 FootholdProblem swingProblem(const SurfaceColumns& cols, double xa, double ya, double za, double xb, double yb, double zb,
                              const RobotParams& robot) {
   const double res = cols.resolution();

@@ -77,7 +77,7 @@ struct State {
 
 class Search {
  public:
-  Search(const SurfaceColumns& cols, const PlanParams& p) : cols_(cols), p_(p), r_(p.robot), res_(cols.resolution()) {
+  Search(const SurfaceColumns& cols, const RobotParams& robot) : cols_(cols), r_(robot), res_(cols.resolution()) {
     s_ = std::max(1L, std::lround(r_.lattice_m / res_));
     // Swing-foot placements relative to the stance foot, per heading and side, as distinct
     // lattice offsets: forward -2..9 lattice steps, sideways the stance width -1..+2
@@ -154,7 +154,6 @@ class Search {
   }
 
   const SurfaceColumns& cols_;
-  const PlanParams& p_;
   const RobotParams& r_;
   double res_;
   long s_ = 1;
@@ -307,7 +306,7 @@ Plan planFootsteps(std::shared_ptr<const SurfaceColumns> columns, const Eigen::V
     throw PlanInputError(format("the goal (%.2f, %.2f, %.2f) has no surface within 2 m below it", goal.x(), goal.y(), goal.z()) +
                          format(" or %.2f m around it: it lies outside the map, or in free or unknown space", params.goal_tolerance_m));
   }
-  Search search(cols, params);
+  Search search(cols, robot);
   const double step_yaw = 2 * kPi / kHeadings;
   const double to_goal = std::atan2(goal.y() - start.y(), goal.x() - start.x());
   const int k0 = ((static_cast<int>(std::lround(to_goal / step_yaw)) % kHeadings) + kHeadings) % kHeadings;

@@ -60,15 +60,6 @@ std::vector<std::size_t> Reachability::footPlacesNear(double x, double y, double
   return out;
 }
 
-bool Reachability::canStep(std::size_t a, std::size_t b) const {
-  const FootPlace& fa = feet_[a];
-  const FootPlace& fb = feet_[b];
-  const RobotParams& robot = params_.robot;
-  return fa.isStandable() && fb.isStandable() && std::hypot(fa.x - fb.x, fa.y - fb.y) <= robot.max_stride_m + 1e-9 &&
-         stepHeightOk(fa.z, fb.z, robot, columns_->resolution()) &&
-         swingProblem(*columns_, fa.x, fa.y, fa.z, fb.x, fb.y, fb.z, robot) == FootholdProblem::kNone;
-}
-
 SoleReach Reachability::sole(const Foot& foot, double search_up_m, double search_down_m) const {
   SoleReach out;
   if (!columns_ || !std::isfinite(foot.z) || !(search_up_m >= 0) || !(search_down_m >= 0)) return out;
@@ -82,8 +73,7 @@ SoleReach Reachability::sole(const Foot& foot, double search_up_m, double search
   if (!out.standable) return out;
   for (const std::size_t f : footPlacesNear(foot.x, foot.y, robot.max_stride_m)) {
     const FootPlace& from = feet_[f];
-    if (!from.reachable || !stepHeightOk(from.z, out.foothold.z, robot, columns_->resolution())) continue;
-    if (swingProblem(*columns_, from.x, from.y, from.z, foot.x, foot.y, out.foothold.z, robot) == FootholdProblem::kNone) {
+    if (from.reachable && canStep(*columns_, from.x, from.y, from.z, foot.x, foot.y, out.foothold.z, robot)) {
       out.reachable = true;
       break;
     }
@@ -140,6 +130,15 @@ Reachability computeReachability(std::shared_ptr<const SurfaceColumns> columns, 
     r.lny_ = std::max(0L, floorDiv(cols.keyY0() + cols.columnsY() - 1, s) - r.ly0_ + 1);
   }
   r.feet_offsets_.assign(static_cast<std::size_t>(r.lnx_ * r.lny_) + 1, 0);
+  // The surfaces a standable (or reachable) sole rests on.
+  std::vector<std::size_t> supports;
+  const auto markUnder = [&r](const std::vector<std::size_t>& under, bool reachable) {
+    for (const std::size_t run : under) {
+      Place& p = r.places_[run];
+      if (!p.standable) ++r.standable_, p.standable = true;
+      if (reachable && !p.reachable) ++r.reachable_, p.reachable = true;
+    }
+  };
   for (long i = 0; i < r.lnx_; ++i) {
     for (long j = 0; j < r.lny_; ++j) {
       r.feet_offsets_[static_cast<std::size_t>(i * r.lny_ + j)] = static_cast<std::uint32_t>(r.feet_.size());
@@ -151,13 +150,14 @@ Reachability computeReachability(std::shared_ptr<const SurfaceColumns> columns, 
         double z_sum = 0;
         int z_n = 0;
         for (int h = 0; h < kHeadings / 2; ++h) {
-          const Foothold f = evaluateFoothold(cols, fp.x, fp.y, headingYaw(h), cols.topFace(runs[run]), robot);
+          const Foothold f = evaluateFoothold(cols, fp.x, fp.y, headingYaw(h), cols.topFace(runs[run]), robot, &supports);
           if (!f.geometryOk()) continue;
           fp.geometry_ok |= static_cast<std::uint8_t>(1u << h);
           z_sum += f.z, ++z_n;
           if (f.standable()) {
             fp.standable |= static_cast<std::uint8_t>(1u << h);
             fp.min_mobility = std::max(fp.min_mobility, static_cast<float>(f.min_mobility));
+            markUnder(supports, false);
           }
         }
         if (!fp.geometry_ok) continue;
@@ -237,27 +237,20 @@ Reachability computeReachability(std::shared_ptr<const SurfaceColumns> columns, 
       const auto c = static_cast<std::size_t>(i * r.lny_ + j);
       for (std::size_t b = r.feet_offsets_[c]; b < r.feet_offsets_[c + 1]; ++b) {
         FootPlace& to = r.feet_[b];
-        if (to.reachable || !to.isStandable() || !stepHeightOk(from.z, to.z, robot, res)) continue;
-        if (swingProblem(cols, from.x, from.y, from.z, to.x, to.y, to.z, robot) != FootholdProblem::kNone) continue;
+        if (to.reachable || !to.isStandable() || !canStep(cols, from.x, from.y, from.z, to.x, to.y, to.z, robot)) continue;
         to.reachable = true;
         queue.push_back(b);
       }
     }
   }
 
-  // The surfaces under standable and reachable soles.
-  std::vector<std::size_t> supports;
+  // The surfaces under reachable soles.
   for (const FootPlace& f : r.feet_) {
-    if (!f.isStandable()) continue;
+    if (!f.reachable) continue;
     for (int h = 0; h < kHeadings / 2; ++h) {
       if (!(f.standable & (1u << h))) continue;
       (void)evaluateFoothold(cols, f.x, f.y, headingYaw(h), cols.topFace(runs[f.place]), robot, &supports);
-      for (const std::size_t run : supports) {
-        Place& p = r.places_[run];
-        if (!p.standable) ++r.standable_;
-        p.standable = true;
-        if (f.reachable && !p.reachable) ++r.reachable_, p.reachable = true;
-      }
+      markUnder(supports, true);
     }
   }
   return r;

@@ -154,4 +154,9 @@ struct Foothold {
 /// margin, see RobotParams::max_step_m).
 [[nodiscard]] bool stepHeightOk(double za, double zb, const RobotParams& robot, double resolution);
 
+/// Whether the robot can step between soles centred at (xa, ya) and (xb, yb) resting at za
+/// and zb: centres within max_stride_m, stepHeightOk and no swingProblem.
+[[nodiscard]] bool canStep(const SurfaceColumns& columns, double xa, double ya, double za, double xb, double yb, double zb,
+                           const RobotParams& robot);
+
 }  // namespace mobmap::mapping

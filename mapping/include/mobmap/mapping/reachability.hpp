@@ -109,10 +109,6 @@ class Reachability {
   [[nodiscard]] std::vector<std::size_t> footPlacesNear(double x, double y, double radius_m) const;
   /// The standable foot places the walk started from (all reachable).
   [[nodiscard]] const std::vector<std::size_t>& startFeet() const { return start_feet_; }
-  /// Whether the robot can step between foot places a and b (any order): both standable,
-  /// centres within max_stride_m, supports within max_step_m (stepHeightOk) and the swing
-  /// clear (swingProblem).
-  [[nodiscard]] bool canStep(std::size_t a, std::size_t b) const;
 
  private:
   friend Reachability computeReachability(const MobilityOcTree&, const Eigen::Vector3d&, const ReachParams&);
