@@ -9,6 +9,9 @@
 namespace mobmap::app {
 
 std::vector<CLI::Option*> addRobotOptions(CLI::App& cmd, mapping::RobotParams& robot) {
+  const auto number = [&cmd](const std::string& name, double& field, const std::string& help) {
+    return cmd.add_option(name, field, help)->capture_default_str();
+  };
   auto* sole = cmd.add_option_function<std::vector<double>>(
                       "--sole",
                       [&robot](const std::vector<double>& v) {
@@ -19,45 +22,32 @@ std::vector<CLI::Option*> addRobotOptions(CLI::App& cmd, mapping::RobotParams& r
                    ->expected(2);
   return {
       sole,
-      cmd.add_option("--max-step", robot.max_step_m,
-                     "Highest step up or down between the supports of successive footsteps, metres (support heights are "
-                     "known to a voxel, so a step passes when its measured height plus one voxel is within this; at "
-                     "least two voxels)")
-          ->capture_default_str(),
-      cmd.add_option("--min-mobility", robot.min_mobility,
-                     "Lowest mobility the robot stands on: the surface under a sole must have at least this, but for "
-                     "--max-poor of it")
-          ->capture_default_str(),
-      cmd.add_option("--max-poor", robot.max_poor_fraction,
-                     "Share of the known surface under a sole that may have mobility under --min-mobility (stray voxels "
-                     "scored apart at edges)")
-          ->capture_default_str(),
-      cmd.add_option("--min-support", robot.min_support_fraction,
-                     "Share of a sole that must rest on known surface (the rest may hang over an edge or unseen ground)")
-          ->capture_default_str(),
-      cmd.add_option("--max-tilt", robot.max_tilt_deg, "Steepest support plane a sole stands on, degrees")
-          ->capture_default_str(),
-      cmd.add_option("--max-unevenness", robot.max_unevenness_m,
-                     "Largest distance of a voxel top under a sole from its support plane, metres")
-          ->capture_default_str(),
-      cmd.add_option("--clearance", robot.clearance_m,
-                     "Free height needed above a sole (the robot's height), metres; 0 checks only --swing-clearance. "
-                     "Unseen space counts as free")
-          ->capture_default_str(),
-      cmd.add_option("--max-stride", robot.max_stride_m, "Longest distance between the centres of successive footsteps, metres")
-          ->capture_default_str(),
-      cmd.add_option("--swing-clearance", robot.swing_clearance_m,
-                     "How high the swing foot lifts above the higher support, metres: anything between the soles that "
-                     "stands higher blocks the step")
-          ->capture_default_str(),
-      cmd.add_option("--max-gap", robot.max_gap_m,
-                     "Longest stretch without surface near the walking height that a swing passes over, metres")
-          ->capture_default_str(),
-      cmd.add_option("--stance-width", robot.stance_width_m, "Sideways distance between the feet's centres when standing, metres")
-          ->capture_default_str(),
-      cmd.add_option("--lattice", robot.lattice_m,
-                     "Spacing of the sole centres tried, metres (rounded to whole voxels); headings every 22.5 degrees")
-          ->capture_default_str(),
+      number("--max-step", robot.max_step_m,
+             "Highest step up or down between the supports of successive footsteps, metres (support heights are known "
+             "to a voxel, so a step passes when its measured height plus one voxel is within this; at least two voxels)"),
+      number("--min-mobility", robot.min_mobility,
+             "Lowest mobility the robot stands on: the surface under a sole must have at least this, but for --max-poor "
+             "of it"),
+      number("--max-poor", robot.max_poor_fraction,
+             "Share of the known surface under a sole that may have mobility under --min-mobility (stray voxels scored "
+             "apart at edges)"),
+      number("--min-support", robot.min_support_fraction,
+             "Share of a sole that must rest on known surface (the rest may hang over an edge or unseen ground)"),
+      number("--max-tilt", robot.max_tilt_deg, "Steepest support plane a sole stands on, degrees"),
+      number("--max-unevenness", robot.max_unevenness_m,
+             "Largest distance of a voxel top under a sole from its support plane, metres"),
+      number("--clearance", robot.clearance_m,
+             "Free height needed above a sole (the robot's height), metres; 0 checks only --swing-clearance. Unseen "
+             "space counts as free"),
+      number("--max-stride", robot.max_stride_m, "Longest distance between the centres of successive footsteps, metres"),
+      number("--swing-clearance", robot.swing_clearance_m,
+             "How high the swing foot lifts above the higher support, metres: anything between the soles that stands "
+             "higher blocks the step"),
+      number("--max-gap", robot.max_gap_m,
+             "Longest stretch without surface near the walking height that a swing passes over, metres"),
+      number("--stance-width", robot.stance_width_m, "Sideways distance between the feet's centres when standing, metres"),
+      number("--lattice", robot.lattice_m,
+             "Spacing of the sole centres tried, metres (rounded to whole voxels); headings every 22.5 degrees"),
   };
 }
 
