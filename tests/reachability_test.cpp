@@ -173,9 +173,40 @@ TEST(Footholds, RampTiltIsMeasuredAndLimited) {
   }
 }
 
+// The voxel-level rule reach had before soles: the top voxel of every run with mobility
+// >= min_mobility is a place; places in neighbouring columns (8 around) join when their
+// tops n voxels apart have n + 1 voxels within max_step. Flood fill from the run `start`;
+// true if the run `goal` is reached.
+bool voxelLevelReach(const SurfaceColumns& cols, std::size_t start, std::size_t goal, double max_step, double min_mobility) {
+  const auto& runs = cols.runs();
+  const int step = static_cast<int>(std::floor(max_step / cols.resolution() + 1e-6)) - 1;
+  std::vector<bool> seen(runs.size(), false);
+  std::vector<std::size_t> todo{start};
+  seen[start] = true;
+  while (!todo.empty()) {
+    const std::size_t a = todo.back();
+    todo.pop_back();
+    if (a == goal) return true;
+    const long col = static_cast<long>(cols.runColumn(a));
+    const long kx = cols.keyX0() + col / cols.columnsY(), ky = cols.keyY0() + col % cols.columnsY();
+    for (long dx = -1; dx <= 1; ++dx) {
+      for (long dy = -1; dy <= 1; ++dy) {
+        const long c = cols.columnIndex(kx + dx, ky + dy);
+        for (std::size_t b = cols.runBegin(c); b < cols.runEnd(c); ++b) {
+          if (seen[b] || !(runs[b].mobility >= min_mobility) || std::abs(runs[b].top - runs[a].top) > step) continue;
+          seen[b] = true;
+          todo.push_back(b);
+        }
+      }
+    }
+  }
+  return false;
+}
+
 // The real failure: on a staircase the sensor's rounded edges leave voxels part way up
 // each riser with the floor's or the tread's mobility. Voxel by voxel they are stepping
-// stones 6 and 12 cm apart; no sole rests on them.
+// stones 6 and 12 cm apart (the voxel-level rule climbs the 17 cm step with 15 cm steps);
+// no sole rests on them.
 TEST(Reachability, EdgeVoxelsPartWayUpARiserAreNoSteppingStones) {
   MobilityOcTree t(kRes);
   floorOf(t, 60, 50);
@@ -189,6 +220,14 @@ TEST(Reachability, EdgeVoxelsPartWayUpARiserAreNoSteppingStones) {
   for (int j = 0; j < 50; ++j) {
     for (int k = 1; k <= 2; ++k) put(t, 28, j, k, 0.9);
     for (int k = 1; k <= 5; ++k) put(t, 29, j, k, 0.9);
+  }
+  {
+    const SurfaceColumns cols(t);
+    const long floor_run = cols.runBelow(0.2, 0.5, 0.03, 0.0), tread_run = cols.runBelow(0.9, 0.5, 0.19, 0.1);
+    ASSERT_GE(floor_run, 0);
+    ASSERT_GE(tread_run, 0);
+    EXPECT_TRUE(voxelLevelReach(cols, static_cast<std::size_t>(floor_run), static_cast<std::size_t>(tread_run), 0.15, 0.5));
+    EXPECT_FALSE(voxelLevelReach(cols, static_cast<std::size_t>(floor_run), static_cast<std::size_t>(tread_run), 0.06, 0.5));
   }
   ReachParams p;
   p.robot.max_step_m = 0.15;
