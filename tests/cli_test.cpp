@@ -869,6 +869,28 @@ TEST(Cli, InfoAndReachFindTheRedkitchenFloorAndTableTop) {
   for (const auto& l : rj["unreachable_levels"]) table_unreachable = table_unreachable || std::abs(l["z_m"].get<double>() + 0.77) < 0.05;
   EXPECT_TRUE(table_unreachable) << rj.dump();
   EXPECT_TRUE(fs::exists(dir + "/reach.png"));
+  // On real data too, the reachable surfaces never shrink as the limits loosen: a higher
+  // step, a lower mobility (each --pcd row's flags, and the area).
+  {
+    std::map<std::array<double, 3>, PlaceFlags> before;
+    double area = 0;
+    for (const auto& [step, mob] : {std::pair{0.06, 0.8}, {0.1, 0.7}, {0.15, 0.5}, {0.2, 0.4}, {0.3, 0.3}}) {
+      char opts[96];
+      std::snprintf(opts, sizeof opts, " --max-step %.2f --min-mobility %.2f --json --pcd ", step, mob);
+      const Result loose = run("reach " + dir + "/m.ot" + opts + dir + "/mono.pcd");
+      ASSERT_EQ(loose.code, 0) << loose.out;
+      const double a = nlohmann::json::parse(loose.out)["reachable"]["area_m2"].get<double>();
+      EXPECT_GE(a, area) << step;
+      area = a;
+      const auto now = readPlaces(dir + "/mono.pcd");
+      for (const auto& [p, f] : before) {
+        if (f.reachable) {
+          EXPECT_TRUE(now.at(p).reachable) << step << ": " << p[0] << " " << p[1] << " " << p[2];
+        }
+      }
+      before = now;
+    }
+  }
   // Started on the table top (the nearest place below a point 0.25 m above its middle),
   // the floor is out of reach.
   const Result on_table = run("reach " + dir + "/m.ot --json --from -0.58 1.62 -0.5 --start-radius 0.3");

@@ -95,6 +95,34 @@ const Place& placeAt(const Reachability& r, double x, double y, double top) {
   return *p;
 }
 
+TEST(SoleSamples, OnePerVoxelCellCentresTurnedWithTheYawAndNoneForInvalidSoles) {
+  for (const double yaw : {0.0, 0.7, M_PI / 2}) {
+    const Foot f{1.0, -2.0, 0.3, yaw, 0.25, 0.12};
+    const std::vector<SoleSample> samples = soleSamples(f, kRes);
+    ASSERT_EQ(samples.size(), 13u * 6u);  // ceil(0.25 / 0.02) x ceil(0.12 / 0.02)
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    std::set<std::pair<long, long>> cells;
+    for (const SoleSample& s : samples) {
+      // Cell centres of a 13 x 6 grid over the sole: a = (i + 0.5) * 0.25 / 13 - 0.125.
+      const double i = (s.a + 0.125) / (0.25 / 13) - 0.5, j = (s.b + 0.06) / 0.02 - 0.5;
+      EXPECT_NEAR(i, std::round(i), 1e-9);
+      EXPECT_NEAR(j, std::round(j), 1e-9);
+      cells.insert({std::lround(i), std::lround(j)});
+      EXPECT_NEAR(s.x, 1.0 + std::cos(yaw) * s.a - std::sin(yaw) * s.b, 1e-12);
+      EXPECT_NEAR(s.y, -2.0 + std::sin(yaw) * s.a + std::cos(yaw) * s.b, 1e-12);
+      mean += Eigen::Vector2d(s.x, s.y);
+    }
+    EXPECT_EQ(cells.size(), samples.size());  // every cell once
+    EXPECT_LT((mean / samples.size() - Eigen::Vector2d(1.0, -2.0)).norm(), 1e-12);
+  }
+  EXPECT_EQ(soleSamples({0, 0, 0, 0, 0.01, 0.01}, kRes).size(), 1u);  // smaller than a voxel: one
+  EXPECT_TRUE(soleSamples({0, 0, 0, 0, 0.0, 0.1}, kRes).empty());
+  EXPECT_TRUE(soleSamples({0, 0, 0, NAN, 0.2, 0.1}, kRes).empty());
+  EXPECT_TRUE(soleSamples({INFINITY, 0, 0, 0, 0.2, 0.1}, kRes).empty());
+  EXPECT_TRUE(soleSamples({0, 0, 0, 0, 1e6, 0.1}, kRes).empty());  // 5e7 voxels long
+  EXPECT_TRUE(soleSamples({0, 0, 0, 0, 0.2, 0.1}, 0.0).empty());
+}
+
 // A floor of i x j in [0, ni) x [0, nj) with tops at 0.02 m, mobility 1.
 void floorOf(MobilityOcTree& t, int ni, int nj) {
   for (int i = 0; i < ni; ++i) {
@@ -356,6 +384,47 @@ TEST(Reachability, ReachableSetNeverShrinksWhenLimitsLoosen) {
     }
   }
   EXPECT_GT(grew, 5);  // the property is not vacuous: looser limits do reach more
+}
+
+// The walk against a brute-force closure: every pair of standable soles joined by canStep,
+// iterated to a fixed point from the same start soles; and the same answer from the
+// pruned tree (pruned blocks count voxel by voxel).
+TEST(Reachability, EqualsABruteForceClosureOnRandomMapsWithPrunedBlocks) {
+  std::mt19937 rng(11);
+  for (int m = 0; m < 4; ++m) {
+    MobilityOcTree t = randomMap(rng);
+    ReachParams p;
+    p.robot.max_step_m = 0.1 + 0.05 * m;
+    const Reachability r = computeReachability(t, {0.9, 0.7, 0.5}, p);
+    const auto& feet = r.footPlaces();
+    std::vector<bool> reached(feet.size(), false);
+    for (const std::size_t f : r.startFeet()) reached[f] = true;
+    for (bool changed = true; changed;) {
+      changed = false;
+      for (std::size_t a = 0; a < feet.size(); ++a) {
+        if (!reached[a]) continue;
+        for (std::size_t b = 0; b < feet.size(); ++b) {
+          if (reached[b] || !feet[b].isStandable()) continue;
+          if (canStep(r.columns(), feet[a].x, feet[a].y, feet[a].z, feet[b].x, feet[b].y, feet[b].z, p.robot)) {
+            reached[b] = changed = true;
+          }
+        }
+      }
+    }
+    std::size_t n = 0;
+    for (std::size_t f = 0; f < feet.size(); ++f) {
+      EXPECT_EQ(feet[f].reachable, reached[f]) << "map " << m << " sole " << f;
+      n += reached[f];
+    }
+    EXPECT_GT(n, 100u) << "map " << m;
+    t.prune();
+    const Reachability pruned = computeReachability(t, {0.9, 0.7, 0.5}, p);
+    ASSERT_EQ(pruned.places().size(), r.places().size());
+    for (std::size_t q = 0; q < r.places().size(); ++q) {
+      EXPECT_EQ(pruned.places()[q].key, r.places()[q].key);
+      EXPECT_EQ(pruned.places()[q].reachable, r.places()[q].reachable);
+    }
+  }
 }
 
 TEST(Reachability, RejectsInvalidParamsAndStartsNamingThem) {

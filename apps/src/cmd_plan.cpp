@@ -64,6 +64,10 @@ Command addPlanCommand(CLI::App& app) {
   cmd->add_option("--mobility-weight", o->params.mobility_weight_m,
                   "Cost of a footstep per unit of (1 - the lowest mobility under it), metres")
       ->capture_default_str();
+  cmd->add_option("--weight", o->params.heuristic_weight,
+                  "Heuristic weight of the A* search: 1 finds the cheapest plan; w > 1 a plan at most w times as costly, "
+                  "much faster")
+      ->capture_default_str();
   cmd->add_option("--time-limit", o->params.time_limit_s, "Give up after this many seconds of search")->capture_default_str();
   cmd->add_flag("--json", o->json, "One JSON object instead of the text");
   cmd->add_option("--png", o->png, "Top view with the footsteps (left blue, right orange) over the mobility map");
@@ -121,6 +125,7 @@ Command addPlanCommand(CLI::App& app) {
       j["length_m"] = plan.length_m;
       j["max_step_height_m"] = plan.max_step_height_m;
       j["expansions"] = plan.expansions;
+      j["cost_bound"] = o->params.heuristic_weight;  // the plan costs at most this times the cheapest
       j["planning_time_s"] = plan.planning_time_s;
       const auto& r = o->params.robot;
       j["robot"] = {{"sole_length_m", r.sole_length_m},     {"sole_width_m", r.sole_width_m},

@@ -21,6 +21,7 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kSurfaceSearch = 2.0;  ///< how far below the start and goal points to look for a surface
 constexpr double kLevelSlack = 0.1;     ///< a sole's support this close to a level counts as on it
+constexpr std::size_t kReachCheck = 4096;  ///< expansions after which the planner checks that the goal can be reached
 
 long floorDiv(long a, long b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
 
@@ -181,26 +182,36 @@ std::optional<double> surfaceUnder(const SurfaceColumns& cols, const Eigen::Vect
   return z;
 }
 
-// Why the goal cannot be reached over the soles and steps (the search found nothing).
-std::string diagnose(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start, const Eigen::Vector3d& goal,
-                     double z_goal, const PlanParams& p) {
-  const RobotParams& robot = p.robot;
-  const double res = columns->resolution();
+// Reachability of every sole from the start stance, for the planner's checks.
+Reachability reachFromStart(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start, const PlanParams& p) {
   ReachParams rp;
-  rp.robot = robot;
-  rp.start_radius_m = p.start_radius_m + 0.5 * robot.stance_width_m;
-  const Reachability reach = computeReachability(columns, start, rp);
+  rp.robot = p.robot;
+  rp.start_radius_m = p.start_radius_m + 0.5 * p.robot.stance_width_m;
+  return computeReachability(std::move(columns), start, rp);
+}
+
+// The standable foot places at the goal: within the goal tolerance, on the goal's level.
+std::vector<std::size_t> goalFeet(const Reachability& reach, const Eigen::Vector3d& goal, double z_goal, const PlanParams& p) {
   std::vector<std::size_t> goals;
   for (const std::size_t f : reach.footPlacesNear(goal.x(), goal.y(), p.goal_tolerance_m)) {
-    if (reach.footPlaces()[f].isStandable() && std::abs(reach.footPlaces()[f].z - z_goal) <= kLevelSlack + robot.max_unevenness_m) {
-      goals.push_back(f);
-    }
+    const FootPlace& fp = reach.footPlaces()[f];
+    if (fp.isStandable() && std::abs(fp.z - z_goal) <= kLevelSlack + p.robot.max_unevenness_m) goals.push_back(f);
   }
-  for (const std::size_t g : goals) {
-    if (reach.footPlaces()[g].reachable) {
-      return "no footstep sequence found: the goal's surface can be reached, but not with the planner's strides and turns "
-             "(a narrow passage or a tight turn); try a larger --max-stride or --goal-tolerance";
-    }
+  return goals;
+}
+
+bool goalReachable(const Reachability& reach, const std::vector<std::size_t>& goals) {
+  return std::any_of(goals.begin(), goals.end(), [&](std::size_t g) { return reach.footPlaces()[g].reachable; });
+}
+
+// Why the goal cannot be reached over the soles and steps (the search found nothing).
+std::string diagnose(const SurfaceColumns& cols, const Reachability& reach, const std::vector<std::size_t>& goals,
+                     const PlanParams& p) {
+  const RobotParams& robot = p.robot;
+  const double res = cols.resolution();
+  if (goalReachable(reach, goals)) {
+    return "no footstep sequence found: the goal's surface can be reached, but not with the planner's strides and turns "
+           "(a narrow passage or a tight turn); try a larger --max-stride or --goal-tolerance";
   }
   // The easiest way there: the smallest possible highest step (minimax Dijkstra over the
   // soles, every other limit kept).
@@ -225,7 +236,7 @@ std::string diagnose(std::shared_ptr<const SurfaceColumns> columns, const Eigen:
       if (!feet[b].isStandable()) continue;
       const double wb = std::max(w, std::abs(feet[a].z - feet[b].z));
       if (wb >= worst[b]) continue;
-      if (swingProblem(*columns, feet[a].x, feet[a].y, feet[a].z, feet[b].x, feet[b].y, feet[b].z, robot) != FootholdProblem::kNone) {
+      if (swingProblem(cols, feet[a].x, feet[a].y, feet[a].z, feet[b].x, feet[b].y, feet[b].z, robot) != FootholdProblem::kNone) {
         continue;
       }
       worst[b] = wb, parent[b] = a;
@@ -264,6 +275,7 @@ void validate(const PlanParams& p) {
   if (!(p.mobility_weight_m >= 0 && p.mobility_weight_m <= 100)) detail::failParam("PlanParams", "mobility_weight_m", p.mobility_weight_m, "must be in [0, 100]");
   if (!(p.variance_weight_m >= 0 && p.variance_weight_m <= 100)) detail::failParam("PlanParams", "variance_weight_m", p.variance_weight_m, "must be in [0, 100]");
   if (!(p.start_radius_m >= 0 && p.start_radius_m <= 10)) detail::failParam("PlanParams", "start_radius_m", p.start_radius_m, "must be in [0, 10]");
+  if (!(p.heuristic_weight >= 1 && p.heuristic_weight <= 10)) detail::failParam("PlanParams", "heuristic_weight", p.heuristic_weight, "must be in [1, 10]");
   if (!(p.time_limit_s > 0 && p.time_limit_s <= 86400)) detail::failParam("PlanParams", "time_limit_s", p.time_limit_s, "must be in (0, 86400]");
   if (p.max_expansions < 1) detail::failParam("PlanParams", "max_expansions", static_cast<double>(p.max_expansions), "must be >= 1");
 }
@@ -351,7 +363,7 @@ Plan planFootsteps(std::shared_ptr<const SurfaceColumns> columns, const Eigen::V
     if (fs.yaw > kPi) fs.yaw -= 2 * kPi;
     return fs;
   };
-  const double per_metre = 1.0 + params.step_cost_m / robot.max_stride_m;
+  const double per_metre = (1.0 + params.step_cost_m / robot.max_stride_m) * params.heuristic_weight;
   const auto heuristic = [&](const State& st) {
     const auto [x, y] = search.centre(st.run);
     return per_metre * std::max(0.0, std::hypot(goal.x() - x, goal.y() - y) - params.goal_tolerance_m);
@@ -369,19 +381,32 @@ Plan planFootsteps(std::shared_ptr<const SurfaceColumns> columns, const Eigen::V
   };
   constexpr std::uint64_t kNoParent = std::numeric_limits<std::uint64_t>::max();
   std::unordered_map<std::uint64_t, Node> nodes;
-  using Item = std::pair<double, std::uint64_t>;
+  nodes.reserve(1u << 16);
+  // Equal f: the deeper node first (larger g), which keeps A* from widening over the
+  // lattice's many paths of equal cost.
+  using Item = std::tuple<double, double, std::uint64_t>;
   std::priority_queue<Item, std::vector<Item>, std::greater<Item>> open;
   // Either foot may step first: each start sole is a root, the other foot standing beside it.
   const auto root_of = [&](const State& stance) {
     nodes[stance.key()] = Node{0.0, kNoParent, stance, false};
-    open.push({heuristic(stance), stance.key()});
+    open.push({heuristic(stance), 0.0, stance.key()});
   };
   root_of(left);
   root_of(right);
   std::optional<std::uint64_t> goal_key;
   bool out_of_time = false;
+  // A goal the robot cannot get to at all would have the search expand every state it
+  // can reach (seconds): after kReachCheck expansions, whole-map reachability (about half
+  // a second on a 10 m corridor) says whether to go on.
+  std::optional<Reachability> reach;
+  std::vector<std::size_t> goal_feet;
+  const auto checkReach = [&] {
+    if (reach) return;
+    reach = reachFromStart(columns, start, params);
+    goal_feet = goalFeet(*reach, goal, *z_goal, params);
+  };
   while (!open.empty()) {
-    const auto [f_score, key] = open.top();
+    const auto [f_score, neg_g, key] = open.top();
     open.pop();
     Node& node = nodes[key];
     if (node.closed) continue;
@@ -395,6 +420,10 @@ Plan planFootsteps(std::shared_ptr<const SurfaceColumns> columns, const Eigen::V
     if (++plan.expansions >= params.max_expansions || ((plan.expansions & 255u) == 0 && elapsed() > params.time_limit_s)) {
       out_of_time = true;
       break;
+    }
+    if (plan.expansions == kReachCheck) {
+      checkReach();
+      if (!goalReachable(*reach, goal_feet)) break;  // diagnosed below
     }
     const Foothold& from = search.foothold(st.run, st.heading);
     const auto [x, y] = search.centre(st.run);
@@ -422,19 +451,18 @@ Plan planFootsteps(std::shared_ptr<const SurfaceColumns> columns, const Eigen::V
           if (it != nodes.end() && it->second.g <= g_to) return;
           if (swingProblem(cols, x, y, from.z, nx, ny, f.z, robot) != FootholdProblem::kNone) return;
           nodes[to_key] = Node{g_to, key, to, false};
-          open.push({g_to + heuristic(to), to_key});
+          open.push({g_to + heuristic(to), -g_to, to_key});
         });
       }
     }
   }
   if (!goal_key) {
-    plan.planning_time_s = elapsed();
     if (out_of_time) {
-      return finish(format("no plan within the limits (%.1f s, ", params.time_limit_s) +
-                    std::to_string(plan.expansions) + " states expanded); raise --time-limit");
+      return finish(format("no plan within the limits (%.1f s, ", params.time_limit_s) + std::to_string(plan.expansions) +
+                    " states expanded); raise --time-limit, or --weight to search faster for a costlier plan");
     }
-    std::string why = diagnose(columns, start, goal, *z_goal, params);
-    return finish(why);
+    checkReach();
+    return finish(diagnose(cols, *reach, goal_feet, params));
   }
   // The footsteps: the other start sole, then the chain from the root.
   std::vector<State> chain;

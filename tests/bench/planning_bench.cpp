@@ -1,0 +1,94 @@
+// Footstep planning on the simulated corridor: time and expansions of long plans, with
+// the time of one whole-map reachability run (every sole, every step) in the same run as
+// the reference. Prints medians. Release builds only.
+//
+//   planning_bench [REPEATS] [HEURISTIC_WEIGHT]
+#include "mobmap/mapping/footstep_planner.hpp"
+#include "mobmap/mapping/mobility_map.hpp"
+#include "mobmap/mapping/reachability.hpp"
+#include "mobmap/perception/pipeline.hpp"
+#include "mobmap/sim/corridor_scene.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <vector>
+
+using namespace mobmap;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+double ms(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double, std::milli>(b - a).count(); }
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+#ifndef NDEBUG
+  std::fprintf(stderr, "warning: this is not a Release build; the numbers mean little\n");
+#endif
+  const int repeats = argc > 1 ? std::max(1, std::atoi(argv[1])) : 7;
+  // The corridor walked to x = 8 (320 frames, Kinect noise with rounded edges), every
+  // fourth frame fused: the map reaches the end wall at x = 10.
+  sim::CorridorParams p;
+  p.frames = 320;
+  p.noise = sim::NoiseModel::kKinect;
+  const sim::CorridorScene scene(p);
+  const perception::FramePipeline pipeline;
+  mapping::MobilityMap map;
+  for (int f = 0; f < p.frames; f += 4) {
+    const auto r = scene.render(f);
+    const Eigen::Vector3f g = (r.T_world_camera.linear().transpose() * scene.gravityDown()).cast<float>();
+    map.integrate(pipeline.process(r.depth, p.intrinsics, g), r.T_world_camera, &r.depth, &p.intrinsics);
+  }
+  map.finalize();
+  const auto columns = std::make_shared<const mapping::SurfaceColumns>(map.tree());
+  std::printf("planning benchmark: the corridor (%d frames fused), %zu surface runs, one core, %d repeats\n", p.frames / 4,
+              columns->runs().size(), repeats);
+
+  struct Case {
+    const char* name;
+    Eigen::Vector3d from, to;
+    double max_step;
+  };
+  const std::vector<Case> cases = {
+      {"along the corridor, 8.4 m", {1.0, 0.0, 0.0}, {9.4, 0.0, 0.0}, 0.15},
+      {"corner to corner, past the box and the ramps", {1.2, 1.1, 0.0}, {9.4, -1.2, 0.0}, 0.15},
+      {"up the stairs (20 cm steps)", {1.0, 0.0, 0.0}, {7.05, 0.9, 0.68}, 0.2},
+      {"stairs refused (15 cm steps)", {1.0, 0.0, 0.0}, {7.05, 0.9, 0.68}, 0.15},
+  };
+  std::vector<double> reach_ms;
+  for (int i = 0; i < repeats; ++i) {
+    const auto t0 = Clock::now();
+    const auto r = mapping::computeReachability(columns, {1.0, 0.0, 0.05}, {});
+    reach_ms.push_back(ms(t0, Clock::now()));
+  }
+  const double reach = median(reach_ms);
+  std::printf("reference: computeReachability over the whole map: median %.1f ms\n", reach);
+  std::printf("%-48s %6s %9s %9s %11s %10s %8s\n", "plan", "found", "length_m", "steps", "expansions", "median_ms", "/reach");
+  const double weight = argc > 2 ? std::atof(argv[2]) : 1.0;
+  std::printf("heuristic weight %.2f\n", weight);
+  for (const Case& c : cases) {
+    mapping::PlanParams pp;
+    pp.heuristic_weight = weight;
+    pp.robot.max_step_m = c.max_step;
+    std::vector<double> t;
+    mapping::Plan plan;
+    for (int i = 0; i < repeats; ++i) {
+      const auto t0 = Clock::now();
+      plan = mapping::planFootsteps(columns, c.from, c.to, pp);
+      t.push_back(ms(t0, Clock::now()));
+    }
+    std::printf("%-48s %6s %9.2f %9zu %11zu %10.1f %8.2f\n", c.name, plan.found ? "yes" : "no", plan.length_m,
+                plan.footsteps.size() >= 2 ? plan.footsteps.size() - 2 : 0, plan.expansions, median(t), median(t) / reach);
+    if (!plan.found) std::printf("    reason: %s\n", plan.reason.c_str());
+  }
+  return 0;
+}
