@@ -92,6 +92,8 @@ Command addDemoCommand(CLI::App& app) {
               << "      " << exe << " reach " << map_path << " --png " << o->out << "/reach.png   (where a robot stepping 15 cm can walk)\n"
               << "      " << exe << " query " << map_path
               << " --foot 4.8 0.8 0.5 0 0.25 0.12 --reach   (the box top: flat, but 0.5 m up and out of reach)\n"
+              << "      " << exe << " plan " << map_path << " --from 5.6 0.9 0 --to 7.05 0.9 0.68 --max-step 0.2 --png " << o->out
+              << "/plan.png   (footsteps up the stairs; with --max-step 0.15: why not)\n"
               << "      " << exe << " evaluate " << map_path << " --truth " << seq << "/ground_truth.json\n"
               << "      " << exe << " export " << map_path << " --png " << o->out << "/top.png\n"
               << "      " << exe << " overlay " << map_path << " --frame " << p.frames / 2 << " --out " << o->out
