@@ -1092,6 +1092,71 @@ std::pair<int, int> pngSize(const std::string& path) {
 // The robot options of `reach` and `query --reach` that change which places count
 // (--clearance, --max-gap, --min-mobility), the picture size (--max-pixels), the
 // evaluation tolerance and the demo's frame step, each checked against what it must do.
+// `mobmap plan` as a planner's program calls it: the JSON it keeps, alternating feet
+// within the robot's limits, the same plan given in the world frame, exit 3 with the
+// reason when the goal cannot be stood on, and errors for bad input.
+TEST(Cli, PlanGivesFootstepsOrTheReasonThereAreNone) {
+  const std::string dir = tempDir("plan");
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 24 --quiet").code, 0);  // Kinect noise, rounded edges
+  const std::string map = dir + "/m.ot";
+  ASSERT_EQ(run("build " + dir + "/seq --frames 0:23:2 --out " + map + " --quiet").code, 0);
+  const std::string across = " --from 1.2 0 0 --to 2.6 0.3 0";
+  const Result ok = run("plan " + map + across + " --json --png " + dir + "/plan.png");
+  ASSERT_EQ(ok.code, 0) << ok.out;
+  const auto j = nlohmann::json::parse(ok.out);
+  ASSERT_TRUE(j["found"].get<bool>());
+  EXPECT_FALSE(j.contains("reason"));
+  for (const char* key : {"cost", "length_m", "expansions", "planning_time_s", "steps", "max_step_height_m"}) {
+    EXPECT_TRUE(j.contains(key)) << key;
+  }
+  const auto& steps = j["footsteps"];
+  ASSERT_GE(steps.size(), 4u);
+  for (std::size_t i = 0; i < steps.size(); ++i) {
+    for (const char* key : {"x", "y", "z", "yaw", "min_mobility", "tilt_deg"}) EXPECT_TRUE(steps[i][key].is_number()) << key;
+    EXPECT_NEAR(steps[i]["z"].get<double>(), 0.02, 0.03) << i;  // the floor's voxel tops
+    if (i == 0) continue;
+    EXPECT_NE(steps[i]["foot"], steps[i - 1]["foot"]) << i;
+    const double dx = steps[i]["x"].get<double>() - steps[i - 1]["x"].get<double>();
+    const double dy = steps[i]["y"].get<double>() - steps[i - 1]["y"].get<double>();
+    EXPECT_LE(std::hypot(dx, dy), 0.4 + 1e-9) << i;  // --max-stride
+  }
+  const auto& last = steps[steps.size() - 1], before_last = steps[steps.size() - 2];
+  const double to_goal = std::min(std::hypot(last["x"].get<double>() - 2.6, last["y"].get<double>() - 0.3),
+                                  std::hypot(before_last["x"].get<double>() - 2.6, before_last["y"].get<double>() - 0.3));
+  EXPECT_LE(to_goal, 0.1 + 1e-9);  // --goal-tolerance
+  EXPECT_TRUE(fs::exists(dir + "/plan.png"));
+  // The corridor's world frame is its map frame (z up): the same footsteps.
+  const Result world = run("plan " + map + across + " --json --input-frame world");
+  ASSERT_EQ(world.code, 0) << world.out;
+  const auto w = nlohmann::json::parse(world.out);
+  EXPECT_EQ(w["frame"], "world");
+  EXPECT_EQ(w["footsteps"].size(), steps.size());
+  // A goal the robot cannot stand on (the 15-degree ramp, mobility 0.75, under 0.9).
+  const Result poor = run("plan " + map + " --from 1.2 0 0 --to 3.0 -0.9 0.08 --min-mobility 0.9 --json");
+  EXPECT_EQ(poor.code, 3) << poor.out;
+  const auto pj = nlohmann::json::parse(poor.out);
+  EXPECT_FALSE(pj["found"].get<bool>());
+  EXPECT_NE(pj["reason"].get<std::string>().find("cannot be stood on"), std::string::npos) << poor.out;
+  EXPECT_NE(pj["reason"].get<std::string>().find("--min-mobility 0.90"), std::string::npos) << poor.out;
+  const Result text = run("plan " + map + " --from 1.2 0 0 --to 3.0 -0.9 0.08 --min-mobility 0.9");
+  EXPECT_EQ(text.code, 3);
+  EXPECT_NE(text.out.find("no plan: the goal"), std::string::npos) << text.out;
+  // Bad input: a clear error, exit 1 for the map's content, 2 for usage.
+  const Result outside = run("plan " + map + " --from 1.2 0 0 --to 50 0 0");
+  EXPECT_EQ(outside.code, 1);
+  EXPECT_NE(outside.out.find(map + ": the goal (50.00, 0.00, 0.00) has no surface"), std::string::npos) << outside.out;
+  for (const auto& [options, field] : {std::pair<std::string, std::string>{" --to nan 0 0", "--to"},
+                                       {" --to 2 0 0 --sole -1 0.1", "sole_length_m"},
+                                       {" --to 2 0 0 --max-step 0.01", "max_step_m"},
+                                       {" --to 2 0 0 --weight 0.5", "heuristic_weight"},
+                                       {" --to 2 0 0 --png " + map, "the map's own file"}}) {
+    const Result bad = run("plan " + map + " --from 1.2 0 0" + options);
+    EXPECT_EQ(bad.code, 2) << options << ": " << bad.out;
+    EXPECT_NE(bad.out.find(field), std::string::npos) << bad.out;
+  }
+  fs::remove_all(dir);
+}
+
 TEST(Cli, RobotLimitsPictureSizesEvaluateToleranceAndDemoStep) {
   const std::string dir = tempDir("limits");
   ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 24 --quiet").code, 0);  // Kinect noise
