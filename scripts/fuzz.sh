@@ -37,6 +37,7 @@ module_sources() {
 }
 mapfile -t gp < <(module_sources gp)
 mapfile -t perception < <(module_sources perception)
+mapfile -t mapping < <(module_sources mapping)
 mrpt=(-lmrpt-poses -lmrpt-math -lmrpt-core)
 link() {  # link TARGET SOURCES... -- LIBS...
   local target=$1; shift
@@ -50,8 +51,8 @@ link() {  # link TARGET SOURCES... -- LIBS...
 }
 for target in "${targets[@]}"; do
   case $target in
-    map_reader) link map_reader tests/fuzz/fuzz_map_reader.cpp mapping/src/mobility_octree.cpp mapping/src/map_io.cpp \
-                  -- -loctomap -loctomath ;;
+    map_reader) link map_reader tests/fuzz/fuzz_map_reader.cpp "${mapping[@]}" perception/src/camera.cpp \
+                  -- -loctomap -loctomath "${mrpt[@]}" ;;
     config) link config tests/fuzz/fuzz_config.cpp apps/src/config.cpp apps/src/files.cpp "${gp[@]}" "${perception[@]}" \
               mapping/src/mobility_map.cpp mapping/src/mobility_octree.cpp mapping/src/gravity.cpp \
               -- -lyaml-cpp -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;

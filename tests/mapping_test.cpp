@@ -749,6 +749,77 @@ TEST(MapFiles, HostileFilesGiveClearErrors) {
   EXPECT_NE(loadError(fut).find("another version"), std::string::npos);
 }
 
+// A .ot whose tree is one chain from the root down to a single occupied leaf at `depth`:
+// 9 bytes per node, a leaf that stands for (2^(16 - depth))^3 voxels.
+std::string chainToLeaf(unsigned int depth, const std::string& res = "0.02") {
+  std::string data;
+  for (unsigned int d = 0; d <= depth; ++d) {
+    const float log_odds = 2.0f;
+    const std::uint32_t payload = 0;
+    data.append(reinterpret_cast<const char*>(&log_odds), 4);
+    data.append(reinterpret_cast<const char*>(&payload), 4);
+    data.push_back(d < depth ? '\x01' : '\x00');
+  }
+  return "# Octomap OcTree file\nid MobilityOcTree_v1\nsize " + std::to_string(depth + 1) + "\nres " + res + "\ndata\n" + data;
+}
+
+TEST(MapFiles, ALeafStandingForMoreVoxelsThanTheFileCanHoldIsRefusedNotExpanded) {
+  // The 73-byte root leaf (2^48 voxels) and a depth-9 leaf (2^21 voxels, ~140 MB of index)
+  // used to be expanded voxel by voxel until memory ran out.
+  for (unsigned int depth : {0u, 5u, 9u}) {
+    const std::string path = tempPath("leaf" + std::to_string(depth) + ".ot");
+    std::ofstream(path, std::ios::binary) << chainToLeaf(depth);
+    if (depth == 0) {
+      EXPECT_EQ(std::filesystem::file_size(path), 73u);
+    }
+    const std::string e = loadError(path);
+    EXPECT_EQ(e.rfind(path + ": ", 0), 0u) << e;
+    EXPECT_NE(e.find("stand for more than 1048576 occupied voxels"), std::string::npos) << e;
+    EXPECT_NE(e.find("at depth " + std::to_string(depth)), std::string::npos) << e;
+    // The library refuses the same tree handed to it directly.
+    MobilityOcTree tree(0.02);
+    std::istringstream in(chainToLeaf(depth).substr(chainToLeaf(depth).find("data\n") + 5));
+    ASSERT_EQ(tree.readDataChecked(in, depth + 1), "");
+    EXPECT_THROW(MobilityMap(std::make_unique<MobilityOcTree>(std::move(tree)), MapParams{}, Eigen::Matrix3d::Identity()),
+                 std::invalid_argument);
+  }
+  // A depth-10 leaf (64^3 = 262144 voxels) is within the budget: the map opens, and every
+  // voxel of the block answers as surface, none outside it.
+  const std::string ok = tempPath("leaf10.ot");
+  std::ofstream(ok, std::ios::binary) << chainToLeaf(10);
+  auto tree = loadMobilityMap(ok);
+  EXPECT_EQ(countOccupiedVoxels(*tree, ~std::uint64_t{0}), std::optional<std::uint64_t>(262144));
+  const MobilityMap map = openMap(ok);
+  // The chain takes child 0 at every level: the block's lowest corner is key 0.
+  const octomap::point3d corner = map.tree().keyToCoord(octomap::OcTreeKey(0, 0, 0));
+  const Eigen::Vector3d c(corner.x(), corner.y(), corner.z());
+  EXPECT_EQ(map.query(c).state, VoxelState::kSurface);
+  EXPECT_EQ(map.query(c + Eigen::Vector3d::Constant(63 * 0.02)).state, VoxelState::kSurface);
+  EXPECT_EQ(map.query(c + Eigen::Vector3d::Constant(64 * 0.02)).state, VoxelState::kUnknown);
+  EXPECT_EQ(map.query(c - Eigen::Vector3d::Constant(0.02)).state, VoxelState::kUnknown);
+}
+
+TEST(MapFiles, AResolutionThatIsNotAUsableNumberIsNamed) {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"nan", "res 'nan' is not a finite number"},     {"inf", "res 'inf' is not a finite number"},
+      {"0.02x", "res '0.02x' is not a finite number"}, {"1e-300", "res 1e-300 m is outside"},
+      {"20", "res 20 m is outside"},                   {"-0.02", "res -0.02 m is outside"}};
+  for (const auto& [res, expected] : cases) {
+    const std::string path = tempPath("res.ot");
+    std::ofstream(path, std::ios::binary) << chainToLeaf(16, res);
+    const std::string e = loadError(path);
+    EXPECT_EQ(e.rfind(path + ": ", 0), 0u) << e;
+    EXPECT_NE(e.find(expected), std::string::npos) << res << ": " << e;
+  }
+  const std::string no_res = tempPath("nores.ot");
+  std::ofstream(no_res, std::ios::binary) << "# Octomap OcTree file\nid MobilityOcTree_v1\nsize 1\ndata\n";
+  EXPECT_NE(loadError(no_res).find("header has no 'res'"), std::string::npos) << loadError(no_res);
+  // A one-voxel map at the finest level is fine.
+  const std::string fine = tempPath("fine.ot");
+  std::ofstream(fine, std::ios::binary) << chainToLeaf(16);
+  EXPECT_EQ(loadError(fine), "no error");
+}
+
 TEST(MapFiles, BtAndOctovisExportLoadInStockOctomapWithTheSameOccupiedVoxels) {
   const MobilityMap map = builtMap();
   std::set<octomap::OcTreeKey, bool (*)(const octomap::OcTreeKey&, const octomap::OcTreeKey&)> ours(

@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -75,7 +76,7 @@ std::unique_ptr<MobilityOcTree> loadMobilityMap(const std::string& path) {
   if (line.rfind("# Octomap OcTree file", 0) != 0) ioFail(path, "not an OctoMap .ot file (first line is not '# Octomap OcTree file')");
   std::string id;
   std::size_t size = 0;
-  double res = 0.0;
+  std::string size_text, res_text;
   bool have_size = false, have_res = false;
   while (in >> line) {
     if (line == "#") {
@@ -83,9 +84,9 @@ std::unique_ptr<MobilityOcTree> loadMobilityMap(const std::string& path) {
     } else if (line == "id") {
       in >> id;
     } else if (line == "size") {
-      have_size = static_cast<bool>(in >> size);
+      have_size = static_cast<bool>(in >> size_text);
     } else if (line == "res") {
-      have_res = static_cast<bool>(in >> res);
+      have_res = static_cast<bool>(in >> res_text);
     } else if (line == "data") {
       std::getline(in, line);  // rest of the "data" line
       break;
@@ -103,7 +104,27 @@ std::unique_ptr<MobilityOcTree> loadMobilityMap(const std::string& path) {
     }
     ioFail(path, "holds an OctoMap '" + id + "', not a " + MobilityOcTree::kTreeType + " mobility map");
   }
-  if (!have_size || !have_res || !(res > 0) || !std::isfinite(res)) ioFail(path, "header lacks a valid size or res");
+  if (!have_size) ioFail(path, "header has no 'size' (the number of nodes)");
+  if (!have_res) ioFail(path, "header has no 'res' (the voxel size)");
+  {
+    // Whole tokens: "nan", "inf" and "12abc" are reported as what they are.
+    char* end = nullptr;
+    errno = 0;
+    const unsigned long long n = std::strtoull(size_text.c_str(), &end, 10);
+    if (size_text.empty() || size_text[0] == '-' || *end != '\0' || errno == ERANGE) {
+      ioFail(path, "header's size '" + size_text + "' is not a whole number of nodes");
+    }
+    size = static_cast<std::size_t>(n);
+    end = nullptr;
+    const double res = std::strtod(res_text.c_str(), &end);
+    if (res_text.empty() || *end != '\0' || !std::isfinite(res)) {
+      ioFail(path, "header's res '" + res_text + "' is not a finite number");
+    }
+    if (!(res >= 0.001 && res <= 10)) {
+      ioFail(path, "header's res " + res_text + " m is outside the voxel sizes mobmap maps use (0.001 to 10 m)");
+    }
+  }
+  const double res = std::strtod(res_text.c_str(), nullptr);
   // Each node takes 4 (occupancy) + 4 (payload) + 1 (children) bytes.
   const auto remaining = static_cast<std::uintmax_t>(file_size) - static_cast<std::uintmax_t>(in.tellg());
   if (size > remaining / 9 + 1) {
@@ -116,6 +137,7 @@ std::unique_ptr<MobilityOcTree> loadMobilityMap(const std::string& path) {
   if (tree->size() != size) {
     ioFail(path, "header declares " + std::to_string(size) + " nodes, the data holds " + std::to_string(tree->size()));
   }
+  if (auto problem = voxelBudgetProblem(*tree)) ioFail(path, *problem + ": not a map mobmap can use");
   return tree;
 }
 

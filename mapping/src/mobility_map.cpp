@@ -60,6 +60,34 @@ const char* toString(VoxelState s) {
   return "unknown";
 }
 
+std::optional<std::uint64_t> countOccupiedVoxels(const MobilityOcTree& tree, std::uint64_t limit) {
+  const unsigned int depth = tree.getTreeDepth();
+  std::uint64_t n = 0;
+  for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it) {
+    if (!tree.isNodeOccupied(*it)) continue;
+    const unsigned int levels = depth - it.getDepth();
+    if (levels >= 21) return std::nullopt;  // 8^21 voxels would not fit in 64 bits
+    n += std::uint64_t{1} << (3 * levels);
+    if (n > limit) return std::nullopt;
+  }
+  return n;
+}
+
+std::optional<std::string> voxelBudgetProblem(const MobilityOcTree& tree) {
+  const std::uint64_t leaves = tree.getNumLeafNodes();
+  const std::uint64_t limit = std::max(kMinVoxelBudget, kMaxVoxelsPerLeaf * leaves);
+  if (countOccupiedVoxels(tree, limit)) return std::nullopt;
+  unsigned int coarsest = tree.getTreeDepth();
+  for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it) {
+    if (tree.isNodeOccupied(*it)) coarsest = std::min(coarsest, it.getDepth());
+  }
+  const unsigned int side = tree.getTreeDepth() - coarsest;
+  return "its " + std::to_string(leaves) + " leaves stand for more than " + std::to_string(limit) +
+         " occupied voxels (an occupied leaf at depth " + std::to_string(coarsest) + " is a block of 2^" +
+         std::to_string(side) + " voxels a side); a map holds at most max(2^20, " + std::to_string(kMaxVoxelsPerLeaf) +
+         " x its leaves)";
+}
+
 MobilityMap::MobilityMap(MapParams params, const Eigen::Matrix3d& R_map_world)
     : MobilityMap(nullptr, params, R_map_world) {}
 
@@ -76,6 +104,7 @@ MobilityMap::MobilityMap(std::unique_ptr<MobilityOcTree> tree, MapParams params,
   tree_->setClampingThresMin(params_.clamp_min);
   tree_->setClampingThresMax(params_.clamp_max);
   // A loaded tree: index its occupied voxels (a pruned leaf stands for all its voxels).
+  if (auto problem = voxelBudgetProblem(*tree_)) throw std::invalid_argument("MobilityMap: the tree: " + *problem);
   may_be_pruned_ = tree_->size() > 0;
   const unsigned int depth = tree_->getTreeDepth();
   for (auto it = tree_->begin_leafs(), end = tree_->end_leafs(); it != end; ++it) {

@@ -94,6 +94,17 @@ struct FootprintQuery {
   double support_rms_m = 0.0;     ///< RMS of the top faces about the plane: unevenness under the sole
 };
 
+/// Occupied voxels a tree may stand for, pruned leaves counted voxel by voxel: at most
+/// max(kMinVoxelBudget, kMaxVoxelsPerLeaf x its leaves). Fused surfaces prune to leaves
+/// of 8 or 64 voxels; a file whose few leaves claim millions of voxels each (a root that
+/// is one occupied leaf stands for 2^48) cannot be expanded into the map's index and is
+/// refused. The count of `tree`'s occupied voxels, or nullopt once it passes `limit`.
+inline constexpr std::uint64_t kMaxVoxelsPerLeaf = 64;
+inline constexpr std::uint64_t kMinVoxelBudget = std::uint64_t{1} << 20;
+[[nodiscard]] std::optional<std::uint64_t> countOccupiedVoxels(const MobilityOcTree& tree, std::uint64_t limit);
+/// The problem of a tree that holds more voxels than its size allows (above), or nullopt.
+[[nodiscard]] std::optional<std::string> voxelBudgetProblem(const MobilityOcTree& tree);
+
 /// Fuses scored frames. Frames: the map frame is gravity aligned (z up);
 /// T_map_world = R_map_world (a fixed rotation for data sets whose world frame is not).
 ///
@@ -105,7 +116,8 @@ class MobilityMap {
   /// std::invalid_argument if a parameter is out of range or R_map_world is not a
   /// rotation (checkRigid's tolerance).
   explicit MobilityMap(MapParams params = {}, const Eigen::Matrix3d& R_map_world = Eigen::Matrix3d::Identity());
-  /// Wraps a loaded tree (params.resolution_m must match the tree's).
+  /// Wraps a loaded tree (params.resolution_m must match the tree's); std::invalid_argument
+  /// if its pruned leaves stand for more voxels than its size allows (voxelBudgetProblem).
   MobilityMap(std::unique_ptr<MobilityOcTree> tree, MapParams params, const Eigen::Matrix3d& R_map_world);
 
   /// Fuses one frame: every segment point marks its voxel occupied and fuses the
@@ -175,7 +187,9 @@ class MapIoError : public std::runtime_error {
 /// Writes the full tree (.ot) atomically: a temporary file beside `path`, then rename.
 void saveMobilityMap(const MobilityOcTree& tree, const std::string& path);
 /// Reads a .ot written by saveMobilityMap(). MapIoError naming the path if the file is
-/// missing, truncated, of another tree type, or not an OctoMap file. Always links
+/// missing, truncated, of another tree type, not an OctoMap file, of a resolution outside
+/// [0.001, 10] m, or if its pruned leaves stand for more voxels than its size allows
+/// (voxelBudgetProblem). Always links
 /// the MobilityOcTree registration, also from static libraries.
 std::unique_ptr<MobilityOcTree> loadMobilityMap(const std::string& path);
 /// Occupancy only, OctoMap's binary .bt (readable by any OctoMap tool), atomically.
