@@ -1149,11 +1149,69 @@ TEST(Cli, PlanGivesFootstepsOrTheReasonThereAreNone) {
                                        {" --to 2 0 0 --sole -1 0.1", "sole_length_m"},
                                        {" --to 2 0 0 --max-step 0.01", "max_step_m"},
                                        {" --to 2 0 0 --weight 0.5", "heuristic_weight"},
-                                       {" --to 2 0 0 --png " + map, "the map's own file"}}) {
+                                       {" --to 2 0 0 --png " + map, "is the map " + map}}) {
     const Result bad = run("plan " + map + " --from 1.2 0 0" + options);
     EXPECT_EQ(bad.code, 2) << options << ": " << bad.out;
     EXPECT_NE(bad.out.find(field), std::string::npos) << bad.out;
   }
+  fs::remove_all(dir);
+}
+
+// No writer replaces one of its own inputs: the map, its companion files, the frame it
+// reads, the table it scores with, or another of its outputs. Files are compared as
+// files (a symbolic link, a hard link or another spelling is the same file).
+TEST(Cli, NoCommandWritesOverItsOwnInputs) {
+  const std::string dir = tempDir("self-overwrite");
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 4 --noise none --quiet").code, 0);
+  const std::string map = dir + "/m.ot";
+  ASSERT_EQ(run("build " + dir + "/seq --out " + map + " --quiet").code, 0);
+  const std::string pcd = dir + "/s.pcd";
+  ASSERT_EQ(run("export " + map + " --pcd " + pcd).code, 0);
+  const std::string depth = dir + "/seq/frame-000000.depth.png";
+  const std::string table = dir + "/t.csv";
+  {
+    std::ofstream(table) << "slope,roughness,mobility\n";
+    std::ofstream(dir + "/c.json") << "{}\n";
+  }
+  fs::create_symlink(fs::absolute(map), dir + "/link.ot");
+  fs::create_hard_link(dir + "/m.json", dir + "/hard.json");
+  const std::vector<std::string> guarded = {map,   dir + "/m.bt", dir + "/m.octovis.ot", dir + "/m.json",
+                                            depth, pcd,           table,                 dir + "/c.json"};
+  std::map<std::string, std::string> before;
+  for (const auto& f : guarded) before[f] = fileBytes(f);
+  const std::string spelled = dir + "/seq/../m.ot";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"export " + map + " --png " + map, "--png " + map + " is the map " + map},
+      {"export " + map + " --pcd " + spelled, "is the map"},
+      {"export " + map + " --png " + dir + "/link.ot", "is the map"},
+      {"export " + map + " --png " + dir + "/m.json", "is the map's metadata"},
+      {"export " + map + " --png " + dir + "/hard.json", "is the map's metadata"},
+      {"export " + map + " --png " + dir + "/a.png --pcd " + dir + "/seq/../a.png", "are the same file"},
+      {"reach " + map + " --png " + dir + "/m.bt", "is the map's occupancy export"},
+      {"reach " + map + " --pcd " + dir + "/m.octovis.ot", "is the map's octovis export"},
+      {"reach " + map + " --octovis " + map, "is the map"},
+      {"plan " + map + " --from 1.2 0 0 --to 2 0 0 --png " + dir + "/m.json", "is the map's metadata"},
+      {"overlay " + map + " --frame 0 --out " + depth, "is the frame's file"},
+      {"overlay " + map + " --frame 0 --out " + dir + "/m.bt", "is the map's occupancy export"},
+      {"analyze " + depth + " --overlay " + depth, "is the input"},
+      {"analyze " + dir + "/seq --frame 0 --overlay " + depth, "is the frame's file"},
+      {"analyze " + pcd + " --segments " + pcd, "--segments " + pcd + " is the input"},
+      {"analyze " + pcd + " --segments " + dir + "/x.pcd --overlay " + dir + "/x.pcd", "are the same file"},
+      {"score --plot " + table + " --table " + table, "--plot " + table + " is --table " + table},
+      {"build " + dir + "/seq --config " + dir + "/c.json --out " + dir + "/c.ot", "--out's metadata " + dir + "/c.json is --config"},
+  };
+  for (const auto& [command, expected] : cases) {
+    const Result r = run(command);
+    EXPECT_EQ(r.code, 2) << command << "\n" << r.out;
+    EXPECT_NE(r.out.find(expected), std::string::npos) << command << "\n" << r.out;
+    EXPECT_TRUE(r.out.find("choose another path") != std::string::npos ||
+                r.out.find("give each output its own path") != std::string::npos)
+        << r.out;
+  }
+  for (const auto& f : guarded) EXPECT_EQ(fileBytes(f), before[f]) << f << " changed";
+  // Distinct outputs are written as before.
+  ASSERT_EQ(run("export " + map + " --png " + dir + "/top.png --pcd " + dir + "/top.pcd").code, 0);
+  EXPECT_TRUE(fs::exists(dir + "/top.png") && fs::exists(dir + "/top.pcd"));
   fs::remove_all(dir);
 }
 

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdio>
+#include <filesystem>
 #include <cstring>
 #include <fstream>
 #include <iostream>
@@ -127,7 +128,20 @@ Command addAnalyzeCommand(CLI::App& app) {
       ->check(CLI::IsMember({"colour", "depth"}))
       ->capture_default_str();
   return [o, voxel]() {
+    {
+      std::vector<NamedPath> inputs{{"the input", o->input}, {"--config", o->config}};
+      std::error_code ec;
+      if (std::filesystem::is_regular_file(o->intrinsics, ec)) inputs.push_back({"--intrinsics", o->intrinsics});
+      const auto beside = std::filesystem::path(o->input).parent_path() / "camera-intrinsics.txt";
+      if (o->intrinsics.empty() && std::filesystem::is_regular_file(beside, ec)) inputs.push_back({"the intrinsics", beside.string()});
+      refuseToOverwriteInputs({{"--segments", o->segments}, {"--overlay", o->overlay}}, inputs);
+    }
     LoadedFrame f = loadSingleFrame(o->input, o->frame, o->intrinsics);
+    {
+      std::vector<NamedPath> inputs;  // a directory's frame: its depth image and pose file
+      for (const std::string& file : f.sources) inputs.push_back({"the frame's file", file});
+      refuseToOverwriteInputs({{"--segments", o->segments}, {"--overlay", o->overlay}}, inputs);
+    }
     if (!f.note.empty()) std::fprintf(stderr, "note: %s\n", f.note.c_str());
     if (!o->gravity.empty()) f.gravity_camera = parseVector3(o->gravity, "--gravity");
     Config config = o->config.empty() ? Config{} : loadConfig(o->config);

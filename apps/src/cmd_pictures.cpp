@@ -2,6 +2,7 @@
 // of the input (`overlay`, paper eq. 13 and Figs. 4 and 6).
 #include "canvas.hpp"
 #include "commands.hpp"
+#include "files.hpp"
 #include "frame_source.hpp"
 #include "io_error.hpp"
 #include "map_files.hpp"
@@ -41,6 +42,7 @@ Command addExportCommand(CLI::App& app) {
     if (o->png.empty() && o->pcd.empty()) throw UsageError("export needs --png OUT.png and/or --pcd OUT.pcd");
     if (max_z->count() > 0 && o->png.empty()) throw UsageError("--max-z cuts the top view: it needs --png");
     if (!std::isfinite(o->max_z) && max_z->count() > 0) throw UsageError("--max-z must be a finite height in metres");
+    refuseToOverwriteInputs({{"--png", o->png}, {"--pcd", o->pcd}}, mapFilesAsInputs(o->map));
     const OpenedMap opened = openMapFiles(o->map);
     const mapping::MapMetadata& metadata = opened.metadata;
     const mapping::MobilityMap& map = opened.map;
@@ -165,6 +167,13 @@ Command addOverlayCommand(CLI::App& app) {
       try {
         if (intrinsics.empty() && run->contains("depth_intrinsics")) {
           const auto& k = (*run)["depth_intrinsics"];
+          const double fx = k.at("fx").get<double>(), fy = k.at("fy").get<double>();
+          if (!(fx > 0 && fy > 0 && std::isfinite(fx) && std::isfinite(fy) && std::isfinite(k.at("cx").get<double>()) &&
+                std::isfinite(k.at("cy").get<double>()))) {
+            throw IoError(metadata.path, "\"depth_intrinsics\" of the run that read " + input +
+                                             " must have fx and fy > 0 and finite cx, cy, got " + k.dump() +
+                                             " (--intrinsics gives the camera instead)");
+          }
           char spec[160];
           std::snprintf(spec, sizeof spec, "%.17g,%.17g,%.17g,%.17g", k.at("fx").get<double>(), k.at("fy").get<double>(),
                         k.at("cx").get<double>(), k.at("cy").get<double>());
@@ -183,6 +192,13 @@ Command addOverlayCommand(CLI::App& app) {
       throw UsageError("--frame: overlay reads frames of a 7-Scenes / 3DMatch or TUM directory, of .pcd frames with "
                        "--poses or of an .oni recording; " + input +
                        " is none of these (for one frame on its own: mobmap analyze FILE --overlay OUT.png)");
+    }
+    {
+      std::vector<NamedPath> inputs = mapFilesAsInputs(o->map);
+      inputs.push_back({"the input", input});
+      inputs.push_back({"the poses", poses});
+      if (std::filesystem::is_regular_file(intrinsics, ec)) inputs.push_back({"the intrinsics", intrinsics});
+      refuseToOverwriteInputs({{"--out", o->out}}, inputs);
     }
     std::unique_ptr<Sequence> seq;
     if (ext == ".oni") {
@@ -203,6 +219,11 @@ Command addOverlayCommand(CLI::App& app) {
       throw IoError(input, "its frames are unorganized clouds, not images: there is no picture to draw the map into");
     }
     const LoadedFrame f = loadSequenceFrame(*seq, input, n);
+    {
+      std::vector<NamedPath> frame_files;
+      for (const std::string& file : f.sources) frame_files.push_back({"the frame's file", file});
+      refuseToOverwriteInputs({{"--out", o->out}}, frame_files);
+    }
     const mapping::MobilityMap map = mapping::openMap(std::move(tree), metadata);
     const auto& k = f.intrinsics;
     // Base image: the frame's colour image in grey when the input has one, else shaded depth.

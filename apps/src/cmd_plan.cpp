@@ -25,18 +25,6 @@ constexpr Rgb kRightSole{230, 120, 0};
 /// Exit code of a run that found no plan (the answer is still printed).
 constexpr int kNoPlan = 3;
 
-// The picture must not replace the map or one of its companion files.
-void refuseToOverwriteMap(const std::string& out, const std::string& map) {
-  namespace fs = std::filesystem;
-  const std::string stem = mapping::mapFileStem(map);
-  for (const std::string& input : {map, stem + ".bt", stem + ".octovis.ot", stem + ".json"}) {
-    std::error_code ec;
-    if (fs::exists(out, ec) && fs::exists(input, ec) && fs::equivalent(out, input, ec)) {
-      throw UsageError("--png " + out + " is the map's own file " + input + "; choose another path");
-    }
-  }
-}
-
 }  // namespace
 
 Command addPlanCommand(CLI::App& app) {
@@ -83,7 +71,7 @@ Command addPlanCommand(CLI::App& app) {
     const Eigen::Vector3d from_in(o->from[0], o->from[1], o->from[2]), to_in(o->to[0], o->to[1], o->to[2]);
     if (!from_in.allFinite()) throw UsageError("--from: values must be finite");
     if (!to_in.allFinite()) throw UsageError("--to: values must be finite");
-    if (!o->png.empty()) refuseToOverwriteMap(o->png, o->map);
+    refuseToOverwriteInputs({{"--png", o->png}}, mapFilesAsInputs(o->map));
     const OpenedMap opened = openMapFiles(o->map);
     const mapping::MobilityMap& map = opened.map;
     const bool world = o->frame == "world";

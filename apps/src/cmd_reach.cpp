@@ -71,6 +71,7 @@ Command addReachCommand(CLI::App& app) {
     if (max_z->count() > 0 && o->png.empty()) throw UsageError("--max-z cuts the top view: it needs --png");
     if (!std::isfinite(o->max_z) && max_z->count() > 0) throw UsageError("--max-z must be a finite height in metres");
     resolveReachOptions(o->reach);
+    refuseToOverwriteInputs({{"--png", o->png}, {"--pcd", o->pcd}, {"--octovis", o->octovis}}, mapFilesAsInputs(o->map));
     const OpenedMap opened = openMapFiles(o->map);
     const mapping::MapMetadata& metadata = opened.metadata;
     const mapping::MobilityMap& map = opened.map;

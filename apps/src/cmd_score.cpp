@@ -44,6 +44,7 @@ Command addScoreCommand(CLI::App& app) {
     if (slope->count() == 0 && plot->count() == 0) {
       throw UsageError("score needs --slope and --roughness, or --plot OUT.png");
     }
+    refuseToOverwriteInputs({{"--plot", o->plot}}, {{"--table", o->table}});
     gp::MobilityModelParams params;
     params.model = o->model == "rule" ? gp::ModelKind::kRuleTable : gp::ModelKind::kGaussianProcess;
     gp::RuleTable table = loadRuleTable(o->table);

@@ -2,6 +2,8 @@
 
 #include "io_error.hpp"
 
+#include "mobmap/mapping/mobility_map.hpp"
+
 #include <unistd.h>
 
 #include <cerrno>
@@ -28,6 +30,54 @@ std::string readTextFile(const std::string& path, std::size_t max_bytes) {
   std::ostringstream s;
   s << in.rdbuf();
   return s.str();
+}
+
+std::vector<NamedPath> mapFilesAsInputs(const std::string& ot_path) {
+  const std::string stem = mapping::mapFileStem(ot_path);
+  return {{"the map", ot_path},
+          {"the map's occupancy export", stem + ".bt"},
+          {"the map's octovis export", stem + ".octovis.ot"},
+          {"the map's metadata", stem + ".json"}};
+}
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// The path as the file it names: absolute, links and "." / ".." resolved as far as the
+// file system has them.
+fs::path resolved(const std::string& path) {
+  std::error_code ec;
+  fs::path p = fs::weakly_canonical(fs::absolute(path, ec), ec);
+  return ec ? fs::absolute(path, ec).lexically_normal() : p;
+}
+
+bool sameFile(const std::string& a, const std::string& b) {
+  std::error_code ec;
+  if (fs::exists(a, ec) && fs::exists(b, ec)) return fs::equivalent(a, b, ec) && !ec;
+  return resolved(a) == resolved(b);
+}
+
+}  // namespace
+
+void refuseToOverwriteInputs(const std::vector<NamedPath>& outputs, const std::vector<NamedPath>& inputs) {
+  for (std::size_t i = 0; i < outputs.size(); ++i) {
+    const NamedPath& out = outputs[i];
+    if (out.path.empty()) continue;
+    for (const NamedPath& in : inputs) {
+      if (in.path.empty()) continue;
+      if (sameFile(out.path, in.path)) {
+        throw UsageError(out.name + " " + out.path + " is " + in.name + " " + in.path +
+                         ", which this command reads; choose another path");
+      }
+    }
+    for (std::size_t k = 0; k < i; ++k) {
+      if (!outputs[k].path.empty() && sameFile(out.path, outputs[k].path)) {
+        throw UsageError(out.name + " " + out.path + " and " + outputs[k].name + " " + outputs[k].path +
+                         " are the same file; give each output its own path");
+      }
+    }
+  }
 }
 
 namespace {

@@ -33,6 +33,22 @@ void writeFilesTogether(const std::vector<PendingFile>& files);
 /// probe file beside it (removed again). IoError naming the path and the reason if not.
 void checkWritable(const std::string& path);
 
+/// A file a command reads or writes, with what it is for the error message: an option
+/// ("--png") or a role ("the map", "the depth frame").
+struct NamedPath {
+  std::string name;
+  std::string path;
+};
+
+/// The map's own files as inputs: MAP.ot, MAP.bt, MAP.octovis.ot and MAP.json.
+std::vector<NamedPath> mapFilesAsInputs(const std::string& ot_path);
+
+/// Before a command writes anything: UsageError if an output is one of the inputs, or
+/// the same file as another output, naming both. Files are compared as the files they
+/// resolve to (another spelling, a symbolic or a hard link is the same file). Empty
+/// paths (options not given) are left out.
+void refuseToOverwriteInputs(const std::vector<NamedPath>& outputs, const std::vector<NamedPath>& inputs);
+
 /// writeAtomically() for text.
 void writeTextFileAtomically(const std::string& path, const std::string& text);
 

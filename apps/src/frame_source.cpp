@@ -127,6 +127,7 @@ LoadedFrame loadSequenceFrame(const Sequence& seq, const std::string& input, int
   f.depth = std::move(sf.depth);
   f.colour = seq.colour(frame);
   f.T_world_camera = sf.T_world_camera.matrix();
+  f.sources = seq.files(frame);
   return f;
 }
 
@@ -152,6 +153,7 @@ LoadedFrame loadSingleFrame(const std::string& input, int frame, const std::stri
     f.intrinsics = dir.intrinsics();
     f.depth = dir.readDepth(n);
     f.colour = dir.readColour(n);
+    f.sources = {dir.depthPath(n), dir.posePath(n)};
     if (fs::exists(dir.posePath(n), ec)) {
       f.T_world_camera = dir.readPose(n);
       if (dir.gravityDown()) {

@@ -29,6 +29,9 @@ struct LoadedFrame {
   std::optional<ImageRgb> colour;                 ///< for overlays, when the input has one
   std::optional<Eigen::Vector3f> gravity_camera;  ///< gravity (down) in the camera frame
   std::optional<Eigen::Matrix4d> T_world_camera;
+  /// The files it was read from (depth image or cloud, pose file), which a command must
+  /// not write over.
+  std::vector<std::string> sources;
   /// For the user, when loading chose something they did not ask for (empty if not).
   std::string note;
 };

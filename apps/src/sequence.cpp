@@ -42,6 +42,7 @@ class SevenScenesSequence : public Sequence {
     return f;
   }
   std::optional<ImageRgb> colour(int n) const override { return dir_.readColour(n); }
+  std::vector<std::string> files(int n) const override { return {dir_.depthPath(n), dir_.posePath(n)}; }
   std::optional<Eigen::Isometry3d> pose(int n) const override {
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.matrix() = dir_.readPose(n);
@@ -198,6 +199,7 @@ class PcdSequence : public Sequence {
   }
   std::string skipped() const override { return skipped_; }
   std::optional<Eigen::Isometry3d> pose(int n) const override { return entries_.at(static_cast<std::size_t>(n)).pose; }
+  std::vector<std::string> files(int n) const override { return {entries_.at(static_cast<std::size_t>(n)).path, poses_path_}; }
 
  private:
   struct Entry {
@@ -283,6 +285,10 @@ class TumSequence : public Sequence {
   }
   std::string skipped() const override { return skipped_; }
   std::optional<Eigen::Isometry3d> pose(int n) const override { return entries_.at(static_cast<std::size_t>(n)).pose; }
+  std::vector<std::string> files(int n) const override {
+    return {entries_.at(static_cast<std::size_t>(n)).path, (fs::path(dir_) / "groundtruth.txt").string(),
+            (fs::path(dir_) / "depth.txt").string()};
+  }
 
  private:
   struct Entry {

@@ -52,6 +52,9 @@ class Sequence {
   /// within 0.02 s of the depth (TUM registers colour to depth), an organized .pcd's
   /// rgb. For pictures; load() does not read it. IoError if the file is unreadable.
   [[nodiscard]] virtual std::optional<ImageRgb> colour(int /*n*/) const { return std::nullopt; }
+  /// The files frame `n` is read from (its depth image or cloud, its pose file), so a
+  /// command that writes files can refuse to write over them.
+  [[nodiscard]] virtual std::vector<std::string> files(int /*n*/) const { return {}; }
   /// Frames left out and why ("12 depth frames without a pose within 0.05 s"), or "".
   [[nodiscard]] virtual std::string skipped() const { return {}; }
 };
