@@ -1,4 +1,6 @@
 // The `mobmap` executable as a user runs it: outputs, exit codes, error messages.
+#include "mobmap/mapping/map_lock.hpp"
+
 #include <nlohmann/json.hpp>
 #include <octomap/ColorOcTree.h>
 
@@ -1212,6 +1214,39 @@ TEST(Cli, NoCommandWritesOverItsOwnInputs) {
   // Distinct outputs are written as before.
   ASSERT_EQ(run("export " + map + " --png " + dir + "/top.png --pcd " + dir + "/top.pcd").code, 0);
   EXPECT_TRUE(fs::exists(dir + "/top.png") && fs::exists(dir + "/top.pcd"));
+  fs::remove_all(dir);
+}
+
+// Two writers of one map: the second fails at once, naming the process that holds the
+// map's lock, and the map keeps the first one's frames. The test process holds the lock
+// itself, as a running `build` would, so nothing depends on timing.
+TEST(Cli, ASecondWriterOfAMapFailsAtOnceNamingTheHolder) {
+  const std::string dir = tempDir("lock");
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 4 --noise none --quiet").code, 0);
+  const std::string map = dir + "/m.ot";
+  ASSERT_EQ(run("build " + dir + "/seq --out " + map + " --quiet").code, 0);
+  const std::string ot = fileBytes(map), json = fileBytes(dir + "/m.json");
+  const std::string holder = "is being written by another process (pid " + std::to_string(::getpid()) + " holds " + dir + "/m.lock)";
+  {
+    const mobmap::mapping::MapLock held(map);
+    for (const std::string& options : {" --extend", " --force"}) {
+      const Result r = run("build " + dir + "/seq --out " + map + options + " --quiet");
+      EXPECT_EQ(r.code, 1) << options << ": " << r.out;
+      EXPECT_NE(r.out.find(map + ": " + holder), std::string::npos) << r.out;
+    }
+    // A fresh map at a path being written by another build: refused too (it used to
+    // pass the "exists" check while the first build was still running).
+    const mobmap::mapping::MapLock other(dir + "/new.ot");
+    const Result fresh = run("build " + dir + "/seq --out " + dir + "/new.ot --quiet");
+    EXPECT_EQ(fresh.code, 1) << fresh.out;
+    EXPECT_FALSE(fs::exists(dir + "/new.ot"));
+  }
+  EXPECT_EQ(fileBytes(map), ot);
+  EXPECT_EQ(fileBytes(dir + "/m.json"), json);
+  const Result extended = run("build " + dir + "/seq --out " + map + " --extend --quiet");
+  ASSERT_EQ(extended.code, 0) << extended.out;
+  EXPECT_NE(extended.out.find("the map now holds 8 frames from 2 runs"), std::string::npos) << extended.out;
+  EXPECT_FALSE(fs::exists(dir + "/m.lock"));
   fs::remove_all(dir);
 }
 

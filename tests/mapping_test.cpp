@@ -1,5 +1,6 @@
 // The MobilityOcTree and MobilityMap: storage, fusion, files, queries.
 #include "mobmap/mapping/gravity.hpp"
+#include "mobmap/mapping/map_lock.hpp"
 #include "mobmap/mapping/mobility_map.hpp"
 #include "mobmap/mapping/mobility_octree.hpp"
 #include "mobmap/sim/corridor_scene.hpp"
@@ -10,7 +11,10 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
 #include <unistd.h>
+
+#include <csignal>
 
 #include <cmath>
 #include <cstdio>
@@ -797,6 +801,59 @@ TEST(MapFiles, ALeafStandingForMoreVoxelsThanTheFileCanHoldIsRefusedNotExpanded)
   EXPECT_EQ(map.query(c + Eigen::Vector3d::Constant(63 * 0.02)).state, VoxelState::kSurface);
   EXPECT_EQ(map.query(c + Eigen::Vector3d::Constant(64 * 0.02)).state, VoxelState::kUnknown);
   EXPECT_EQ(map.query(c - Eigen::Vector3d::Constant(0.02)).state, VoxelState::kUnknown);
+}
+
+std::string lockError(const std::string& ot) {
+  try {
+    const MapLock lock(ot);
+  } catch (const MapIoError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(MapLock, OneWriterAtATimeAndADeadHolderBlocksNobody) {
+  const std::string dir = tempPath("lockdir");
+  std::filesystem::create_directories(dir);
+  const std::string ot = dir + "/m.ot";
+  EXPECT_EQ(mapLockPath(ot), dir + "/m.lock");
+  {
+    const MapLock held(ot);
+    EXPECT_TRUE(std::filesystem::exists(held.path()));
+    const std::string e = lockError(ot);
+    EXPECT_EQ(e.rfind(ot + ": is being written by another process (pid " + std::to_string(::getpid()) + " holds " +
+                          dir + "/m.lock)", 0),
+              0u)
+        << e;
+    EXPECT_EQ(lockError(dir + "/other.ot"), "no error");  // another map is another lock
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir + "/m.lock"));  // removed on release
+  // A lock file left behind by a writer that is gone (its pid inside, nobody holding it).
+  std::ofstream(dir + "/m.lock") << "999999\n";
+  EXPECT_EQ(lockError(ot), "no error");
+  // A writer killed while it holds the lock: the system releases it. The child says
+  // when it holds it through a pipe; no timing involved.
+  int ready[2];
+  ASSERT_EQ(::pipe(ready), 0);
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    ::close(ready[0]);
+    const MapLock held(ot);
+    const char c = 'x';
+    if (::write(ready[1], &c, 1) != 1) ::_exit(1);
+    for (;;) ::pause();
+  }
+  ::close(ready[1]);
+  char c = 0;
+  ASSERT_EQ(::read(ready[0], &c, 1), 1);
+  ::close(ready[0]);
+  EXPECT_NE(lockError(ot).find("(pid " + std::to_string(child) + " holds"), std::string::npos) << lockError(ot);
+  ::kill(child, SIGKILL);
+  int status = 0;
+  ASSERT_EQ(::waitpid(child, &status, 0), child);
+  EXPECT_EQ(lockError(ot), "no error");
+  std::filesystem::remove_all(dir);
 }
 
 TEST(MapFiles, AResolutionThatIsNotAUsableNumberIsNamed) {

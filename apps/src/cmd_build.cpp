@@ -11,6 +11,7 @@
 #include "worker_pool.hpp"
 
 #include "mobmap/mapping/gravity.hpp"
+#include "mobmap/mapping/map_lock.hpp"
 #include "mobmap/mapping/mobility_map.hpp"
 #include "mobmap/mapping/trajectory.hpp"
 #include "mobmap/perception/pipeline.hpp"
@@ -306,6 +307,9 @@ Command addBuildCommand(CLI::App& app) {
     namespace fs = std::filesystem;
     std::error_code ec;
     if (fs::path(o->out).extension() != ".ot") throw UsageError("--out must end in .ot, got '" + o->out + "'");
+    // One writer per map for the whole run: a second build to the same --out (fresh or
+    // --extend) fails here at once instead of replacing the first one's frames.
+    const mapping::MapLock lock(o->out);
     if (o->extend && !fs::exists(o->out, ec)) throw UsageError("--extend: " + o->out + " does not exist (build it without --extend first)");
     if (!o->force && !o->extend && fs::exists(o->out, ec)) {
       throw UsageError(o->out + " exists; pass --force to overwrite it or --extend to add frames to it");
