@@ -38,7 +38,7 @@ module_sources() {
 mapfile -t gp < <(module_sources gp)
 mapfile -t perception < <(module_sources perception)
 mapfile -t mapping < <(module_sources mapping)
-mrpt=(-lmrpt-poses -lmrpt-math -lmrpt-core)
+mrpt=(-lmrpt-poses -lmrpt-math -lmrpt-serialization -lmrpt-core)
 link() {  # link TARGET SOURCES... -- LIBS...
   local target=$1; shift
   local srcs=() libs=()

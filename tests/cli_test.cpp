@@ -1539,6 +1539,40 @@ TEST(Cli, AMapThatCannotBeSavedInFullLeavesTheFilesOnDiskAsTheyWere) {
 // with a bad checksum), naming the file and the way round it. With --skip-bad-frames the
 // run leaves such frames out, says which, and gives the map of the frames left: byte
 // for byte the map of the same sequence without those frames.
+// A depth frame declaring 16384 x 16384 pixels (a valid header, no pixels behind it) in
+// the middle of a sequence: named as too large, not decoded, and left out with
+// --skip-bad-frames.
+TEST(Cli, AnOversizedFrameIsNamedAndSkippable) {
+  const std::string dir = tempDir("oversized");
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 4 --noise none --quiet").code, 0);
+  const std::string png = dir + "/seq/frame-000001.depth.png";
+  std::string ihdr = "IHDR";
+  for (std::uint32_t v : {16384u, 16384u}) {
+    for (int shift : {24, 16, 8, 0}) ihdr.push_back(static_cast<char>(v >> shift));
+  }
+  ihdr += std::string{16, 0, 0, 0, 0};
+  std::uint32_t crc = 0xFFFFFFFFu;
+  for (unsigned char c : ihdr) {
+    crc ^= c;
+    for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
+  }
+  crc ^= 0xFFFFFFFFu;
+  std::string bytes = std::string("\x89PNG\r\n\x1a\n", 8) + std::string{0, 0, 0, 13} + ihdr;
+  for (int shift : {24, 16, 8, 0}) bytes.push_back(static_cast<char>(crc >> shift));
+  bytes += std::string{0, 0, 0, 0} + "IDAT" + std::string{'\x35', '\xaf', '\x06', '\x1e'};  // empty, with its CRC
+  bytes += std::string{0, 0, 0, 0} + "IEND" + std::string{'\xae', 'B', '`', '\x82'};
+  std::ofstream(png, std::ios::binary) << bytes;
+  const Result stop = run("build " + dir + "/seq --out " + dir + "/m.ot --quiet");
+  EXPECT_EQ(stop.code, 1);
+  EXPECT_NE(stop.out.find(png + ": the image is 16384x16384 pixels, larger than mobmap reads"), std::string::npos) << stop.out;
+  EXPECT_FALSE(fs::exists(dir + "/m.ot"));
+  const Result skip = run("build " + dir + "/seq --out " + dir + "/m.ot --quiet --skip-bad-frames");
+  ASSERT_EQ(skip.code, 0) << skip.out;
+  EXPECT_NE(skip.out.find("warning: skipped " + png + ": the image is 16384x16384"), std::string::npos) << skip.out;
+  EXPECT_NE(skip.out.find("3 of 4 frames fused"), std::string::npos) << skip.out;
+  fs::remove_all(dir);
+}
+
 TEST(Cli, SkipBadFramesLeavesOutUnreadableFramesAndMapsTheRest) {
   const std::string dir = tempDir("skipbad");
   ASSERT_EQ(run("simulate --out " + dir + "/bad --frames 6 --noise none --quiet").code, 0);

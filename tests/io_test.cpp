@@ -116,6 +116,125 @@ TEST(Png, HostileFilesGiveErrorsNamingTheFile) {
   EXPECT_NE(errorOf([&] { readPng16(dir.file("rgb.png")); }).find("not a 16-bit greyscale PNG"), std::string::npos);
 }
 
+// A PNG's chunk with its CRC (the bitwise form of the polynomial PNG uses).
+std::string pngChunk(const std::string& type, const std::string& data) {
+  const std::string body = type + data;
+  std::uint32_t crc = 0xFFFFFFFFu;
+  for (unsigned char c : body) {
+    crc ^= c;
+    for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
+  }
+  crc ^= 0xFFFFFFFFu;
+  const auto be32 = [](std::uint32_t v) {
+    return std::string{static_cast<char>(v >> 24), static_cast<char>(v >> 16), static_cast<char>(v >> 8), static_cast<char>(v)};
+  };
+  return be32(static_cast<std::uint32_t>(data.size())) + body + be32(crc);
+}
+
+// The header of a 16-bit grey PNG of the given size: what the decoder reads first.
+std::string pngHeaderOfSize(std::uint32_t width, std::uint32_t height) {
+  std::string ihdr;
+  for (std::uint32_t v : {width, height}) {
+    for (int shift : {24, 16, 8, 0}) ihdr.push_back(static_cast<char>(v >> shift));
+  }
+  ihdr += std::string{16, 0, 0, 0, 0};  // bit depth 16, grey, deflate, no filter, no interlace
+  return std::string("\x89PNG\r\n\x1a\n", 8) + pngChunk("IHDR", ihdr) + pngChunk("IDAT", "") + pngChunk("IEND", "");
+}
+
+TEST(Png, AFrameLargerThanTheLimitIsNamedAsSuchBeforeAnyPixelIsAllocated) {
+  TempDir dir;
+  // 16384 x 16384 (512 MB of 16-bit pixels) used to be decoded until memory ran out;
+  // 100000 x 1 was reported as a corrupt file.
+  for (const auto& [w, h] : {std::pair<std::uint32_t, std::uint32_t>{16384, 16384}, {100000, 1}, {1, 20000}, {4097, 4097}}) {
+    const std::string path = dir.file("big.png");
+    writeBytes(path, pngHeaderOfSize(w, h));
+    EXPECT_EQ(errorOf([&] { checkPngComplete(path); }), "no error");  // a whole file: only decoding finds it
+    const std::string e = errorOf([&] { readPng16(path); });
+    EXPECT_EQ(e, path + ": the image is " + std::to_string(w) + "x" + std::to_string(h) +
+                     " pixels, larger than mobmap reads (at most 16384 pixels a side and 16777216 pixels in all)");
+    EXPECT_EQ(errorOf([&] { readPngRgb(path); }), e);
+  }
+  // At the limit the header passes and the missing pixels are what is reported.
+  writeBytes(dir.file("edge.png"), pngHeaderOfSize(16384, 1024));
+  EXPECT_NE(errorOf([&] { readPng16(dir.file("edge.png")); }).find("corrupt or truncated"), std::string::npos);
+}
+
+const char* kPcdHeader = "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH %W\nHEIGHT 1\n"
+                         "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS %W\nDATA %D\n";
+
+std::string pcdHeader(const std::string& width, const std::string& data) {
+  std::string h = kPcdHeader;
+  for (std::size_t at; (at = h.find("%W")) != std::string::npos;) h.replace(at, 2, width);
+  h.replace(h.find("%D"), 2, data);
+  return h;
+}
+
+TEST(Pcd, DeclaredSizesAreCheckedAgainstTheFileAndTheFrameLimitBeforeAnythingIsAllocated) {
+  TempDir dir;
+  std::string lines;
+  for (int i = 0; i < 20000; ++i) lines += std::to_string(i % 100) + " " + std::to_string(i / 100) + " 1\n";
+  const auto both = [&](const std::string& path) {
+    const std::string e = errorOf([&] { (void)loadPcd(path); });
+    const std::string checked = errorOf([&] { checkPcdComplete(path); });
+    EXPECT_EQ(checked, e) << "the check before a run and the loader disagree";
+    return e;
+  };
+  // A billion points declared over 20000 lines; 4e9 binary points; both used to end in
+  // std::bad_alloc after gigabytes, inside PCL's header reader.
+  writeBytes(dir.file("a.pcd"), pcdHeader("1000000000", "ascii") + lines);
+  EXPECT_EQ(both(dir.file("a.pcd")), dir.file("a.pcd") + ": PCD header declares 1000000000 points (WIDTH 1000000000, HEIGHT 1), "
+                                     "more than mobmap reads in one frame (16777216)");
+  writeBytes(dir.file("b.pcd"), pcdHeader("4000000000", "binary") + std::string(1200, '\0'));
+  EXPECT_NE(both(dir.file("b.pcd")).find("b.pcd: PCD header declares 4000000000 points"), std::string::npos);
+  // Within the limit, more ASCII points than the data can hold (2 bytes a value at least).
+  writeBytes(dir.file("c.pcd"), pcdHeader("10000000", "ascii") + lines);
+  EXPECT_NE(errorOf([&] { (void)loadPcd(dir.file("c.pcd")); })
+                .find("c.pcd: PCD header declares 10000000 points of 3 values, but its 167000 bytes of ASCII data hold at most 27833"),
+            std::string::npos);
+  // binary_compressed whose uncompressed size says 4 GB (100 points of 12 bytes are 1200).
+  std::string sizes = {10, 0, 0, 0, 0, 0, 0, static_cast<char>(0xF0)};
+  writeBytes(dir.file("d.pcd"), pcdHeader("100", "binary_compressed") + sizes + std::string(10, '\0'));
+  EXPECT_EQ(both(dir.file("d.pcd")), dir.file("d.pcd") + ": PCD compressed data says it holds 4026531840 bytes, but 100 "
+                                     "points of 12 bytes are 1200 (corrupt file)");
+  // The same file honest: 20000 ASCII points load.
+  writeBytes(dir.file("e.pcd"), pcdHeader("20000", "ascii") + lines);
+  EXPECT_EQ(loadPcd(dir.file("e.pcd")).points.size(), 20000u);
+}
+
+TEST(Pcd, EightByteCoordinatesAreReadAsWritten) {
+  // PCL writes and reads SIZE 8 TYPE F; they used to load as zeros without a word.
+  TempDir dir;
+  const std::vector<Eigen::Vector3d> points = {{1.5, -2.25, 3.0}, {0.125, 0.5, -1.0}, {12.75, 0.0, 4.5}};
+  std::string ascii = "VERSION 0.7\nFIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 3\nHEIGHT 1\n"
+                      "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n";
+  std::string binary = "VERSION 0.7\nFIELDS x y z intensity\nSIZE 8 8 8 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH 3\nHEIGHT 1\n"
+                       "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA binary\n";
+  for (const auto& p : points) {
+    char line[96];
+    std::snprintf(line, sizeof line, "%.17g %.17g %.17g\n", p.x(), p.y(), p.z());
+    ascii += line;
+    binary.append(reinterpret_cast<const char*>(p.data()), 24);
+    const float intensity = 7.0f;
+    binary.append(reinterpret_cast<const char*>(&intensity), 4);
+  }
+  writeBytes(dir.file("ascii.pcd"), ascii);
+  writeBytes(dir.file("binary.pcd"), binary);
+  for (const std::string name : {"ascii.pcd", "binary.pcd"}) {
+    const LoadedFrame f = loadPcd(dir.file(name));
+    ASSERT_EQ(f.points.size(), points.size()) << name;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      EXPECT_EQ(f.points[i], points[i].cast<float>()) << name << " point " << i;
+    }
+  }
+  // Coordinates that are not floats are refused by name.
+  std::string ints = ascii;
+  ints.replace(ints.find("TYPE F F F"), 10, "TYPE I I I");
+  writeBytes(dir.file("ints.pcd"), ints);
+  EXPECT_NE(errorOf([&] { (void)loadPcd(dir.file("ints.pcd")); }).find("ints.pcd: PCD field x is not a 4- or 8-byte float"),
+            std::string::npos)
+      << errorOf([&] { (void)loadPcd(dir.file("ints.pcd")); });
+}
+
 // The cheap check `build` runs on every frame before a long run: whole files pass, files
 // cut anywhere (a recorder killed mid-write) fail, and so does whatever readPng16 refuses
 // to open.

@@ -3,6 +3,7 @@
 #include "dataset.hpp"
 #include "files.hpp"
 #include "io_error.hpp"
+#include "png_io.hpp"
 #include "sequence.hpp"
 
 #include <pcl/console/print.h>
@@ -12,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -38,9 +40,37 @@ struct PcdHeader {
   bool has_rgb = false;
 };
 
+// PCL's header reader allocates the declared size: WIDTH, HEIGHT and POINTS are read
+// here first and checked against the frame-size limit.
+void checkDeclaredPointCount(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  unsigned long long width = 1, height = 1, points = 0;
+  for (int lines = 0; lines < 64 && std::getline(in, line); ++lines) {
+    std::istringstream words(line);
+    std::string key;
+    words >> key;
+    if (key == "DATA") break;
+    if (key != "WIDTH" && key != "HEIGHT" && key != "POINTS") continue;
+    std::string value;
+    words >> value;
+    if (value.empty() || value.find_first_not_of("0123456789") != std::string::npos || value.size() > 15) {
+      throw IoError(path, "PCD header's " + key + " '" + value + "' is not a whole number below 10^15");
+    }
+    (key == "WIDTH" ? width : key == "HEIGHT" ? height : points) = std::stoull(value);
+  }
+  const unsigned long long declared = std::max(points, width * height);
+  if (declared > static_cast<unsigned long long>(kMaxFramePixels)) {
+    throw IoError(path, "PCD header declares " + std::to_string(declared) + " points (WIDTH " + std::to_string(width) +
+                            ", HEIGHT " + std::to_string(height) + "), more than mobmap reads in one frame (" +
+                            std::to_string(kMaxFramePixels) + ")");
+  }
+}
+
 // The header of a .pcd, which must exist and have x, y and z; IoError if not.
 PcdHeader readPcdHeader(const std::string& path) {
   if (!std::filesystem::exists(path)) throw IoError(path, "no such file");
+  checkDeclaredPointCount(path);
   pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);  // errors come back as codes; we word them
   pcl::PCDReader reader;
   PcdHeader h;
@@ -63,15 +93,30 @@ PcdHeader readPcdHeader(const std::string& path) {
 
 }  // namespace
 
-void checkPcdComplete(const std::string& path) {
-  const PcdHeader h = readPcdHeader(path);
+namespace {
+
+// What the header declares must fit the file and mobmap's frame-size limit, checked
+// before PCL allocates the declared size (a header claiming 10^9 points over a few
+// kilobytes of data used to end in std::bad_alloc after gigabytes). Binary data must be
+// all there; ASCII data needs at least two bytes ("0 ") per value.
+void checkPcdDeclaredSize(const std::string& path, const PcdHeader& h) {
+  const unsigned long long points = static_cast<unsigned long long>(h.fields.width) * h.fields.height;
+  if (points > static_cast<unsigned long long>(kMaxFramePixels)) {
+    throw IoError(path, "PCD header declares " + std::to_string(h.fields.width) + "x" + std::to_string(h.fields.height) +
+                            " = " + std::to_string(points) + " points, more than mobmap reads in one frame (" +
+                            std::to_string(kMaxFramePixels) + ")");
+  }
   std::error_code ec;
   const auto size = static_cast<unsigned long long>(std::filesystem::file_size(path, ec));
   if (ec) throw IoError(path, "cannot read its size: " + ec.message());
   const unsigned long long start = h.data_offset;
-  unsigned long long need = start;
+  const unsigned long long data = size > start ? size - start : 0;
+  const unsigned long long declared = points * h.fields.point_step;
   if (h.data_type == 1) {
-    need += static_cast<unsigned long long>(h.fields.width) * h.fields.height * h.fields.point_step;
+    if (data < declared) {
+      throw IoError(path, "PCD data is shorter than its header declares (" + std::to_string(size) + " bytes, " +
+                              std::to_string(start + declared) + " needed)");
+    }
   } else if (h.data_type == 2) {
     // Two little-endian 32-bit sizes (compressed, uncompressed), then the compressed bytes.
     std::ifstream in(path, std::ios::binary);
@@ -79,34 +124,108 @@ void checkPcdComplete(const std::string& path) {
     if (!in.seekg(static_cast<std::streamoff>(start)) || !in.read(reinterpret_cast<char*>(sizes), 8)) {
       throw IoError(path, "PCD data is corrupt or shorter than its header declares (no compressed block sizes)");
     }
-    const unsigned long long compressed = sizes[0] | sizes[1] << 8 | sizes[2] << 16 | static_cast<unsigned long long>(sizes[3]) << 24;
-    need += 8 + compressed;
+    const auto le32 = [&](int at) {
+      return static_cast<unsigned long long>(sizes[at]) | static_cast<unsigned long long>(sizes[at + 1]) << 8 |
+             static_cast<unsigned long long>(sizes[at + 2]) << 16 | static_cast<unsigned long long>(sizes[at + 3]) << 24;
+    };
+    const unsigned long long compressed = le32(0), uncompressed = le32(4);
+    if (data < 8 + compressed) {
+      throw IoError(path, "PCD data is shorter than its header declares (" + std::to_string(size) + " bytes, " +
+                              std::to_string(start + 8 + compressed) + " needed)");
+    }
+    if (uncompressed != declared) {
+      throw IoError(path, "PCD compressed data says it holds " + std::to_string(uncompressed) + " bytes, but " +
+                              std::to_string(points) + " points of " + std::to_string(h.fields.point_step) +
+                              " bytes are " + std::to_string(declared) + " (corrupt file)");
+    }
   } else {
-    return;  // ASCII: only loading it tells
+    std::size_t values = 0;
+    for (const auto& f : h.fields.fields) values += std::max<std::size_t>(1, f.count);
+    if (points * values * 2 > data) {
+      throw IoError(path, "PCD header declares " + std::to_string(points) + " points of " + std::to_string(values) +
+                              " values, but its " + std::to_string(data) + " bytes of ASCII data hold at most " +
+                              std::to_string(data / (2 * std::max<std::size_t>(1, values))) + " (corrupt or truncated file)");
+    }
   }
-  if (size < need) {
-    throw IoError(path, "PCD data is shorter than its header declares (" + std::to_string(size) + " bytes, " +
-                            std::to_string(need) + " needed)");
+}
+
+const pcl::PCLPointField* findField(const pcl::PCLPointCloud2& c, const std::string& name) {
+  for (const auto& f : c.fields) {
+    if (f.name == name) return &f;
   }
+  return nullptr;
+}
+
+}  // namespace
+
+void checkPcdComplete(const std::string& path) {
+  const PcdHeader h = readPcdHeader(path);
+  if (h.data_type == 0) {  // ASCII: only loading it tells; the declared size is bounded here
+    const unsigned long long points = static_cast<unsigned long long>(h.fields.width) * h.fields.height;
+    if (points > static_cast<unsigned long long>(kMaxFramePixels)) checkPcdDeclaredSize(path, h);
+    return;
+  }
+  checkPcdDeclaredSize(path, h);
 }
 
 LoadedFrame loadPcd(const std::string& path) {
   const PcdHeader h = readPcdHeader(path);
-  const bool has_rgb = h.has_rgb;
+  checkPcdDeclaredSize(path, h);
   pcl::PCDReader reader;
-  pcl::PointCloud<pcl::PointXYZRGBA> cloud;
-  if (reader.read(path, cloud) < 0) throw IoError(path, "PCD data is corrupt or shorter than its header declares");
+  pcl::PCLPointCloud2 cloud;
+  Eigen::Vector4f origin;
+  Eigen::Quaternionf orientation;
+  int version = 0;
+  if (reader.read(path, cloud, origin, orientation, version) < 0) throw IoError(path, "PCD data is corrupt or shorter than its header declares");
+  // x, y and z as the file stores them: 4- or 8-byte floats (PCL writes both; its
+  // conversion to float points leaves 8-byte fields at zero).
+  const pcl::PCLPointField* axes[3] = {findField(cloud, "x"), findField(cloud, "y"), findField(cloud, "z")};
+  for (const auto* f : axes) {
+    if (f->datatype != pcl::PCLPointField::FLOAT32 && f->datatype != pcl::PCLPointField::FLOAT64) {
+      throw IoError(path, "PCD field " + f->name + " is not a 4- or 8-byte float (TYPE F, SIZE 4 or 8); mobmap reads "
+                          "coordinates in metres as floats");
+    }
+    const std::size_t bytes = f->datatype == pcl::PCLPointField::FLOAT64 ? 8 : 4;
+    if (f->offset + bytes > cloud.point_step) throw IoError(path, "PCD field " + f->name + " lies outside its point (corrupt header)");
+  }
+  const std::size_t n = static_cast<std::size_t>(cloud.width) * cloud.height;
+  if (cloud.data.size() < n * cloud.point_step) throw IoError(path, "PCD data is corrupt or shorter than its header declares");
+  const pcl::PCLPointField* rgb = findField(cloud, "rgb");
+  if (!rgb) rgb = findField(cloud, "rgba");
+  if (rgb && (rgb->datatype == pcl::PCLPointField::FLOAT64 || rgb->datatype == pcl::PCLPointField::INT8 ||
+              rgb->datatype == pcl::PCLPointField::UINT8 || rgb->datatype == pcl::PCLPointField::INT16 ||
+              rgb->datatype == pcl::PCLPointField::UINT16 || rgb->offset + 4 > cloud.point_step)) {
+    rgb = nullptr;  // not a packed colour: drawn without it
+  }
+  const auto coordinate = [](const std::uint8_t* p, const pcl::PCLPointField& f) {
+    if (f.datatype == pcl::PCLPointField::FLOAT64) {
+      double v;
+      std::memcpy(&v, p + f.offset, 8);
+      return static_cast<float>(v);
+    }
+    float v;
+    std::memcpy(&v, p + f.offset, 4);
+    return v;
+  };
   LoadedFrame f;
-  f.points.reserve(cloud.size());
-  for (const auto& p : cloud.points) f.points.emplace_back(p.x, p.y, p.z);
+  f.points.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint8_t* p = cloud.data.data() + i * cloud.point_step;
+    f.points.emplace_back(coordinate(p, *axes[0]), coordinate(p, *axes[1]), coordinate(p, *axes[2]));
+  }
   f.width = static_cast<int>(cloud.width);
   f.height = static_cast<int>(cloud.height);
-  if (has_rgb && cloud.height > 1) {
+  if (rgb && cloud.height > 1) {
     ImageRgb c{f.width, f.height, {}};
-    c.pixels.reserve(cloud.size());
-    for (const auto& p : cloud.points) c.pixels.push_back({p.r, p.g, p.b});
+    c.pixels.reserve(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      std::uint32_t v;
+      std::memcpy(&v, cloud.data.data() + i * cloud.point_step + rgb->offset, 4);
+      c.pixels.push_back({static_cast<std::uint8_t>(v >> 16), static_cast<std::uint8_t>(v >> 8), static_cast<std::uint8_t>(v)});
+    }
     f.colour = std::move(c);
   }
+  f.sources = {path};
   std::ostringstream d;
   d << path << " (" << (cloud.height > 1 ? "organized " : "unorganized ") << cloud.width << "x" << cloud.height << ")";
   f.description = d.str();

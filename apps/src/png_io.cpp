@@ -62,11 +62,21 @@ std::string decode(FILE* fp, Want want, Decoded* out) {
     delete rows;
     return std::string("corrupt or truncated PNG (") + sink.message + ")";
   }
-  png_set_user_limits(png, kMaxSide, kMaxSide);
+  // Any size the format allows is read from the header, so that too large a frame is
+  // reported as that (libpng's own limit reads as a corrupt file), before any pixel is.
+  png_set_user_limits(png, 0x7fffffff, 0x7fffffff);
   png_init_io(png, fp);
   png_read_info(png, info);
-  out->width = static_cast<int>(png_get_image_width(png, info));
-  out->height = static_cast<int>(png_get_image_height(png, info));
+  const png_uint_32 w = png_get_image_width(png, info), h = png_get_image_height(png, info);
+  if (w > static_cast<png_uint_32>(kMaxFrameSide) || h > static_cast<png_uint_32>(kMaxFrameSide) ||
+      static_cast<long long>(w) * h > kMaxFramePixels) {
+    png_destroy_read_struct(&png, &info, nullptr);
+    delete rows;
+    return "the image is " + std::to_string(w) + "x" + std::to_string(h) + " pixels, larger than mobmap reads (at most " +
+           std::to_string(kMaxFrameSide) + " pixels a side and " + std::to_string(kMaxFramePixels) + " pixels in all)";
+  }
+  out->width = static_cast<int>(w);
+  out->height = static_cast<int>(h);
   out->bit_depth = png_get_bit_depth(png, info);
   out->colour_type = png_get_color_type(png, info);
   if (want == Want::kGrey16) {

@@ -8,6 +8,12 @@
 
 namespace mobmap::app {
 
+/// The largest frame mobmap reads, checked before anything is allocated: at most this
+/// many pixels a side, and at most kMaxFramePixels pixels (a depth PNG) or points (a
+/// .pcd) in all: 4096 x 4096, 14x a 1280 x 720 RealSense frame.
+inline constexpr int kMaxFrameSide = 16384;
+inline constexpr long long kMaxFramePixels = 1LL << 24;
+
 /// A 16-bit single-channel image, row-major.
 struct Image16 {
   int width = 0;
@@ -23,7 +29,8 @@ struct ImageRgb {
 };
 
 /// Reads a 16-bit greyscale PNG. IoError (with the path) if the file is missing,
-/// not a PNG, corrupt or truncated, not 16-bit greyscale, or larger than 16384 px a side.
+/// not a PNG, corrupt or truncated, not 16-bit greyscale, or larger than kMaxFrameSide a
+/// side or kMaxFramePixels in all.
 Image16 readPng16(const std::string& path);
 /// Reads any 8-bit PNG (grey, RGB, RGBA, palette) as RGB.
 ImageRgb readPngRgb(const std::string& path);

@@ -406,7 +406,9 @@ Plan planFootsteps(std::shared_ptr<const SurfaceColumns> columns, const Eigen::V
     goal_feet = goalFeet(*reach, goal, *z_goal, params);
   };
   while (!open.empty()) {
-    const auto [f_score, neg_g, key] = open.top();
+    // Plain variables, not structured bindings: the lambda below captures them (C++17
+    // does not let a lambda capture a structured binding; clang refuses it).
+    const std::uint64_t key = std::get<2>(open.top());
     open.pop();
     Node& node = nodes[key];
     if (node.closed) continue;
@@ -426,8 +428,10 @@ Plan planFootsteps(std::shared_ptr<const SurfaceColumns> columns, const Eigen::V
       if (!goalReachable(*reach, goal_feet)) break;  // diagnosed below
     }
     const Foothold& from = search.foothold(st.run, st.heading);
-    const auto [x, y] = search.centre(st.run);
-    const auto [kx, ky] = search.latticeKey(x, y);
+    const auto centre = search.centre(st.run);
+    const double x = centre.first, y = centre.second;
+    const auto lattice = search.latticeKey(x, y);
+    const long kx = lattice.first, ky = lattice.second;
     const Side next = st.side == Side::kLeft ? Side::kRight : Side::kLeft;
     const int side_index = next == Side::kLeft ? 0 : 1;
     for (const int dk : {-1, 0, 1}) {
