@@ -56,6 +56,11 @@ Result runWithFileSizeLimit(int kib, const std::string& args) {
   return runShell("trap '' XFSZ; ulimit -f " + std::to_string(2 * kib) + "; " + MOBMAP_EXE + " " + args);
 }
 
+std::string fileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
 std::string tempDir(const std::string& name) {
   const auto p = fs::temp_directory_path() / ("mobmap-cli-" + std::to_string(::getpid()) + "-" + name);
   fs::remove_all(p);
@@ -995,16 +1000,29 @@ TEST(Cli, DamagedMapMetadataIsReportedByFileAndEntry) {
     }
   });
   EXPECT_EQ(run("query " + ot + " 0 0 0 --input-frame world").code, 0);
+  // A frame count at the top of int: extending it would overflow to a negative count
+  // (an unreadable map). Refused before the run, the map unchanged.
+  damage([](nlohmann::json& m) { m["frames"] = 2147483647; });
+  const std::string ot_bytes = fileBytes(ot), json_bytes = fileBytes(json);
+  const Result full = run("build " + dir + "/seq --out " + ot + " --extend --quiet");
+  EXPECT_EQ(full.code, 1) << full.out;
+  EXPECT_NE(full.out.find(json + ": says the map holds 2147483647 frames; 2 more would pass the 2147483647 a map counts"),
+            std::string::npos)
+      << full.out;
+  EXPECT_EQ(fileBytes(ot), ot_bytes);
+  EXPECT_EQ(fileBytes(json), json_bytes);
+  // Intrinsics recorded with fx 0: overlay names MAP.json, not an --intrinsics never given.
+  damage([](nlohmann::json& m) { m["depth_intrinsics"]["fx"] = 0; });
+  const Result k = run("overlay " + ot + " --frame 0 --out " + dir + "/o.png");
+  EXPECT_EQ(k.code, 1) << k.out;
+  EXPECT_NE(k.out.find(json + ": \"depth_intrinsics\" of the run that read"), std::string::npos) << k.out;
+  EXPECT_NE(k.out.find("must have fx and fy > 0"), std::string::npos) << k.out;
+  EXPECT_EQ(run("overlay " + ot + " --frame 0 --out " + dir + "/o.png --intrinsics 585,585,320,240").code, 0);
   fs::remove(json);  // no metadata: the map alone still answers
   const Result bare = run("info " + ot);
   EXPECT_EQ(bare.code, 0) << bare.out;
   EXPECT_NE(bare.out.find("no metadata"), std::string::npos) << bare.out;
   fs::remove_all(dir);
-}
-
-std::string fileBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
 // `build --extend`: a map built in two runs is the map of one run over the same frames,

@@ -30,6 +30,7 @@
 #include <sstream>
 #include <map>
 #include <memory>
+#include <limits>
 #include <optional>
 
 namespace mobmap::app {
@@ -481,6 +482,14 @@ Command addBuildCommand(CLI::App& app) {
                          " in the same world frame: are the poses in the world frame of that map?");
       }
       gravity_world = existing->down_world;
+      // The frame count stays a whole number a reader accepts, whatever this run adds.
+      const long long earlier_frames = existing->meta.contains("frames") ? existing->meta["frames"].get<long long>() : 0;
+      const long long most = std::numeric_limits<int>::max();
+      if (earlier_frames + static_cast<long long>(frames.size()) > most) {
+        throw IoError(mapping::mapFileStem(o->out) + ".json",
+                      "says the map holds " + std::to_string(earlier_frames) + " frames; " + std::to_string(frames.size()) +
+                          " more would pass the " + std::to_string(most) + " a map counts (is \"frames\" right?)");
+      }
       // Where the first run took it from (a map extended before records that first).
       const auto& earlier = existing->meta;
       const auto& first_run = earlier.contains("earlier_runs") && earlier["earlier_runs"].is_array() &&
