@@ -1,6 +1,8 @@
 // The `mobmap` executable as a user runs it: outputs, exit codes, error messages.
 #include "mobmap/mapping/map_lock.hpp"
 
+#include <Eigen/Core>
+
 #include <nlohmann/json.hpp>
 #include <octomap/ColorOcTree.h>
 
@@ -1588,6 +1590,120 @@ TEST(Cli, AnOversizedFrameIsNamedAndSkippable) {
   ASSERT_EQ(skip.code, 0) << skip.out;
   EXPECT_NE(skip.out.find("warning: skipped " + png + ": the image is 16384x16384"), std::string::npos) << skip.out;
   EXPECT_NE(skip.out.find("3 of 4 frames fused"), std::string::npos) << skip.out;
+  fs::remove_all(dir);
+}
+
+// Adds `shift` to the translation of frame `n`'s pose in a 7-Scenes directory.
+void shiftPose(const std::string& seq, int n, const Eigen::Vector3d& shift) {
+  char name[64];
+  std::snprintf(name, sizeof name, "/frame-%06d.pose.txt", n);
+  std::ifstream in(seq + name);
+  double m[4][4];
+  for (auto& row : m) {
+    for (double& x : row) in >> x;
+  }
+  ASSERT_TRUE(static_cast<bool>(in)) << seq + name;
+  for (int i = 0; i < 3; ++i) m[i][3] += shift[i];
+  std::ofstream out(seq + name);
+  char line[200];
+  for (const auto& row : m) {
+    std::snprintf(line, sizeof line, "%.17g %.17g %.17g %.17g\n", row[0], row[1], row[2], row[3]);
+    out << line;
+  }
+}
+
+// World frames with large coordinates. The map is centred on an origin near the first
+// camera (rounded to 100 m), so a sequence moved 2000 km away (UTM-sized poses) gives the
+// map of the same sequence at home, and world-frame queries answer alike. Frames beyond
+// the map's extent are reported, not counted as fused, and never make a map that the
+// other commands refuse.
+TEST(Cli, FarAwayCoordinatesGiveTheSameMapAndFramesOutsideAreReported) {
+  const std::string dir = tempDir("far");
+  ASSERT_EQ(run("simulate --out " + dir + "/home --frames 6 --noise none --quiet").code, 0);
+  fs::copy(dir + "/home", dir + "/utm");
+  const Eigen::Vector3d utm(2000000, 5000000, 300);
+  for (int i = 0; i < 6; ++i) shiftPose(dir + "/utm", i, utm);
+  ASSERT_EQ(run("build " + dir + "/home --out " + dir + "/home.ot --quiet").code, 0);
+  const Result far = run("build " + dir + "/utm --out " + dir + "/utm.ot --quiet");
+  ASSERT_EQ(far.code, 0) << far.out;  // it used to fail: "none of the 6 frames fused has a surface segment"
+  EXPECT_NE(far.out.find("6 of 6 frames fused"), std::string::npos) << far.out;
+  EXPECT_EQ(far.out.find("outside"), std::string::npos) << far.out;
+  const auto meta = nlohmann::json::parse(fileBytes(dir + "/utm.json"));
+  EXPECT_EQ(meta["origin_world"], nlohmann::json({2000000.0, 5000000.0, 300.0}));
+  EXPECT_EQ(nlohmann::json::parse(fileBytes(dir + "/home.json"))["origin_world"], nlohmann::json({0.0, 0.0, 0.0}));
+  // The same map, byte for byte: perception works in the camera frame and fusion moves
+  // the poses to the origin in double precision before anything is rounded to float.
+  EXPECT_GT(fileBytes(dir + "/home.ot").size(), 10000u);
+  EXPECT_EQ(fileBytes(dir + "/utm.ot"), fileBytes(dir + "/home.ot"));
+  // World-frame questions: the same answers at home and 2000 km away.
+  for (const std::string& p : {"1.5 0 0.0", "3.0 -0.9 0.08", "2.0 0.5 0.0"}) {
+    std::istringstream xyz(p);
+    Eigen::Vector3d v;
+    xyz >> v.x() >> v.y() >> v.z();
+    const Eigen::Vector3d w = v + utm;
+    char shifted[120];
+    std::snprintf(shifted, sizeof shifted, "%.3f %.3f %.3f", w.x(), w.y(), w.z());
+    const Result h = run("query " + dir + "/home.ot " + p + " --input-frame world --json");
+    const Result u = run("query " + dir + "/utm.ot " + std::string(shifted) + " --input-frame world --json");
+    ASSERT_EQ(h.code, 0) << h.out;
+    ASSERT_EQ(u.code, 0) << u.out;
+    const auto hj = jsonLine(h.out), uj = jsonLine(u.out);
+    EXPECT_EQ(hj["state"], uj["state"]) << p;
+    EXPECT_EQ(hj["mobility"], uj["mobility"]) << p;
+  }
+  const Result info = run("info " + dir + "/utm.ot");
+  EXPECT_NE(info.out.find("map origin in the world frame: (2000000.000, 5000000.000, 300.000)"), std::string::npos) << info.out;
+  // Plans asked and answered in the world frame come back in it.
+  const Result plan = run("plan " + dir + "/utm.ot --from 2000001.2 5000000 300 --to 2000002.6 5000000.3 300 --input-frame world --json");
+  ASSERT_EQ(plan.code, 0) << plan.out;
+  const auto pj = nlohmann::json::parse(plan.out);
+  EXPECT_NEAR(pj["footsteps"][0]["x"].get<double>(), 2000001.2, 0.5);
+
+  // Frames 4 and 5 a kilometre away: outside the +-655 m the map reaches; reported per
+  // frame and in the summary, not counted as fused, not in the camera path.
+  fs::copy(dir + "/home", dir + "/split");
+  for (int i : {4, 5}) shiftPose(dir + "/split", i, Eigen::Vector3d(1000, 0, 0));
+  const Result split = run("build " + dir + "/split --out " + dir + "/split.ot --quiet");
+  ASSERT_EQ(split.code, 0) << split.out;
+  EXPECT_NE(split.out.find("warning: frame 4: "), std::string::npos) << split.out;
+  EXPECT_NE(split.out.find("lie outside the map's extent (+-655 m around its origin (0.0, 0.0, 0.0) in the world frame) and "
+                           "were left out: the frame adds nothing"),
+            std::string::npos)
+      << split.out;
+  EXPECT_NE(split.out.find("4 of 6 frames fused"), std::string::npos) << split.out;
+  EXPECT_NE(split.out.find("2 frames had no point inside and are not counted as fused"), std::string::npos) << split.out;
+  const auto sj = nlohmann::json::parse(fileBytes(dir + "/split.json"));
+  EXPECT_EQ(sj["frames"], 4);
+  EXPECT_EQ(sj["frames_outside_map"], 2);
+  EXPECT_GT(sj["points_outside_map"].get<long long>(), 10000);
+  EXPECT_EQ(sj["trajectory_map"].size(), 4u);
+  // One pose at 2000 km: the map build writes is one the other commands read.
+  fs::copy(dir + "/home", dir + "/stray");
+  shiftPose(dir + "/stray", 3, utm);
+  const Result stray = run("build " + dir + "/stray --out " + dir + "/stray.ot --quiet");
+  ASSERT_EQ(stray.code, 0) << stray.out;
+  EXPECT_NE(stray.out.find("5 of 6 frames fused"), std::string::npos) << stray.out;
+  for (const std::string& cmd : {"info " + dir + "/stray.ot", "query " + dir + "/stray.ot 1.5 0 0",
+                                 "export " + dir + "/stray.ot --png " + dir + "/stray.png",
+                                 "reach " + dir + "/stray.ot --from 1.2 0 0"}) {
+    const Result r = run(cmd);
+    EXPECT_EQ(r.code, 0) << cmd << "\n" << r.out;
+  }
+  // Every frame outside (a wrong --origin): no map, and the reason.
+  const Result none = run("build " + dir + "/home --out " + dir + "/none.ot --origin 5000 0 0 --quiet");
+  EXPECT_EQ(none.code, 1) << none.out;
+  EXPECT_NE(none.out.find("all 6 frames with points in range lie outside the map's extent (+-655 m around its origin "
+                          "(5000.0, 0.0, 0.0) in the world frame); no map written"),
+            std::string::npos)
+      << none.out;
+  EXPECT_FALSE(fs::exists(dir + "/none.ot"));
+  // --origin moves the map frame: the same voxels, shifted by whole voxels.
+  ASSERT_EQ(run("build " + dir + "/home --out " + dir + "/moved.ot --origin 1 0 0 --quiet").code, 0);
+  const auto q = [&](const std::string& map, const std::string& p) {
+    return jsonLine(run("query " + map + " " + p + " --input-frame world --json").out);
+  };
+  EXPECT_EQ(q(dir + "/moved.ot", "1.5 0 0.0")["state"], q(dir + "/home.ot", "1.5 0 0.0")["state"]);
+  EXPECT_EQ(run("build " + dir + "/home --out " + dir + "/moved.ot --extend --origin 0 0 0").code, 2);  // the map keeps its own
   fs::remove_all(dir);
 }
 

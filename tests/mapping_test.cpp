@@ -767,6 +767,56 @@ std::string chainToLeaf(unsigned int depth, const std::string& res = "0.02") {
   return "# Octomap OcTree file\nid MobilityOcTree_v1\nsize " + std::to_string(depth + 1) + "\nres " + res + "\ndata\n" + data;
 }
 
+// The map origin: a frame at UTM-sized coordinates fuses into the same voxels as the
+// same frame at home when the origin moves with it, and the points beyond the map's
+// extent are counted, equal to a brute-force count.
+TEST(MobilityMap, TheOriginKeepsFarCoordinatesExactAndPointsOutsideAreCounted) {
+  const perception::FrameResult frame = syntheticFrame();
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() << 1, 0, 0, 0, 0, 1, 0, -1, 0;  // camera looking along +y, its y down
+  T.translation() = Eigen::Vector3d(0.3, -0.2, 1.2);
+  MobilityMap home;
+  const IntegrationReport at_home = home.integrate(frame, T);
+  EXPECT_EQ(at_home.points_fused, frame.points.size());
+  EXPECT_EQ(at_home.points_outside_map, 0u);
+  const Eigen::Vector3d far(2.0e6, 5.0e6, 300.0);
+  Eigen::Isometry3d T_far = T;
+  T_far.translation() += far;
+  MobilityMap away(MapParams{}, Eigen::Matrix3d::Identity(), far);
+  EXPECT_EQ(away.integrate(frame, T_far).points_fused, frame.points.size());
+  away.finalize();
+  home.finalize();
+  std::ostringstream a, b;
+  home.tree().write(a);
+  away.tree().write(b);
+  EXPECT_EQ(a.str(), b.str());
+  EXPECT_EQ(away.worldToMap(far + Eigen::Vector3d(1, 2, 3)), Eigen::Vector3d(1, 2, 3));
+  EXPECT_EQ(away.mapToWorld(Eigen::Vector3d(1, 2, 3)), far + Eigen::Vector3d(1, 2, 3));
+  EXPECT_THROW(away.setOriginWorld(Eigen::Vector3d::Zero()), std::logic_error);
+  // Without the origin the frame lies 2000 km outside: every point counted, none fused.
+  MobilityMap lost;
+  const IntegrationReport nothing = lost.integrate(frame, T_far);
+  EXPECT_EQ(nothing.points_fused, 0u);
+  EXPECT_EQ(nothing.points_outside_map, frame.points.size());
+  EXPECT_EQ(lost.tree().size(), 0u);
+  // Part way out: the camera 655 m from the origin, the map's edge through the frame.
+  MobilityMap edge;
+  EXPECT_DOUBLE_EQ(edge.extentM(), 655.36);
+  Eigen::Isometry3d T_edge = T;
+  T_edge.translation().y() = 655.36 - 1.4;
+  std::size_t beyond = 0;
+  for (const auto& p : frame.points) {
+    const Eigen::Vector3d w = T_edge * p.cast<double>();
+    beyond += w.cwiseAbs().maxCoeff() >= 655.36 ? 1 : 0;
+  }
+  ASSERT_GT(beyond, 0u);
+  ASSERT_LT(beyond, frame.points.size());
+  const IntegrationReport part = edge.integrate(frame, T_edge);
+  EXPECT_EQ(part.points_outside_map, beyond);
+  EXPECT_EQ(part.points_fused + part.points_outside_map, frame.points.size());
+  EXPECT_THROW(MobilityMap(MapParams{}, Eigen::Matrix3d::Identity(), Eigen::Vector3d(std::nan(""), 0, 0)), std::invalid_argument);
+}
+
 TEST(MapFiles, ALeafStandingForMoreVoxelsThanTheFileCanHoldIsRefusedNotExpanded) {
   // The 73-byte root leaf (2^48 voxels) and a depth-9 leaf (2^21 voxels, ~140 MB of index)
   // used to be expanded voxel by voxel until memory ran out.

@@ -148,6 +148,7 @@ struct ExistingMap {
   nlohmann::json meta;
   Eigen::Vector3d down_world;
   Eigen::Matrix3d R_map_world;
+  Eigen::Vector3d origin_world;
 };
 
 ExistingMap openForExtension(const std::string& ot_path) {
@@ -155,6 +156,7 @@ ExistingMap openForExtension(const std::string& ot_path) {
   m.tree = mapping::loadMobilityMap(ot_path);
   const mapping::MapMetadata frame = mapping::readMapMetadata(ot_path);
   m.meta = metadataJson(frame);  // the earlier runs' records, for the new MAP.json
+  m.origin_world = frame.origin_world;  // zero for a map from before origins were recorded
   if (!frame.has_frame) {
     throw IoError(frame.path, "missing, or without \"R_map_world\": --extend needs the metadata written beside the map "
                               "(the rotation from the input's world frame to the map frame)");
@@ -242,6 +244,7 @@ Command addBuildCommand(CLI::App& app) {
     double resolution = 0.02;
     double voxel = 0;
     std::string gravity;
+    std::vector<double> origin;
     bool force = false;
     bool extend = false;
     int checkpoint = 0;
@@ -282,11 +285,17 @@ Command addBuildCommand(CLI::App& app) {
   cmd->add_option("--gravity", o->gravity, "Gravity (down) in the data's world frame X,Y,Z (default: gravity-direction.txt, else the floor's "
                   "normal in up to 8 frames spread over the run, else the cameras' mean +y axis; a single .pcd or .png "
                   "frame: its ground plane's normal; OpenNI2: the camera's +y without --poses, -z with them)");
+  auto* origin = cmd->add_option("--origin", o->origin,
+                                 "X Y Z: the map frame's origin in the data's world frame (metres; default: the first "
+                                 "camera position rounded to 100 m, so coordinates stay small when the world frame's "
+                                 "are large, e.g. UTM; the map reaches 32768 voxels from it each way: 655 m at 2 cm)")
+                     ->expected(3);
   auto* force = cmd->add_flag("--force", o->force, "Overwrite an existing map");
   cmd->add_flag("--extend", o->extend,
                 "Add the frames to the existing map at --out instead of starting a new one: its resolution and map "
                 "frame are kept, INPUT's poses must be in the same world frame, MAP.json records each run")
-      ->excludes(force);
+      ->excludes(force)
+      ->excludes(origin);
   cmd->add_option("--checkpoint", o->checkpoint,
                   "Also save the map every N fused frames while the run goes on (MAP.json says \"checkpoint\"); after a "
                   "crash, --extend with the remaining --frames finishes it")
@@ -304,13 +313,16 @@ Command addBuildCommand(CLI::App& app) {
                 "corrupt or cut short, a pose file that is missing or not a rigid transform, an unreadable .pcd) "
                 "instead of stopping the run; the summary and MAP.json count them. For sequences of files");
   cmd->add_flag("--quiet,-q", o->quiet, "No progress output");
-  return [o, max_range, resolution, device, voxel, keyframes]() {
+  return [o, max_range, resolution, device, voxel, keyframes, origin]() {
     namespace fs = std::filesystem;
     std::error_code ec;
     if (fs::path(o->out).extension() != ".ot") throw UsageError("--out must end in .ot, got '" + o->out + "'");
     // One writer per map for the whole run: a second build to the same --out (fresh or
     // --extend) fails here at once instead of replacing the first one's frames.
     const mapping::MapLock lock(o->out);
+    if (origin->count() > 0 && !Eigen::Vector3d(o->origin[0], o->origin[1], o->origin[2]).allFinite()) {
+      throw UsageError("--origin: values must be finite");
+    }
     if (o->extend && !fs::exists(o->out, ec)) throw UsageError("--extend: " + o->out + " does not exist (build it without --extend first)");
     if (!o->force && !o->extend && fs::exists(o->out, ec)) {
       throw UsageError(o->out + " exists; pass --force to overwrite it or --extend to add frames to it");
@@ -529,8 +541,26 @@ Command addBuildCommand(CLI::App& app) {
     if (!gravity_world) gravity_source = "-z (default)";
     const Eigen::Vector3d g_world = gravity_world.value_or(Eigen::Vector3d(0, 0, -1));
     const Eigen::Matrix3d R_map_world = existing ? existing->R_map_world : mapping::gravityAlignment(g_world);
-    mapping::MobilityMap map = existing ? mapping::MobilityMap(std::move(existing->tree), mp, R_map_world)
-                                        : mapping::MobilityMap(mp, R_map_world);
+    // The map origin: the extended map's, --origin, or the first camera position rounded
+    // to 100 m (a stream's first pose arrives with its first frame: set there).
+    const auto roundedOrigin = [](const Eigen::Vector3d& camera) {
+      return Eigen::Vector3d(std::round(camera.x() / 100) * 100, std::round(camera.y() / 100) * 100,
+                             std::round(camera.z() / 100) * 100);
+    };
+    std::optional<Eigen::Vector3d> origin_world;
+    std::string origin_source;
+    if (existing) {
+      origin_world = existing->origin_world, origin_source = "the map being extended";
+    } else if (origin->count() > 0) {
+      origin_world = Eigen::Vector3d(o->origin[0], o->origin[1], o->origin[2]), origin_source = "--origin";
+    } else if (!is_dir) {
+      origin_world = Eigen::Vector3d::Zero(), origin_source = "the camera (a single frame)";
+    } else if (const auto first = dir->pose(frames.front())) {
+      origin_world = roundedOrigin(first->translation()), origin_source = "the first camera position, rounded to 100 m";
+    }
+    mapping::MobilityMap map =
+        existing ? mapping::MobilityMap(std::move(existing->tree), mp, R_map_world, *origin_world)
+                 : mapping::MobilityMap(mp, R_map_world, origin_world.value_or(Eigen::Vector3d::Zero()));
 
     auto process = [&](int number) {
       Scored s;
@@ -570,6 +600,18 @@ Command addBuildCommand(CLI::App& app) {
     std::vector<std::pair<std::string, double>> stage_ms;  // in pipeline order
     std::size_t points = 0;
     int used = 0, no_ground = 0, no_pose = 0;
+    // Points beyond the map's extent (a pose far from the origin, poses in another unit):
+    // counted and reported, never dropped silently. A frame with no point inside adds
+    // nothing and is not counted as fused.
+    int outside_frames = 0, outside_warnings = 0;
+    std::size_t points_outside = 0;
+    char extent_text[160];
+    const auto describeExtent = [&] {
+      const Eigen::Vector3d& c = map.originWorld();
+      std::snprintf(extent_text, sizeof extent_text, "+-%.0f m around its origin (%.1f, %.1f, %.1f) in the world frame",
+                    map.extentM(), c.x(), c.y(), c.z());
+      return std::string(extent_text);
+    };
     int unreadable_in_run = 0;  // frames skipped as unreadable after the run started
     int last_fused = frames.front();  // frame number of the last frame fused
     nlohmann::json trajectory = nlohmann::json::array();  // camera positions, map frame
@@ -613,6 +655,12 @@ Command addBuildCommand(CLI::App& app) {
       meta["R_map_world"] = {{R_map_world(0, 0), R_map_world(0, 1), R_map_world(0, 2)},
                              {R_map_world(1, 0), R_map_world(1, 1), R_map_world(1, 2)},
                              {R_map_world(2, 0), R_map_world(2, 1), R_map_world(2, 2)}};
+      meta["origin_world"] = {map.originWorld().x(), map.originWorld().y(), map.originWorld().z()};
+      meta["origin_source"] = origin_source.empty() ? std::string("none") : origin_source;
+      if (points_outside > 0) {
+        meta["points_outside_map"] = points_outside;
+        meta["frames_outside_map"] = outside_frames;
+      }
       meta["seconds"] = run_s;
       meta["frames_per_second"] = run_s > 0 ? (used + no_pose) / run_s : 0.0;
       if (checkpoint) meta["checkpoint"] = true;
@@ -670,34 +718,56 @@ Command addBuildCommand(CLI::App& app) {
         launch();
         noteUnreadable(e.what());
         ++unreadable_in_run;
-        progress.update(used + no_pose + unreadable_in_run, "map " + std::to_string(map.tree().size()) + " nodes");
+        progress.update(used + no_pose + unreadable_in_run + outside_frames, "map " + std::to_string(map.tree().size()) + " nodes");
         continue;
       }
       in_flight.pop_front();
       launch();
       if (s.no_pose) {
         ++no_pose;
-        progress.update(used + no_pose + unreadable_in_run, "map " + std::to_string(map.tree().size()) + " nodes");
+        progress.update(used + no_pose + unreadable_in_run + outside_frames, "map " + std::to_string(map.tree().size()) + " nodes");
         continue;
       }
+      if (!origin_world) {  // a stream: its first posed frame sets the origin
+        origin_world = roundedOrigin(s.T_world_camera.translation());
+        origin_source = "the first camera position, rounded to 100 m";
+        map.setOriginWorld(*origin_world);
+      }
       const auto t0 = std::chrono::steady_clock::now();
-      map.integrate(s.result, s.T_world_camera, clear_k ? &s.depth : nullptr, clear_k);
+      const mapping::IntegrationReport fused = map.integrate(s.result, s.T_world_camera, clear_k ? &s.depth : nullptr, clear_k);
       fuse_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      if (fused.points_outside_map > 0) {
+        points_outside += fused.points_outside_map;
+        constexpr int kListed = 10;
+        if (++outside_warnings <= kListed) {
+          Progress::message("warning: frame " + std::to_string(s.number) + ": " + std::to_string(fused.points_outside_map) +
+                            " of " + std::to_string(fused.points_outside_map + fused.points_fused) +
+                            " points in range lie outside the map's extent (" + describeExtent() + ") and were left out" +
+                            (fused.points_fused == 0 ? ": the frame adds nothing" : ""));
+        } else if (outside_warnings == kListed + 1) {
+          Progress::message("warning: more frames reach outside the map's extent; the summary counts them");
+        }
+        if (fused.points_fused == 0) {
+          ++outside_frames;
+          progress.update(used + no_pose + unreadable_in_run + outside_frames, "map " + std::to_string(map.tree().size()) + " nodes");
+          continue;
+        }
+      }
       for (const auto& st : s.result.stages) {
         auto it = std::find_if(stage_ms.begin(), stage_ms.end(), [&](const auto& e) { return e.first == st.name; });
         if (it == stage_ms.end()) it = stage_ms.insert(stage_ms.end(), {st.name, 0.0});
         it->second += st.milliseconds;
       }
-      const Eigen::Vector3d c = R_map_world * s.T_world_camera.translation();
+      const Eigen::Vector3d c = map.worldToMap(s.T_world_camera.translation());
       trajectory.push_back({c.x(), c.y(), c.z()});
       read_ms += s.read_ms;
       points += s.result.points.size();
       no_ground += !s.result.ground_plane;
       ++used;
       last_fused = s.number;
-      progress.update(used + no_pose + unreadable_in_run, "map " + std::to_string(map.tree().size()) + " nodes");
+      progress.update(used + no_pose + unreadable_in_run + outside_frames, "map " + std::to_string(map.tree().size()) + " nodes");
       if (o->checkpoint > 0 && used % o->checkpoint == 0 &&
-          used + no_pose + unreadable_in_run < static_cast<int>(frames.size())) {
+          used + no_pose + unreadable_in_run + outside_frames < static_cast<int>(frames.size())) {
         writeMap(true, std::chrono::duration<double>(std::chrono::steady_clock::now() - run_start).count());
       }
     }
@@ -715,6 +785,11 @@ Command addBuildCommand(CLI::App& app) {
     if (used == 0 && unreadable_in_run > 0 && !g_interrupted.load()) {
       throw IoError(o->input, "no selected frame could be read (" + std::to_string(unreadable.size()) +
                                   " tried; the first: " + unreadable.front() + "); no map written");
+    }
+    if (used == 0 && outside_frames > 0 && !g_interrupted.load()) {
+      throw IoError(live ? device_label : o->input,
+                    "all " + std::to_string(outside_frames) + " frames with points in range lie outside the map's extent (" +
+                        describeExtent() + "); no map written. Are the poses in metres? --origin X Y Z centres the map");
     }
     if (g_interrupted.load() && used == 0) {
       // Stopped before the first frame was fused: there is nothing to save, and a map
@@ -751,6 +826,11 @@ Command addBuildCommand(CLI::App& app) {
     std::printf("\n%d of %zu frames fused (%d without a ground plane%s)%s in %.1f s (%.1f frames/s), %zu points, %zu map nodes (%zu leaves)\n",
                 used, frames.size() + unreadable_before_run, no_ground, keyframe_note.c_str(), g_interrupted.load() ? ", INTERRUPTED" : "", run_s,
                 meta["frames_per_second"].get<double>(), points, map.tree().size(), map.tree().getNumLeafNodes());
+    if (points_outside > 0) {
+      std::printf("%zu points lay outside the map's extent (%s) and were left out", points_outside, describeExtent().c_str());
+      if (outside_frames > 0) std::printf("; %d frames had no point inside and are not counted as fused", outside_frames);
+      std::printf("\n");
+    }
     if (existing) {
       std::printf("the map now holds %d frames from %zu runs\n", meta["frames"].get<int>(), meta["earlier_runs"].size() + 1);
     }

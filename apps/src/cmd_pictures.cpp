@@ -232,13 +232,12 @@ Command addOverlayCommand(CLI::App& app) {
     // Project voxels (eq. 13) with a z-buffer; a voxel covers ~fx * size / z pixels.
     Eigen::Isometry3d T_world_camera(f.T_world_camera->matrix());
     const Eigen::Isometry3d T_camera_world = T_world_camera.inverse();
-    const Eigen::Matrix3d R_world_map = map.rotationMapWorld().transpose();
     std::vector<float> zbuf(static_cast<std::size_t>(k.width) * k.height, std::numeric_limits<float>::infinity());
     std::vector<Rgb> paint(zbuf.size());
     const auto& t = map.tree();
     for (auto it = t.begin_leafs(); it != t.end_leafs(); ++it) {
       if (!t.isNodeOccupied(*it)) continue;
-      const Eigen::Vector3d pc = T_camera_world * (R_world_map * Eigen::Vector3d(it.getX(), it.getY(), it.getZ()));
+      const Eigen::Vector3d pc = T_camera_world * map.mapToWorld(Eigen::Vector3d(it.getX(), it.getY(), it.getZ()));
       if (pc.z() < 0.1) continue;
       const double u = k.fx * pc.x() / pc.z() + k.cx, v = k.fy * pc.y() / pc.z() + k.cy;
       const int half = std::max(0, static_cast<int>(0.5 * k.fx * it.getSize() / pc.z()));

@@ -88,7 +88,7 @@ Command addPlanCommand(CLI::App& app) {
     // Footsteps in the frame the points were given in.
     const Eigen::Matrix3d R = world ? Eigen::Matrix3d(map.rotationMapWorld().transpose()) : Eigen::Matrix3d(Eigen::Matrix3d::Identity());
     const auto out = [&](const mapping::Footstep& f, double& yaw) {
-      const Eigen::Vector3d p = R * Eigen::Vector3d(f.x, f.y, f.z);
+      const Eigen::Vector3d p = world ? map.mapToWorld(Eigen::Vector3d(f.x, f.y, f.z)) : Eigen::Vector3d(f.x, f.y, f.z);
       const Eigen::Vector3d h = R * Eigen::Vector3d(std::cos(f.yaw), std::sin(f.yaw), 0);
       yaw = world ? std::atan2(h.y(), h.x()) : f.yaw;
       return p;

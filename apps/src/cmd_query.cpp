@@ -183,7 +183,7 @@ Command addQueryCommand(CLI::App& app) {
                                                     : f.support_normal;
       const Eigen::Vector3d under_map(c.x(), c.y(), f.support_height_m);
       const Eigen::Vector3d under =
-          o->frame == "world" ? Eigen::Vector3d(map.rotationMapWorld().transpose() * under_map) : under_map;
+          o->frame == "world" ? map.mapToWorld(under_map) : under_map;
       if (o->json) {
         nlohmann::json j{{"foot", s},
                          {"min_mobility", f.min_mobility},
@@ -339,6 +339,13 @@ void printMetadataSummary(const nlohmann::json& meta, const std::string& json_pa
                 g[2].get<double>());
     if (!text("gravity_source").empty()) std::printf(", from %s", text("gravity_source").c_str());
     std::printf("\n");
+  }
+  const auto& o = meta.contains("origin_world") ? meta["origin_world"] : nlohmann::json();
+  const Eigen::Vector3d origin = o.is_array() && o.size() == 3 ? Eigen::Vector3d(o[0].get<double>(), o[1].get<double>(), o[2].get<double>())
+                                                               : Eigen::Vector3d::Zero();
+  if (origin != Eigen::Vector3d::Zero()) {
+    std::printf("map origin in the world frame: (%.3f, %.3f, %.3f)%s: map = R_map_world (world - origin)\n", origin.x(),
+                origin.y(), origin.z(), text("origin_source").empty() ? "" : (", " + text("origin_source")).c_str());
   }
   const auto& per = meta.contains("perception") ? meta["perception"] : nlohmann::json();
   const double voxel = number(per, "voxel_size_m"), range = number(per, "max_range_m");

@@ -102,12 +102,11 @@ Evaluation evaluateMap(const mapping::MobilityMap& map, const GroundTruth& truth
   ev.surfaces.resize(truth.surfaces.size());
   for (std::size_t i = 0; i < truth.surfaces.size(); ++i) ev.surfaces[i].surface = &truth.surfaces[i];
   const auto& tree = map.tree();
-  const Eigen::Matrix3d R_world_map = map.rotationMapWorld().transpose();
   const double res = tree.getResolution();
   const double edge_band = edge_band_m >= 0 ? edge_band_m : 0.5 * std::sqrt(3.0) * res;
   for (auto it = tree.begin_leafs(); it != tree.end_leafs(); ++it) {
     if (!tree.isNodeOccupied(*it) || !it->hasMobility() || it->count() < min_count) continue;
-    const Eigen::Vector3d p = R_world_map * Eigen::Vector3d(it.getX(), it.getY(), it.getZ());
+    const Eigen::Vector3d p = map.mapToWorld(Eigen::Vector3d(it.getX(), it.getY(), it.getZ()));
     int best = -1;
     double best_d = tolerance_m;
     for (std::size_t i = 0; i < truth.surfaces.size(); ++i) {

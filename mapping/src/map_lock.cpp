@@ -19,7 +19,10 @@ std::string mapLockPath(const std::string& ot_path) { return mapFileStem(ot_path
 MapLock::MapLock(const std::string& ot_path) : path_(mapLockPath(ot_path)) {
   std::error_code ec;
   const std::filesystem::path parent = std::filesystem::path(path_).parent_path();
-  if (!parent.empty()) std::filesystem::create_directories(parent, ec);
+  if (!parent.empty()) {
+    std::filesystem::create_directories(parent, ec);
+    if (ec) throw MapIoError(ot_path + ": cannot create directory " + parent.string() + ": " + ec.message());
+  }
   // The file may be removed by the holder between our open() and flock(): then the lock
   // we got is on a file nobody else will see, so try again on the new one.
   for (int attempt = 0; attempt < 100; ++attempt) {

@@ -56,6 +56,10 @@ void check(const nlohmann::json& meta, const std::string& path) {
     if (!ok) fail(path, "\"R_map_world\" must be 3 rows of 3 finite numbers");
     if (auto problem = checkRigid(t)) fail(path, "\"R_map_world\" is not a rotation: " + *problem);
   }
+  if (meta.contains("origin_world")) {
+    const auto o = finiteNumbers(meta["origin_world"], 3);
+    if (!o) fail(path, "\"origin_world\" must be [x, y, z], finite, got " + meta["origin_world"].dump());
+  }
   if (meta.contains("gravity_down_world")) {
     const auto g = finiteNumbers(meta["gravity_down_world"], 3);
     if (!g || Eigen::Vector3d((*g)[0], (*g)[1], (*g)[2]).norm() < 1e-9) {
@@ -128,6 +132,10 @@ MapMetadata readMapMetadata(const std::string& ot_path) {
     // Printed to 17 digits, but a hand-edited file may round: keep it a rotation.
     m.R_map_world = nearestRotation(r);
   }
+  if (meta.contains("origin_world")) {
+    const auto& o = meta["origin_world"];
+    m.origin_world = Eigen::Vector3d(o[0].get<double>(), o[1].get<double>(), o[2].get<double>());
+  }
   if (meta.contains("gravity_down_world")) {
     const auto& g = meta["gravity_down_world"];
     m.gravity_down_world = Eigen::Vector3d(g[0].get<double>(), g[1].get<double>(), g[2].get<double>());
@@ -137,7 +145,7 @@ MapMetadata readMapMetadata(const std::string& ot_path) {
 
 MobilityMap openMap(std::unique_ptr<MobilityOcTree> tree, const MapMetadata& metadata, MapParams params) {
   params.resolution_m = tree->getResolution();
-  MobilityMap map(std::move(tree), params, metadata.R_map_world);
+  MobilityMap map(std::move(tree), params, metadata.R_map_world, metadata.origin_world);
   map.setFramesIntegrated(metadata.frames);
   return map;
 }

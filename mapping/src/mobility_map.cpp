@@ -88,12 +88,14 @@ std::optional<std::string> voxelBudgetProblem(const MobilityOcTree& tree) {
          " x its leaves)";
 }
 
-MobilityMap::MobilityMap(MapParams params, const Eigen::Matrix3d& R_map_world)
-    : MobilityMap(nullptr, params, R_map_world) {}
+MobilityMap::MobilityMap(MapParams params, const Eigen::Matrix3d& R_map_world, const Eigen::Vector3d& origin_world)
+    : MobilityMap(nullptr, params, R_map_world, origin_world) {}
 
-MobilityMap::MobilityMap(std::unique_ptr<MobilityOcTree> tree, MapParams params, const Eigen::Matrix3d& R_map_world)
-    : params_(params), R_map_world_(R_map_world), tree_(std::move(tree)) {
+MobilityMap::MobilityMap(std::unique_ptr<MobilityOcTree> tree, MapParams params, const Eigen::Matrix3d& R_map_world,
+                         const Eigen::Vector3d& origin_world)
+    : params_(params), R_map_world_(R_map_world), origin_world_(origin_world), tree_(std::move(tree)) {
   validate(params_);
+  if (!origin_world.allFinite()) throw std::invalid_argument("MobilityMap: origin_world must be finite");
   Eigen::Matrix4d t = Eigen::Matrix4d::Identity();
   t.topLeftCorner<3, 3>() = R_map_world;
   if (auto problem = checkRigid(t)) throw std::invalid_argument("MobilityMap: R_map_world: " + *problem);
@@ -123,20 +125,33 @@ MobilityMap::MobilityMap(std::unique_ptr<MobilityOcTree> tree, MapParams params,
   }
 }
 
-void MobilityMap::integrate(const perception::FrameResult& frame, const mrpt::poses::CPose3D& pose,
-                            const perception::DepthImage* depth, const perception::PinholeIntrinsics* k) {
+void MobilityMap::setOriginWorld(const Eigen::Vector3d& origin_world) {
+  if (tree_->size() > 0) throw std::logic_error("MobilityMap::setOriginWorld: the map already holds data");
+  if (!origin_world.allFinite()) throw std::invalid_argument("MobilityMap: origin_world must be finite");
+  origin_world_ = origin_world;
+}
+
+double MobilityMap::extentM() const {
+  return tree_->getResolution() * static_cast<double>(1u << (tree_->getTreeDepth() - 1));
+}
+
+IntegrationReport MobilityMap::integrate(const perception::FrameResult& frame, const mrpt::poses::CPose3D& pose,
+                                         const perception::DepthImage* depth, const perception::PinholeIntrinsics* k) {
   mrpt::math::CMatrixDouble44 m;
   pose.getHomogeneousMatrix(m);
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.matrix() = m.asEigen();
-  integrate(frame, T, depth, k);
+  return integrate(frame, T, depth, k);
 }
 
-void MobilityMap::integrate(const perception::FrameResult& frame, const Eigen::Isometry3d& T_world_camera,
-                            const perception::DepthImage* depth, const perception::PinholeIntrinsics* k) {
+IntegrationReport MobilityMap::integrate(const perception::FrameResult& frame, const Eigen::Isometry3d& T_world_camera,
+                                         const perception::DepthImage* depth, const perception::PinholeIntrinsics* k) {
+  // In double until the points are near the map origin: a world frame in UTM
+  // coordinates (~10^6 m) would lose the centimetres in float.
   Eigen::Isometry3d T_map_camera = T_world_camera;
   T_map_camera.linear() = R_map_world_ * T_world_camera.linear();
-  T_map_camera.translation() = R_map_world_ * T_world_camera.translation();
+  T_map_camera.translation() = R_map_world_ * (T_world_camera.translation() - origin_world_);
+  IntegrationReport report;
 
   // One update per voxel per frame. Where several segments share a voxel the least
   // mobile one wins: the conservative reading of an edge between floor and obstacle.
@@ -161,7 +176,11 @@ void MobilityMap::integrate(const perception::FrameResult& frame, const Eigen::I
     const double r2 = pc.squaredNorm();
     if (r2 > max_range2) continue;
     octomap::OcTreeKey key;
-    if (!tree_->coordToKeyChecked(toOcto(T_map_camera * pc), key)) continue;
+    if (!tree_->coordToKeyChecked(toOcto(T_map_camera * pc), key)) {
+      ++report.points_outside_map;
+      continue;
+    }
+    ++report.points_fused;
     const int seg = frame.segment_of_point.empty() ? -1 : frame.segment_of_point[i];
     const double range = std::sqrt(r2);
     const std::uint64_t packed = (static_cast<std::uint64_t>(key[0]) << 32) | (static_cast<std::uint64_t>(key[1]) << 16) | key[2];
@@ -198,6 +217,7 @@ void MobilityMap::integrate(const perception::FrameResult& frame, const Eigen::I
     if (params_.free_space_ray_stride_px > 0) castFreeRays(T_map_camera, *depth, *k);
   }
   ++frames_;
+  return report;
 }
 
 // OctoMap's updateNode() stops at the first node on the key's path that has no children

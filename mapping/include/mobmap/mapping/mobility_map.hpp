@@ -105,30 +105,46 @@ inline constexpr std::uint64_t kMinVoxelBudget = std::uint64_t{1} << 20;
 /// The problem of a tree that holds more voxels than its size allows (above), or nullopt.
 [[nodiscard]] std::optional<std::string> voxelBudgetProblem(const MobilityOcTree& tree);
 
-/// Fuses scored frames. Frames: the map frame is gravity aligned (z up);
-/// T_map_world = R_map_world (a fixed rotation for data sets whose world frame is not).
+/// What integrate() did with a frame's points.
+struct IntegrationReport {
+  std::size_t points_fused = 0;    ///< within max_range_m and inside the map's extent
+  /// Within max_range_m but outside the map's extent (OctoMap's keys reach 32768 voxels
+  /// from the map origin each way: +-655 m at 2 cm), so left out: a pose far from the
+  /// origin, or poses in another unit.
+  std::size_t points_outside_map = 0;
+};
+
+/// Fuses scored frames. Frames: the map frame is gravity aligned (z up) and centred on
+/// an origin near the data: p_map = R_map_world (p_world - origin_world). R_map_world is
+/// a fixed rotation for data sets whose world frame is not z up; origin_world keeps
+/// world frames with large coordinates (UTM, a building's survey grid) inside the map's
+/// extent and in float precision.
 ///
 /// Threading: integrate() must not run concurrently with anything else. All const
 /// methods (queries, exports) are safe to call from several threads at once while no
 /// integrate() or finalize() runs.
 class MobilityMap {
  public:
-  /// std::invalid_argument if a parameter is out of range or R_map_world is not a
-  /// rotation (checkRigid's tolerance).
-  explicit MobilityMap(MapParams params = {}, const Eigen::Matrix3d& R_map_world = Eigen::Matrix3d::Identity());
+  /// std::invalid_argument if a parameter is out of range, R_map_world is not a
+  /// rotation (checkRigid's tolerance), or if origin_world is not finite.
+  explicit MobilityMap(MapParams params = {}, const Eigen::Matrix3d& R_map_world = Eigen::Matrix3d::Identity(),
+                       const Eigen::Vector3d& origin_world = Eigen::Vector3d::Zero());
   /// Wraps a loaded tree (params.resolution_m must match the tree's); std::invalid_argument
   /// if its pruned leaves stand for more voxels than its size allows (voxelBudgetProblem).
-  MobilityMap(std::unique_ptr<MobilityOcTree> tree, MapParams params, const Eigen::Matrix3d& R_map_world);
+  MobilityMap(std::unique_ptr<MobilityOcTree> tree, MapParams params, const Eigen::Matrix3d& R_map_world,
+              const Eigen::Vector3d& origin_world = Eigen::Vector3d::Zero());
 
   /// Fuses one frame: every segment point marks its voxel occupied and fuses the
   /// segment's mobility (inverse-variance weighting); points outside segments mark
   /// occupancy only. With the frame's depth image and intrinsics, free space is
   /// updated too (see MapParams). Leaves are current at once; call finalize() before
-  /// saving or asking coarse (inner-node) questions.
-  void integrate(const perception::FrameResult& frame, const Eigen::Isometry3d& T_world_camera,
-                 const perception::DepthImage* depth = nullptr, const perception::PinholeIntrinsics* intrinsics = nullptr);
+  /// saving or asking coarse (inner-node) questions. Points outside the map's extent
+  /// are left out and counted in the report.
+  IntegrationReport integrate(const perception::FrameResult& frame, const Eigen::Isometry3d& T_world_camera,
+                              const perception::DepthImage* depth = nullptr,
+                              const perception::PinholeIntrinsics* intrinsics = nullptr);
   /// The same with an MRPT pose (camera-to-world).
-  void integrate(const perception::FrameResult& frame, const mrpt::poses::CPose3D& T_world_camera,
+  IntegrationReport integrate(const perception::FrameResult& frame, const mrpt::poses::CPose3D& T_world_camera,
                  const perception::DepthImage* depth = nullptr, const perception::PinholeIntrinsics* intrinsics = nullptr);
 
   /// Recomputes inner nodes (occupancy max, mobility min) and prunes equal children.
@@ -146,7 +162,22 @@ class MobilityMap {
   [[nodiscard]] FootprintQuery footprint(const Foot& foot, double search_up_m = 0.1, double search_down_m = 0.1) const;
 
   /// Converts a point of the data's world frame into the map frame.
-  [[nodiscard]] Eigen::Vector3d worldToMap(const Eigen::Vector3d& p_world) const { return R_map_world_ * p_world; }
+  [[nodiscard]] Eigen::Vector3d worldToMap(const Eigen::Vector3d& p_world) const {
+    return R_map_world_ * (p_world - origin_world_);
+  }
+  /// Converts a point of the map frame into the data's world frame.
+  [[nodiscard]] Eigen::Vector3d mapToWorld(const Eigen::Vector3d& p_map) const {
+    return R_map_world_.transpose() * p_map + origin_world_;
+  }
+  /// The map frame's origin in the world frame.
+  [[nodiscard]] const Eigen::Vector3d& originWorld() const { return origin_world_; }
+  /// Moves the map's origin (world frame) before anything is fused: for a stream whose
+  /// first pose is known only when its first frame arrives. std::logic_error once the
+  /// map holds anything; std::invalid_argument if not finite.
+  void setOriginWorld(const Eigen::Vector3d& origin_world);
+  /// Half the edge of the cube the map can hold, centred on its origin (metres):
+  /// 32768 voxels (655.36 m at 2 cm).
+  [[nodiscard]] double extentM() const;
 
   [[nodiscard]] const MobilityOcTree& tree() const { return *tree_; }
   [[nodiscard]] MobilityOcTree& tree() { return *tree_; }
@@ -167,6 +198,7 @@ class MobilityMap {
 
   MapParams params_;
   Eigen::Matrix3d R_map_world_;
+  Eigen::Vector3d origin_world_ = Eigen::Vector3d::Zero();
   std::unique_ptr<MobilityOcTree> tree_;
   /// Keys (finest level) of occupied voxels: free-space clearing visits these instead
   /// of every leaf in the view. The set answers "is it listed"; the same keys grouped
@@ -222,6 +254,8 @@ struct MapMetadata {
   bool has_frame = false; ///< R_map_world was recorded
   /// World (the input's poses) to map (z up) rotation; identity if not recorded.
   Eigen::Matrix3d R_map_world = Eigen::Matrix3d::Identity();
+  /// The map frame's origin in the world frame ("origin_world"); zero if not recorded.
+  Eigen::Vector3d origin_world = Eigen::Vector3d::Zero();
   std::optional<Eigen::Vector3d> gravity_down_world;  ///< in the world frame, as recorded
   int frames = 0;         ///< frames fused into the map
   std::string text;       ///< the whole file, as read and checked (empty if not found)
@@ -229,7 +263,7 @@ struct MapMetadata {
 
 /// Reads MAP.json beside `ot_path` (nothing found is not an error) and checks every entry
 /// the mobmap tools read: MapIoError "MAP.json: <problem>" if it is not JSON, or if
-/// frames, R_map_world (must be a rotation), gravity_down_world, trajectory_map or
+/// frames, R_map_world (must be a rotation), origin_world, gravity_down_world, trajectory_map or
 /// earlier_runs is malformed.
 MapMetadata readMapMetadata(const std::string& ot_path);
 
