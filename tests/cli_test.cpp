@@ -1179,14 +1179,21 @@ TEST(Cli, PlanGivesFootstepsOrTheReasonThereAreNone) {
   fs::remove_all(dir);
 }
 
+// A noise-free simulated corridor of `frames` frames in DIR/seq and its map DIR/m.ot.
+std::string simulatedMap(const std::string& dir, int frames) {
+  const Result sim = run("simulate --out " + dir + "/seq --frames " + std::to_string(frames) + " --noise none --quiet");
+  EXPECT_EQ(sim.code, 0) << sim.out;
+  const Result built = run("build " + dir + "/seq --out " + dir + "/m.ot --quiet");
+  EXPECT_EQ(built.code, 0) << built.out;
+  return dir + "/m.ot";
+}
+
 // No writer replaces one of its own inputs: the map, its companion files, the frame it
 // reads, the table it scores with, or another of its outputs. Files are compared as
 // files (a symbolic link, a hard link or another spelling is the same file).
 TEST(Cli, NoCommandWritesOverItsOwnInputs) {
   const std::string dir = tempDir("self-overwrite");
-  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 4 --noise none --quiet").code, 0);
-  const std::string map = dir + "/m.ot";
-  ASSERT_EQ(run("build " + dir + "/seq --out " + map + " --quiet").code, 0);
+  const std::string map = simulatedMap(dir, 4);
   const std::string pcd = dir + "/s.pcd";
   ASSERT_EQ(run("export " + map + " --pcd " + pcd).code, 0);
   const std::string depth = dir + "/seq/frame-000000.depth.png";
@@ -1242,9 +1249,7 @@ TEST(Cli, NoCommandWritesOverItsOwnInputs) {
 // itself, as a running `build` would, so nothing depends on timing.
 TEST(Cli, ASecondWriterOfAMapFailsAtOnceNamingTheHolder) {
   const std::string dir = tempDir("lock");
-  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 4 --noise none --quiet").code, 0);
-  const std::string map = dir + "/m.ot";
-  ASSERT_EQ(run("build " + dir + "/seq --out " + map + " --quiet").code, 0);
+  const std::string map = simulatedMap(dir, 4);
   const std::string ot = fileBytes(map), json = fileBytes(dir + "/m.json");
   const std::string holder = "is being written by another process (pid " + std::to_string(::getpid()) + " holds " + dir + "/m.lock)";
   {
