@@ -23,6 +23,7 @@
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <deque>
 #include <filesystem>
 #include <future>
@@ -595,6 +596,10 @@ Command addBuildCommand(CLI::App& app) {
     // Fusion gets the depth images only to clear what a frame sees through (and cast
     // free-space rays): --no-free-space withholds them.
     const perception::PinholeIntrinsics* clear_k = o->no_free_space ? nullptr : depth_k;
+    // MOBMAP_STOP_AFTER_FRAMES=N: the process stops itself (SIGSTOP) once N frames are
+    // fused, reported and checkpointed, for tests that act on a running build.
+    const char* stop_env = std::getenv("MOBMAP_STOP_AFTER_FRAMES");
+    const int stop_after_frames = stop_env ? std::atoi(stop_env) : -1;
     std::signal(SIGINT, onSigint);
     Progress progress("build", static_cast<int>(frames.size()), o->quiet, run_start);
     std::vector<std::pair<std::string, double>> stage_ms;  // in pipeline order
@@ -620,6 +625,8 @@ Command addBuildCommand(CLI::App& app) {
     // (--checkpoint) writes the same files in the middle of the run; fusion then goes on
     // in the finalized (pruned) tree, which gives the same map as without (docs/MAPPING.md).
     const std::string device_label = "OpenNI2 device " + (o->device.empty() ? std::string("(first attached)") : o->device);
+    // After the handler is in place: from here Ctrl-C saves the frames fused so far.
+    if (live && !o->quiet) std::fprintf(stderr, "reading %s (Ctrl-C stops and saves the map)\n", device_label.c_str());
     auto writeMap = [&](bool checkpoint, double run_s) {
       map.finalize();
       nlohmann::json meta;
@@ -770,6 +777,9 @@ Command addBuildCommand(CLI::App& app) {
           used + no_pose + unreadable_in_run + outside_frames < static_cast<int>(frames.size())) {
         writeMap(true, std::chrono::duration<double>(std::chrono::steady_clock::now() - run_start).count());
       }
+      // Test hook (docs/RELIABILITY.md): stop here, so a test can signal or kill the run
+      // at a known frame instead of after a guessed time.
+      if (used == stop_after_frames) ::raise(SIGSTOP);
     }
     for (auto& f : in_flight) f.wait();  // let started frames finish before saving
     std::signal(SIGINT, SIG_DFL);

@@ -39,6 +39,9 @@ Command addRecordCommand(CLI::App& app) {
     if (std::filesystem::path(o->out).extension() != ".oni") throw UsageError("--out must end in .oni, got '" + o->out + "'");
     if (!o->force && std::filesystem::exists(o->out, ec)) throw UsageError(o->out + " exists; pass --force to overwrite it");
     std::signal(SIGINT, onRecordSigint);
+    // After the handler is in place: from here Ctrl-C stops the recording and keeps it.
+    std::fprintf(stderr, "recording %s to %s (Ctrl-C stops and keeps the frames so far)\n",
+                 o->device.empty() ? "the first attached sensor" : o->device.c_str(), o->out.c_str());
     const int got = recordOni(o->device, o->out, o->frames, 5.0, stopRequested);
     std::signal(SIGINT, SIG_DFL);
     std::printf("recorded %d depth frames to %s%s\n", got, o->out.c_str(), g_stop.load() ? " (stopped by Ctrl-C)" : "");
