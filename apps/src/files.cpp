@@ -2,8 +2,6 @@
 
 #include "io_error.hpp"
 
-#include "mobmap/mapping/mobility_map.hpp"
-
 #include <unistd.h>
 
 #include <cerrno>
@@ -30,14 +28,6 @@ std::string readTextFile(const std::string& path, std::size_t max_bytes) {
   std::ostringstream s;
   s << in.rdbuf();
   return s.str();
-}
-
-std::vector<NamedPath> mapFilesAsInputs(const std::string& ot_path) {
-  const std::string stem = mapping::mapFileStem(ot_path);
-  return {{"the map", ot_path},
-          {"the map's occupancy export", stem + ".bt"},
-          {"the map's octovis export", stem + ".octovis.ot"},
-          {"the map's metadata", stem + ".json"}};
 }
 
 namespace {

@@ -40,9 +40,6 @@ struct NamedPath {
   std::string path;
 };
 
-/// The map's own files as inputs: MAP.ot, MAP.bt, MAP.octovis.ot and MAP.json.
-std::vector<NamedPath> mapFilesAsInputs(const std::string& ot_path);
-
 /// Before a command writes anything: UsageError if an output is one of the inputs, or
 /// the same file as another output, naming both. Files are compared as the files they
 /// resolve to (another spelling, a symbolic or a hard link is the same file). Empty

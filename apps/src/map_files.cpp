@@ -31,6 +31,14 @@ OpenedMap openMapFiles(const std::string& ot_path) {
   return {std::move(metadata), std::move(map)};
 }
 
+std::vector<NamedPath> mapFilesAsInputs(const std::string& ot_path) {
+  const std::string stem = mapping::mapFileStem(ot_path);
+  return {{"the map", ot_path},
+          {"the map's occupancy export", stem + ".bt"},
+          {"the map's octovis export", stem + ".octovis.ot"},
+          {"the map's metadata", stem + ".json"}};
+}
+
 nlohmann::json metadataJson(const mapping::MapMetadata& meta) {
   return meta.found ? nlohmann::json::parse(meta.text) : nlohmann::json::object();
 }

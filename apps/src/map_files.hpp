@@ -1,6 +1,8 @@
 #pragma once
 // The files of a built map: MAP.ot (+ .bt, .octovis.ot, .json metadata).
 
+#include "files.hpp"
+
 #include "mobmap/mapping/mobility_map.hpp"
 
 #include <nlohmann/json.hpp>
@@ -20,6 +22,10 @@ struct OpenedMap {
   mapping::MobilityMap map;
 };
 OpenedMap openMapFiles(const std::string& ot_path);
+
+/// The map's own files as inputs, for refuseToOverwriteInputs(): MAP.ot, MAP.bt,
+/// MAP.octovis.ot and MAP.json.
+std::vector<NamedPath> mapFilesAsInputs(const std::string& ot_path);
 
 /// MAP.json as read and checked by mapping::readMapMetadata(): an empty object if there
 /// is none.
