@@ -5,7 +5,7 @@
 #include "mobmap/mapping/foot.hpp"
 #include "mobmap/mapping/mobility_octree.hpp"
 #include "mobmap/perception/camera.hpp"
-#include "mobmap/perception/pipeline.hpp"
+#include "mobmap/perception/frame_result.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -133,6 +133,11 @@ class MobilityMap {
   /// if its pruned leaves stand for more voxels than its size allows (voxelBudgetProblem).
   MobilityMap(std::unique_ptr<MobilityOcTree> tree, MapParams params, const Eigen::Matrix3d& R_map_world,
               const Eigen::Vector3d& origin_world = Eigen::Vector3d::Zero());
+  /// A deep copy: the same tree, frame and index; fusing into either leaves the other as it was.
+  MobilityMap(const MobilityMap& other);
+  MobilityMap(MobilityMap&&) noexcept = default;
+  MobilityMap& operator=(MobilityMap&&) noexcept = default;
+  MobilityMap& operator=(const MobilityMap&) = delete;
 
   /// Fuses one frame: every segment point marks its voxel occupied and fuses the
   /// segment's mobility (inverse-variance weighting); points outside segments mark
