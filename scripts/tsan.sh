@@ -16,7 +16,7 @@ cmake -S . -B build-tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo "${launcher[@]}" \
   -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=thread" -DCMAKE_SHARED_LINKER_FLAGS="-fsanitize=thread" >/dev/null
 cmake --build build-tsan -j2 --target mapping_test perception_test mobmap
 export TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$PWD/tests/tsan.supp"
-./build-tsan/tests/mapping_test --gtest_filter='MobilityMap.*:MapFiles.*'
+./build-tsan/tests/mapping_test --gtest_filter='MobilityMap.*:MapFiles.*:LiveMapper.*'
 ./build-tsan/tests/perception_test --gtest_filter='FramePipeline.*'
 run_dir=$(mktemp -d)
 trap 'rm -rf "$run_dir"' EXIT

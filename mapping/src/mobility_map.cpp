@@ -125,6 +125,16 @@ MobilityMap::MobilityMap(std::unique_ptr<MobilityOcTree> tree, MapParams params,
   }
 }
 
+MobilityMap::MobilityMap(const MobilityMap& other)
+    : params_(other.params_),
+      R_map_world_(other.R_map_world_),
+      origin_world_(other.origin_world_),
+      tree_(other.tree_->clone()),
+      occupied_(other.occupied_),
+      occupied_blocks_(other.occupied_blocks_),
+      frames_(other.frames_),
+      may_be_pruned_(other.may_be_pruned_) {}
+
 void MobilityMap::setOriginWorld(const Eigen::Vector3d& origin_world) {
   if (tree_->size() > 0) throw std::logic_error("MobilityMap::setOriginWorld: the map already holds data");
   if (!origin_world.allFinite()) throw std::invalid_argument("MobilityMap: origin_world must be finite");

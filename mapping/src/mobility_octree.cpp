@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <sstream>
+#include <stdexcept>
 
 namespace mobmap::mapping {
 namespace {
@@ -204,6 +206,20 @@ void MobilityOcTree::updateInnerOccupancyRecurs(MobilityOcTreeNode* node, unsign
   // any count saturates the 8-bit sum anyway.
   const unsigned int levels_below_child = tree_depth - depth - 1;
   node->updateMobilityChildren(levels_below_child >= 3 ? 256 : 1 << (3 * levels_below_child));
+}
+
+std::unique_ptr<MobilityOcTree> MobilityOcTree::clone() const {
+  auto copy = std::make_unique<MobilityOcTree>(resolution);
+  copy->setProbHit(getProbHit());
+  copy->setProbMiss(getProbMiss());
+  copy->setClampingThresMin(getClampingThresMin());
+  copy->setClampingThresMax(getClampingThresMax());
+  copy->setOccupancyThres(getOccupancyThres());
+  std::stringstream bytes;
+  writeData(bytes);
+  const std::string error = copy->readDataChecked(bytes, size());
+  if (!error.empty()) throw std::logic_error("MobilityOcTree::clone: " + error);
+  return copy;
 }
 
 std::string MobilityOcTree::readDataChecked(std::istream& s, std::size_t max_nodes) {

@@ -88,6 +88,10 @@ class MobilityOcTree : public octomap::OccupancyOcTreeBase<MobilityOcTreeNode> {
 
   explicit MobilityOcTree(double resolution);
   MobilityOcTree* create() const override { return new MobilityOcTree(resolution); }
+  /// A deep copy: every node with its occupancy and payload, and the sensor model.
+  /// (OctoMap's copy constructor copies children as its own base node type, which
+  /// drops the payload and leaves nodes too small for a MobilityOcTreeNode: do not use it.)
+  [[nodiscard]] std::unique_ptr<MobilityOcTree> clone() const;
   std::string getTreeType() const override { return kTreeType; }
 
   /// Children may be merged only when they are equal in occupancy and payload.

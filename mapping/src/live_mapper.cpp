@@ -1,0 +1,342 @@
+#include "mobmap/mapping/live_mapper.hpp"
+
+#include "mobmap/mapping/gravity.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <deque>
+#include <map>
+#include <mutex>
+#include <stdexcept>
+#include <thread>
+#include <vector>
+
+namespace mobmap::mapping {
+namespace {
+
+double msSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+Eigen::Vector3d roundedOrigin(const Eigen::Vector3d& camera) {
+  return {std::round(camera.x() / 100) * 100, std::round(camera.y() / 100) * 100, std::round(camera.z() / 100) * 100};
+}
+
+}  // namespace
+
+// A map buffer and the number of snapshots of it still held. Shared with the snapshots'
+// deleters, so a snapshot outlives the mapper.
+struct MapBuffer {
+  std::unique_ptr<MobilityMap> map;
+  std::atomic<int> leases{0};
+};
+
+// A frame after perception, kept until both buffers have it.
+struct Perceived {
+  std::uint64_t index = 0;
+  DepthFrame frame;
+  perception::FrameResult result;
+  std::string error;
+  double perception_ms = 0.0;
+};
+
+struct LiveMapper::Impl {
+  Config config;
+  perception::FramePipeline pipeline;
+  Eigen::Matrix3d R_map_world;
+
+  mutable std::mutex mutex;              // guards everything below up to the threads
+  std::condition_variable changed;       // any of it changed
+  std::deque<DepthFrame> waiting;        // pushed, not yet taken for perception
+  std::map<std::uint64_t, std::shared_ptr<Perceived>> perceived;  // by index, awaiting fusion
+  std::uint64_t next_index = 0;          // given to the next frame taken for perception
+  std::uint64_t next_to_fuse = 0;
+  std::uint64_t in_perception = 0;
+  std::uint64_t finish_requests = 0;     // finish() calls
+  std::uint64_t finishes_done = 0;       // of them, answered: all fused, the front finalized
+  bool finalized = true;                 // the published buffer is finalized (an empty map is)
+  bool stopping = false;
+  bool cancelled = false;
+  Stats stats;
+
+  mutable std::mutex publish_mutex;      // guards `front`
+  std::shared_ptr<MapBuffer> front;      // what snapshot() hands out
+
+  // Fusion thread only.
+  std::shared_ptr<MapBuffer> back;
+  std::vector<std::shared_ptr<Perceived>> missed;  // fused into `front`, not yet into `back`
+  bool origin_set = false;
+  bool rebuild_back = false;  // `back` has another origin than `front`: copy, do not catch up
+
+  std::vector<std::thread> workers;
+  std::thread fuser;
+
+  Impl(Config c, std::unique_ptr<MobilityOcTree> tree, const std::optional<Eigen::Matrix3d>& R,
+       const std::optional<Eigen::Vector3d>& origin)
+      : config(std::move(c)), pipeline(config.perception, config.model) {
+    perception::validate(config.perception);
+    if (tree) config.map.resolution_m = tree->getResolution();
+    validate(config.map);
+    if (config.perception_threads < 1) throw std::invalid_argument("LiveMapper: perception_threads must be >= 1");
+    if (config.queue_capacity < 1) throw std::invalid_argument("LiveMapper: queue_capacity must be >= 1");
+    const Eigen::Vector3d& g = config.gravity_down_world;
+    if (!g.allFinite() || g.norm() < 1e-9) throw std::invalid_argument("LiveMapper: gravity_down_world must be finite and not zero");
+    R_map_world = R ? *R : gravityAlignment(g);
+    if (origin) config.origin_world = origin;
+    origin_set = config.origin_world.has_value();
+    const Eigen::Vector3d o = config.origin_world.value_or(Eigen::Vector3d::Zero());
+    auto first = std::make_shared<MapBuffer>();
+    auto second = std::make_shared<MapBuffer>();
+    if (tree) {
+      first->map = std::make_unique<MobilityMap>(tree->clone(), config.map, R_map_world, o);
+      second->map = std::make_unique<MobilityMap>(std::move(tree), config.map, R_map_world, o);
+    } else {
+      first->map = std::make_unique<MobilityMap>(config.map, R_map_world, o);
+      second->map = std::make_unique<MobilityMap>(config.map, R_map_world, o);
+    }
+    front = std::move(first);
+    back = std::move(second);
+    for (int t = 0; t < config.perception_threads; ++t) workers.emplace_back([this] { perceive(); });
+    fuser = std::thread([this] { fuse(); });
+  }
+
+  ~Impl() {
+    {
+      const std::lock_guard<std::mutex> lock(mutex);
+      stopping = true;
+      cancelled = true;
+      waiting.clear();
+    }
+    changed.notify_all();
+    for (auto& t : workers) t.join();
+    fuser.join();
+  }
+
+  void perceive() {
+    for (;;) {
+      DepthFrame frame;
+      std::uint64_t index = 0;
+      {
+        std::unique_lock<std::mutex> lock(mutex);
+        changed.wait(lock, [this] { return stopping || !waiting.empty(); });
+        if (stopping) return;
+        frame = std::move(waiting.front());
+        waiting.pop_front();
+        index = next_index++;
+        ++in_perception;
+      }
+      changed.notify_all();  // room in the queue
+      auto p = std::make_shared<Perceived>();
+      p->index = index;
+      const auto t0 = std::chrono::steady_clock::now();
+      try {
+        const Eigen::Vector3f g_camera =
+            (frame.T_world_camera.linear().transpose() * config.gravity_down_world.normalized()).cast<float>();
+        p->result = pipeline.process(frame.depth, frame.intrinsics, g_camera);
+      } catch (const std::exception& e) {
+        p->error = e.what();
+      }
+      p->perception_ms = msSince(t0);
+      p->frame = std::move(frame);
+      {
+        const std::lock_guard<std::mutex> lock(mutex);
+        perceived.emplace(index, std::move(p));
+        --in_perception;
+      }
+      changed.notify_all();
+    }
+  }
+
+  // Makes `back` a buffer fusion may write that holds every frame fused so far.
+  void prepareBack() {
+    if (!rebuild_back && back->leases.load(std::memory_order_acquire) == 0) {
+      for (const auto& m : missed) integrateInto(*back->map, *m);
+    } else {
+      // A reader still holds it: start from a copy of the current map instead.
+      std::shared_ptr<MapBuffer> current;
+      {
+        const std::lock_guard<std::mutex> lock(publish_mutex);
+        current = front;
+      }
+      auto fresh = std::make_shared<MapBuffer>();
+      fresh->map = std::make_unique<MobilityMap>(*current->map);
+      back = std::move(fresh);
+      if (!rebuild_back) {
+        const std::lock_guard<std::mutex> lock(mutex);
+        ++stats.snapshot_copies;
+      }
+      rebuild_back = false;
+    }
+    missed.clear();
+  }
+
+  bool frontFinalized() {
+    const std::lock_guard<std::mutex> lock(mutex);
+    return finalized;
+  }
+
+  void integrateInto(MobilityMap& map, const Perceived& p) {
+    const bool clear = config.clear_free_space;
+    (void)map.integrate(p.result, p.frame.T_world_camera, clear ? &p.frame.depth : nullptr, clear ? &p.frame.intrinsics : nullptr);
+  }
+
+  void publish(bool now_finalized) {
+    {
+      const std::lock_guard<std::mutex> lock(publish_mutex);
+      std::swap(front, back);
+    }
+    const std::lock_guard<std::mutex> lock(mutex);
+    finalized = now_finalized;
+  }
+
+  bool idle() const { return waiting.empty() && in_perception == 0 && perceived.empty(); }
+
+  void fuse() {
+    for (;;) {
+      std::shared_ptr<Perceived> p;
+      {
+        std::unique_lock<std::mutex> lock(mutex);
+        changed.wait(lock, [this] {
+          return stopping || (cancelled && !perceived.empty()) || perceived.count(next_to_fuse) > 0 ||
+                 (finish_requests > finishes_done && idle());
+        });
+        if (stopping) return;
+        if (cancelled) {
+          perceived.clear();
+          continue;
+        }
+        const auto it = perceived.find(next_to_fuse);
+        if (it != perceived.end()) {
+          p = std::move(it->second);
+          perceived.erase(it);
+          ++next_to_fuse;
+        }
+      }
+      if (!p) {  // finish(): every frame is fused; publish the map finalized
+        if (!frontFinalized()) {
+          prepareBack();
+          back->map->finalize();
+          publish(true);
+        }
+        {
+          const std::lock_guard<std::mutex> lock(mutex);
+          finishes_done = finish_requests;
+        }
+        changed.notify_all();
+        continue;
+      }
+      FrameReport report;
+      report.index = p->index;
+      report.stamp_s = p->frame.stamp_s;
+      report.perception_ms = p->perception_ms;
+      report.error = p->error;
+      if (p->error.empty()) {
+        const auto t0 = std::chrono::steady_clock::now();
+        if (!origin_set) {
+          // The first frame's camera, rounded, as `mobmap build`. Nothing is fused yet;
+          // the buffer readers see keeps its origin and is replaced after this frame.
+          back->map->setOriginWorld(roundedOrigin(p->frame.T_world_camera.translation()));
+          origin_set = true;
+          rebuild_back = true;
+        } else {
+          prepareBack();
+        }
+        report.integration = back->map->integrate(p->result, p->frame.T_world_camera,
+                                                  config.clear_free_space ? &p->frame.depth : nullptr,
+                                                  config.clear_free_space ? &p->frame.intrinsics : nullptr);
+        report.frames_integrated = back->map->framesIntegrated();
+        report.fused = true;
+        report.points = p->result.points.size();
+        report.ground_found = p->result.ground_plane.has_value();
+        publish(false);
+        missed.push_back(p);
+        report.fusion_ms = msSince(t0);
+      }
+      {
+        const std::lock_guard<std::mutex> lock(mutex);
+        ++(report.fused ? stats.fused : stats.failed);
+      }
+      if (config.on_frame) config.on_frame(report);
+      changed.notify_all();
+    }
+  }
+};
+
+LiveMapper::LiveMapper(Config config) : impl_(std::make_unique<Impl>(std::move(config), nullptr, std::nullopt, std::nullopt)) {}
+
+LiveMapper::LiveMapper(Config config, std::unique_ptr<MobilityOcTree> tree, const Eigen::Matrix3d& R_map_world,
+                       const Eigen::Vector3d& origin_world)
+    : impl_(std::make_unique<Impl>(std::move(config), std::move(tree), R_map_world, origin_world)) {}
+
+LiveMapper::~LiveMapper() = default;
+
+void LiveMapper::push(DepthFrame frame) {
+  const auto& k = frame.intrinsics;
+  if (frame.depth.width != k.width || frame.depth.height != k.height ||
+      frame.depth.depth_m.size() != static_cast<std::size_t>(frame.depth.width) * static_cast<std::size_t>(frame.depth.height)) {
+    throw std::invalid_argument("LiveMapper::push: the depth image is " + std::to_string(frame.depth.width) + "x" +
+                                std::to_string(frame.depth.height) + " but the intrinsics are for " +
+                                std::to_string(k.width) + "x" + std::to_string(k.height));
+  }
+  if (auto problem = checkRigid(frame.T_world_camera.matrix())) {
+    throw std::invalid_argument("LiveMapper::push: T_world_camera is not a rigid transform: " + *problem);
+  }
+  Impl& m = *impl_;
+  {
+    std::unique_lock<std::mutex> lock(m.mutex);
+    if (m.cancelled) throw std::logic_error("LiveMapper::push after cancel()");
+    if (m.config.when_busy == WhenBusy::kBlock) {
+      m.changed.wait(lock, [&] { return m.cancelled || m.waiting.size() < m.config.queue_capacity; });
+      if (m.cancelled) throw std::logic_error("LiveMapper::push after cancel()");
+    } else if (m.waiting.size() >= m.config.queue_capacity) {
+      m.waiting.pop_front();
+      ++m.stats.dropped;
+    }
+    m.waiting.push_back(std::move(frame));
+    ++m.stats.pushed;
+  }
+  m.changed.notify_all();
+}
+
+std::shared_ptr<const MobilityMap> LiveMapper::snapshot() const {
+  std::shared_ptr<MapBuffer> buffer;
+  {
+    const std::lock_guard<std::mutex> lock(impl_->publish_mutex);
+    buffer = impl_->front;
+    buffer->leases.fetch_add(1, std::memory_order_relaxed);
+  }
+  const MobilityMap* map = buffer->map.get();
+  return std::shared_ptr<const MobilityMap>(
+      map, [buffer = std::move(buffer)](const MobilityMap*) { buffer->leases.fetch_sub(1, std::memory_order_release); });
+}
+
+void LiveMapper::finish() {
+  Impl& m = *impl_;
+  std::unique_lock<std::mutex> lock(m.mutex);
+  if (m.cancelled) return;
+  const std::uint64_t request = ++m.finish_requests;
+  m.changed.notify_all();
+  m.changed.wait(lock, [&] { return m.cancelled || m.finishes_done >= request; });
+}
+
+void LiveMapper::cancel() {
+  Impl& m = *impl_;
+  {
+    const std::lock_guard<std::mutex> lock(m.mutex);
+    m.cancelled = true;
+    m.waiting.clear();
+  }
+  m.changed.notify_all();
+}
+
+LiveMapper::Stats LiveMapper::stats() const {
+  const std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->stats;
+}
+
+const Eigen::Matrix3d& LiveMapper::rotationMapWorld() const { return impl_->R_map_world; }
+
+}  // namespace mobmap::mapping
