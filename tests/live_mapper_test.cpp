@@ -134,6 +134,21 @@ TEST(LiveMapper, SnapshotsNeverChangeUnderAReaderAndTheFinalMapIsTheSequentialOn
   EXPECT_TRUE(live == sequential) << live.size() << " bytes against " << sequential.size();
 }
 
+// One buffer (a batch job): each frame fused once, the same map.
+TEST(LiveMapper, WithoutSnapshotsDuringTheRunTheMapIsTheSameWithHalfTheFusion) {
+  const Corridor& c = corridor();
+  LiveMapper::Config config;
+  config.gravity_down_world = c.scene.gravityDown();
+  config.serve_snapshots = false;
+  LiveMapper mapper(config);
+  for (std::size_t i = 0; i < c.frames.size(); ++i) mapper.push(c.frame(i));
+  mapper.finish();
+  const auto map = mapper.snapshot();
+  EXPECT_EQ(map->framesIntegrated(), static_cast<int>(c.frames.size()));
+  EXPECT_EQ(mapper.stats().snapshot_copies, 0u);
+  EXPECT_TRUE(bytesOf(*map) == sequentialMapBytes(config, map->originWorld()));
+}
+
 // A copy of a map is the same map, and fusing into it leaves the original alone (OctoMap's
 // own copy constructor loses the nodes' mobility).
 TEST(LiveMapper, ACopiedMapIsTheSameMapAndIndependent) {
@@ -222,7 +237,7 @@ TEST(LiveMapper, BadFramesAndParametersAreRefusedAtOnce) {
   EXPECT_THROW(mapper.push(scaled), std::invalid_argument);
   mapper.cancel();
   EXPECT_THROW(mapper.push(c.frame(0)), std::logic_error);
-  mapper.finish();  // returns at once after cancel()
+  mapper.finish();  // after cancel(): finalizes the frames fused, none here
   EXPECT_EQ(mapper.stats().fused, 0u);
   LiveMapper::Config bad;
   bad.gravity_down_world = Eigen::Vector3d::Zero();

@@ -8,9 +8,9 @@
 #include "openni_source.hpp"
 #include "progress.hpp"
 #include "sequence.hpp"
-#include "worker_pool.hpp"
 
 #include "mobmap/mapping/gravity.hpp"
+#include "mobmap/mapping/live_mapper.hpp"
 #include "mobmap/mapping/map_lock.hpp"
 #include "mobmap/mapping/mobility_map.hpp"
 #include "mobmap/mapping/trajectory.hpp"
@@ -31,6 +31,7 @@
 #include <sstream>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <limits>
 #include <optional>
 
@@ -69,15 +70,6 @@ FrameRange parseRange(const std::string& spec) {
   return r;
 }
 
-// One frame after perception, ready to fuse.
-struct Scored {
-  int number = 0;
-  perception::FrameResult result;
-  perception::DepthImage depth;
-  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
-  double read_ms = 0.0;
-  bool no_pose = false;  // a stream frame without a pose within the tolerance: not fused
-};
 
 perception::FrameResult perceive(const perception::FramePipeline& pipeline, const Sequence& dir, const SequenceFrame& f,
                                  const std::optional<Eigen::Vector3f>& gravity_down_camera) {
@@ -320,7 +312,7 @@ Command addBuildCommand(CLI::App& app) {
     if (fs::path(o->out).extension() != ".ot") throw UsageError("--out must end in .ot, got '" + o->out + "'");
     // One writer per map for the whole run: a second build to the same --out (fresh or
     // --extend) fails here at once instead of replacing the first one's frames.
-    const mapping::MapLock lock(o->out);
+    const mapping::MapLock map_lock(o->out);
     if (origin->count() > 0 && !Eigen::Vector3d(o->origin[0], o->origin[1], o->origin[2]).allFinite()) {
       throw UsageError("--origin: values must be finite");
     }
@@ -559,48 +551,20 @@ Command addBuildCommand(CLI::App& app) {
     } else if (const auto first = dir->pose(frames.front())) {
       origin_world = roundedOrigin(first->translation()), origin_source = "the first camera position, rounded to 100 m";
     }
-    mapping::MobilityMap map =
-        existing ? mapping::MobilityMap(std::move(existing->tree), mp, R_map_world, *origin_world)
-                 : mapping::MobilityMap(mp, R_map_world, origin_world.value_or(Eigen::Vector3d::Zero()));
-
-    auto process = [&](int number) {
-      Scored s;
-      s.number = number;
-      const auto t0 = std::chrono::steady_clock::now();
-      std::optional<Eigen::Vector3f> g_cam;
-      if (is_dir) {
-        SequenceFrame f = dir->load(number);
-        if (!f.has_pose) {
-          s.no_pose = true;
-          return s;
-        }
-        s.T_world_camera = f.T_world_camera;
-        s.read_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-        g_cam = (s.T_world_camera.linear().transpose() * g_world).cast<float>();
-        s.result = perceive(pipeline, *dir, f, g_cam);
-        s.depth = std::move(f.depth);  // for the free-space projection
-      } else if (single_result) {
-        s.result = std::move(*single_result);
-      } else {
-        g_cam = g_world.cast<float>();  // the camera frame is the world frame
-        s.result = perceiveFrame(pipeline, single, g_cam);
-      }
-      if (!is_dir && single.depth) s.depth = *single.depth;  // free space by projection, as for a sequence
-      return s;
-    };
 
     // The camera of the depth images (free space is cleared along their rays), if the
     // input has depth images rather than unorganized clouds.
     const perception::PinholeIntrinsics* depth_k =
         is_dir ? (dir->hasDepth() ? &dir->intrinsics() : nullptr) : (single.depth ? &single.intrinsics : nullptr);
-    // Fusion gets the depth images only to clear what a frame sees through (and cast
-    // free-space rays): --no-free-space withholds them.
-    const perception::PinholeIntrinsics* clear_k = o->no_free_space ? nullptr : depth_k;
     // MOBMAP_STOP_AFTER_FRAMES=N: the process stops itself (SIGSTOP) once N frames are
     // fused, reported and checkpointed, for tests that act on a running build.
     const char* stop_env = std::getenv("MOBMAP_STOP_AFTER_FRAMES");
     const int stop_after_frames = stop_env ? std::atoi(stop_env) : -1;
     std::signal(SIGINT, onSigint);
+    // What the run has done so far. Frames are read here, perceived and fused by the
+    // LiveMapper's threads; its callbacks (the fusion thread) and this thread both count,
+    // so the counts, the progress line and the camera path are shared under `state`.
+    std::mutex state;
     Progress progress("build", static_cast<int>(frames.size()), o->quiet, run_start);
     std::vector<std::pair<std::string, double>> stage_ms;  // in pipeline order
     std::size_t points = 0;
@@ -610,25 +574,32 @@ Command addBuildCommand(CLI::App& app) {
     // nothing and is not counted as fused.
     int outside_frames = 0, outside_warnings = 0;
     std::size_t points_outside = 0;
-    char extent_text[160];
-    const auto describeExtent = [&] {
-      const Eigen::Vector3d& c = map.originWorld();
-      std::snprintf(extent_text, sizeof extent_text, "+-%.0f m around its origin (%.1f, %.1f, %.1f) in the world frame",
-                    map.extentM(), c.x(), c.y(), c.z());
-      return std::string(extent_text);
+    std::size_t map_nodes = 0;  // after the last frame fused
+    const auto describeExtent = [&](const mapping::MobilityMap& m) {
+      char text[160];
+      const Eigen::Vector3d& c = m.originWorld();
+      std::snprintf(text, sizeof text, "+-%.0f m around its origin (%.1f, %.1f, %.1f) in the world frame", m.extentM(),
+                    c.x(), c.y(), c.z());
+      return std::string(text);
     };
     int unreadable_in_run = 0;  // frames skipped as unreadable after the run started
     int last_fused = frames.front();  // frame number of the last frame fused
     nlohmann::json trajectory = nlohmann::json::array();  // camera positions, map frame
     double read_ms = 0, fuse_ms = 0;
+    struct Pushed {
+      int number;
+      Eigen::Isometry3d T_world_camera;
+    };
+    std::vector<Pushed> pushed;  // by LiveMapper's frame index
+    const auto done = [&] { return used + no_pose + unreadable_in_run + outside_frames; };
+    const auto showProgress = [&](std::size_t nodes) { progress.update(done(), "map " + std::to_string(nodes) + " nodes"); };
     // The map files: all written, then renamed into place, MAP.ot first, MAP.json last. A checkpoint
     // (--checkpoint) writes the same files in the middle of the run; fusion then goes on
     // in the finalized (pruned) tree, which gives the same map as without (docs/MAPPING.md).
     const std::string device_label = "OpenNI2 device " + (o->device.empty() ? std::string("(first attached)") : o->device);
     // After the handler is in place: from here Ctrl-C saves the frames fused so far.
     if (live && !o->quiet) std::fprintf(stderr, "reading %s (Ctrl-C stops and saves the map)\n", device_label.c_str());
-    auto writeMap = [&](bool checkpoint, double run_s) {
-      map.finalize();
+    auto writeMap = [&](const mapping::MobilityMap& map, bool checkpoint, double run_s) {
       nlohmann::json meta;
       meta["format"] = "mobmap-map-metadata";
       meta["tool"] = std::string("mobmap ") + MOBMAP_VERSION_STRING;
@@ -698,91 +669,156 @@ Command addBuildCommand(CLI::App& app) {
                           {map_paths[3], [&](const std::string& tmp) { writeTextFileAtomically(tmp, meta_text); }}});
       return meta;
     };
-    // Two frames in perception at once (both cores), fused strictly in order, on two
-    // threads that last the run (each keeps its pipeline buffers from frame to frame).
-    WorkerPool workers(2);
-    std::deque<std::future<Scored>> in_flight;
-    std::size_t next = 0;
-    auto launch = [&] {
-      if (next < frames.size()) {
-        const int number = frames[next++];
-        in_flight.push_back(workers.submit([&process, number] { return process(number); }));
-      }
+
+    // Perception on two threads that last the run (each keeps its pipeline buffers from
+    // frame to frame), fusion in order on a third: mapping::LiveMapper.
+    mapping::LiveMapper::Config live_config;
+    live_config.map = mp;
+    live_config.perception = pp;
+    live_config.model = model;
+    live_config.gravity_down_world = g_world;
+    live_config.origin_world = origin_world;
+    live_config.perception_threads = 2;
+    live_config.queue_capacity = 2;
+    // Fusion gets the depth images only to clear what a frame sees through (and cast
+    // free-space rays): --no-free-space withholds them.
+    live_config.clear_free_space = !o->no_free_space;
+    live_config.serve_snapshots = false;  // nothing queries the map during the run: fuse each frame once
+    std::exception_ptr checkpoint_error;
+    mapping::LiveMapper* mapper_ptr = nullptr;
+    const auto checkpointDue = [&] {
+      return o->checkpoint > 0 && used % o->checkpoint == 0 && done() < static_cast<int>(frames.size());
     };
-    launch();
-    launch();
-    while (!in_flight.empty() && !g_interrupted.load()) {
-      Scored s;
-      try {
-        s = in_flight.front().get();
-      } catch (const StreamInterrupted&) {  // Ctrl-C while a live sensor was silent
-        in_flight.pop_front();
-        continue;
-      } catch (const IoError& e) {  // a frame that passed check() but cannot be decoded
-        if (live || oni) throw;
-        if (!o->skip_bad_frames) throw withSkipHint(e);
-        in_flight.pop_front();
-        launch();
-        noteUnreadable(e.what());
-        ++unreadable_in_run;
-        progress.update(used + no_pose + unreadable_in_run + outside_frames, "map " + std::to_string(map.tree().size()) + " nodes");
-        continue;
-      }
-      in_flight.pop_front();
-      launch();
-      if (s.no_pose) {
-        ++no_pose;
-        progress.update(used + no_pose + unreadable_in_run + outside_frames, "map " + std::to_string(map.tree().size()) + " nodes");
-        continue;
-      }
-      if (!origin_world) {  // a stream: its first posed frame sets the origin
-        origin_world = roundedOrigin(s.T_world_camera.translation());
+    const auto holdIfAsked = [&] {
+      // Test hook (docs/RELIABILITY.md): stop here, so a test can signal or kill the run
+      // at a known frame instead of after a guessed time; a Ctrl-C meanwhile ends the run
+      // with this frame.
+      if (used != stop_after_frames) return;
+      ::raise(SIGSTOP);
+      if (g_interrupted.load()) mapper_ptr->cancel();
+    };
+    live_config.on_frame = [&](const mapping::FrameReport& r) {
+      const std::lock_guard<std::mutex> lock(state);
+      if (!r.fused) return;  // perception threw; the frames were checked when read
+      const Pushed& f = pushed[r.index];
+      const std::shared_ptr<const mapping::MobilityMap> latest = mapper_ptr->snapshot();  // callbacks may
+      map_nodes = latest->tree().size();
+      if (!origin_world) {  // a stream: its first posed frame set the origin
+        origin_world = latest->originWorld();
         origin_source = "the first camera position, rounded to 100 m";
-        map.setOriginWorld(*origin_world);
       }
-      const auto t0 = std::chrono::steady_clock::now();
-      const mapping::IntegrationReport fused = map.integrate(s.result, s.T_world_camera, clear_k ? &s.depth : nullptr, clear_k);
-      fuse_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      fuse_ms += r.fusion_ms;
+      const mapping::IntegrationReport& fused = r.integration;
       if (fused.points_outside_map > 0) {
         points_outside += fused.points_outside_map;
         constexpr int kListed = 10;
         if (++outside_warnings <= kListed) {
-          Progress::message("warning: frame " + std::to_string(s.number) + ": " + std::to_string(fused.points_outside_map) +
+          Progress::message("warning: frame " + std::to_string(f.number) + ": " + std::to_string(fused.points_outside_map) +
                             " of " + std::to_string(fused.points_outside_map + fused.points_fused) +
-                            " points in range lie outside the map's extent (" + describeExtent() + ") and were left out" +
-                            (fused.points_fused == 0 ? ": the frame adds nothing" : ""));
+                            " points in range lie outside the map's extent (" + describeExtent(*latest) +
+                            ") and were left out" + (fused.points_fused == 0 ? ": the frame adds nothing" : ""));
         } else if (outside_warnings == kListed + 1) {
           Progress::message("warning: more frames reach outside the map's extent; the summary counts them");
         }
         if (fused.points_fused == 0) {
           ++outside_frames;
-          progress.update(used + no_pose + unreadable_in_run + outside_frames, "map " + std::to_string(map.tree().size()) + " nodes");
-          continue;
+          showProgress(map_nodes);
+          return;
         }
       }
-      for (const auto& st : s.result.stages) {
+      for (const auto& st : r.stages) {
         auto it = std::find_if(stage_ms.begin(), stage_ms.end(), [&](const auto& e) { return e.first == st.name; });
         if (it == stage_ms.end()) it = stage_ms.insert(stage_ms.end(), {st.name, 0.0});
         it->second += st.milliseconds;
       }
-      const Eigen::Vector3d c = map.worldToMap(s.T_world_camera.translation());
+      const Eigen::Vector3d c = latest->worldToMap(f.T_world_camera.translation());
       trajectory.push_back({c.x(), c.y(), c.z()});
-      read_ms += s.read_ms;
-      points += s.result.points.size();
-      no_ground += !s.result.ground_plane;
+      points += r.points;
+      no_ground += !r.ground_found;
       ++used;
-      last_fused = s.number;
-      progress.update(used + no_pose + unreadable_in_run + outside_frames, "map " + std::to_string(map.tree().size()) + " nodes");
-      if (o->checkpoint > 0 && used % o->checkpoint == 0 &&
-          used + no_pose + unreadable_in_run + outside_frames < static_cast<int>(frames.size())) {
-        writeMap(true, std::chrono::duration<double>(std::chrono::steady_clock::now() - run_start).count());
+      last_fused = f.number;
+      showProgress(map_nodes);
+      if (!checkpointDue()) holdIfAsked();
+    };
+    live_config.finalize_after = [&](const mapping::FrameReport& r) {
+      const std::lock_guard<std::mutex> lock(state);
+      return r.integration.points_fused > 0 && checkpointDue();
+    };
+    live_config.on_finalized = [&](const mapping::MobilityMap& checkpoint_map, const mapping::FrameReport&) {
+      const std::lock_guard<std::mutex> lock(state);
+      try {
+        writeMap(checkpoint_map, true, std::chrono::duration<double>(std::chrono::steady_clock::now() - run_start).count());
+      } catch (...) {  // reported by the reading thread, which stops the run
+        if (!checkpoint_error) checkpoint_error = std::current_exception();
+        mapper_ptr->cancel();
       }
-      // Test hook (docs/RELIABILITY.md): stop here, so a test can signal or kill the run
-      // at a known frame instead of after a guessed time.
-      if (used == stop_after_frames) ::raise(SIGSTOP);
+      holdIfAsked();
+    };
+    std::unique_ptr<mapping::LiveMapper> mapper =
+        existing ? std::make_unique<mapping::LiveMapper>(live_config, std::move(existing->tree), R_map_world, *origin_world)
+                 : std::make_unique<mapping::LiveMapper>(live_config);
+    mapper_ptr = mapper.get();
+    // Read each frame and hand it over; push() waits while two frames wait for perception.
+    for (const int number : frames) {
+      if (g_interrupted.load()) break;
+      const auto t0 = std::chrono::steady_clock::now();
+      if (!is_dir) {
+        mapping::PerceivedFrame f;
+        if (single_result) {
+          f.result = std::move(*single_result);
+        } else {
+          f.result = perceiveFrame(pipeline, single, g_world.cast<float>());  // the camera frame is the world frame
+        }
+        if (single.depth) f.depth = *single.depth;  // free space by projection, as for a sequence
+        f.intrinsics = single.intrinsics;
+        {
+          const std::lock_guard<std::mutex> lock(state);
+          pushed.push_back({number, Eigen::Isometry3d::Identity()});
+        }
+        mapper->push(std::move(f));
+        continue;
+      }
+      SequenceFrame f;
+      try {
+        f = dir->load(number);
+      } catch (const StreamInterrupted&) {  // Ctrl-C while a live sensor was silent
+        break;
+      } catch (const IoError& e) {  // a frame that passed check() but cannot be decoded
+        if (live || oni) throw;
+        if (!o->skip_bad_frames) throw withSkipHint(e);
+        const std::lock_guard<std::mutex> lock(state);
+        noteUnreadable(e.what());
+        ++unreadable_in_run;
+        showProgress(map_nodes);
+        continue;
+      }
+      if (!f.has_pose) {
+        const std::lock_guard<std::mutex> lock(state);
+        ++no_pose;
+        showProgress(map_nodes);
+        continue;
+      }
+      {
+        const std::lock_guard<std::mutex> lock(state);
+        read_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        pushed.push_back({number, f.T_world_camera});
+      }
+      try {
+        if (dir->hasDepth()) {
+          mapper->push(mapping::DepthFrame{std::move(f.depth), dir->intrinsics(), f.T_world_camera, 0.0});
+        } else {
+          mapper->push(mapping::CloudFrame{std::move(f.cloud), f.width, f.height, f.T_world_camera, 0.0});
+        }
+      } catch (const std::logic_error&) {  // cancelled by a failed checkpoint or a held Ctrl-C
+        break;
+      }
     }
-    for (auto& f : in_flight) f.wait();  // let started frames finish before saving
+    if (g_interrupted.load()) mapper->cancel();  // the frames not yet fused are left out
+    mapper->finish();
+    if (checkpoint_error) std::rethrow_exception(checkpoint_error);
     std::signal(SIGINT, SIG_DFL);
+    const std::shared_ptr<const mapping::MobilityMap> final_map = mapper->snapshot();
+    mapper.reset();  // joins its threads: the counts are final
     // Reading, perception and fusion of every frame, as the user waited for them.
     const double run_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - run_start).count();
 
@@ -799,7 +835,7 @@ Command addBuildCommand(CLI::App& app) {
     if (used == 0 && outside_frames > 0 && !g_interrupted.load()) {
       throw IoError(live ? device_label : o->input,
                     "all " + std::to_string(outside_frames) + " frames with points in range lie outside the map's extent (" +
-                        describeExtent() + "); no map written. Are the poses in metres? --origin X Y Z centres the map");
+                        describeExtent(*final_map) + "); no map written. Are the poses in metres? --origin X Y Z centres the map");
     }
     if (g_interrupted.load() && used == 0) {
       // Stopped before the first frame was fused: there is nothing to save, and a map
@@ -808,7 +844,7 @@ Command addBuildCommand(CLI::App& app) {
                    existing ? ("the map at " + o->out + " is unchanged").c_str() : "no map written");
       return 130;
     }
-    if (map.tree().size() == 0 && used > 0 && !g_interrupted.load()) {
+    if (final_map->tree().size() == 0 && used > 0 && !g_interrupted.load()) {
       // Nothing in range anywhere (a range shorter than the scene, depth in the wrong
       // unit, a sensor facing the sky): an empty map would only hide the mistake.
       std::ostringstream msg;
@@ -829,15 +865,15 @@ Command addBuildCommand(CLI::App& app) {
       msg << ". Check the range, the depth unit and the intrinsics";
       throw IoError(live ? device_label : o->input, msg.str());
     }
-    const nlohmann::json meta = writeMap(false, run_s);
+    const nlohmann::json meta = writeMap(*final_map, false, run_s);
 
     const std::string keyframe_note =
         keyframes_considered > 0 ? ", keyframes of " + std::to_string(keyframes_considered) + " selected" : "";
     std::printf("\n%d of %zu frames fused (%d without a ground plane%s)%s in %.1f s (%.1f frames/s), %zu points, %zu map nodes (%zu leaves)\n",
                 used, frames.size() + unreadable_before_run, no_ground, keyframe_note.c_str(), g_interrupted.load() ? ", INTERRUPTED" : "", run_s,
-                meta["frames_per_second"].get<double>(), points, map.tree().size(), map.tree().getNumLeafNodes());
+                meta["frames_per_second"].get<double>(), points, final_map->tree().size(), final_map->tree().getNumLeafNodes());
     if (points_outside > 0) {
-      std::printf("%zu points lay outside the map's extent (%s) and were left out", points_outside, describeExtent().c_str());
+      std::printf("%zu points lay outside the map's extent (%s) and were left out", points_outside, describeExtent(*final_map).c_str());
       if (outside_frames > 0) std::printf("; %d frames had no point inside and are not counted as fused", outside_frames);
       std::printf("\n");
     }

@@ -34,10 +34,20 @@ struct MapBuffer {
   std::atomic<int> leases{0};
 };
 
+// A frame waiting for perception: one of the three kinds.
+struct LiveMapper::Pending {
+  std::optional<DepthFrame> depth;
+  std::optional<CloudFrame> cloud;
+  std::optional<PerceivedFrame> perceived;
+};
+
 // A frame after perception, kept until both buffers have it.
 struct Perceived {
   std::uint64_t index = 0;
-  DepthFrame frame;
+  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
+  double stamp_s = 0.0;
+  std::optional<perception::DepthImage> depth;  // for clearing free space
+  perception::PinholeIntrinsics intrinsics;
   perception::FrameResult result;
   std::string error;
   double perception_ms = 0.0;
@@ -50,7 +60,7 @@ struct LiveMapper::Impl {
 
   mutable std::mutex mutex;              // guards everything below up to the threads
   std::condition_variable changed;       // any of it changed
-  std::deque<DepthFrame> waiting;        // pushed, not yet taken for perception
+  std::deque<Pending> waiting;           // pushed, not yet taken for perception
   std::map<std::uint64_t, std::shared_ptr<Perceived>> perceived;  // by index, awaiting fusion
   std::uint64_t next_index = 0;          // given to the next frame taken for perception
   std::uint64_t next_to_fuse = 0;
@@ -117,7 +127,7 @@ struct LiveMapper::Impl {
 
   void perceive() {
     for (;;) {
-      DepthFrame frame;
+      Pending frame;
       std::uint64_t index = 0;
       {
         std::unique_lock<std::mutex> lock(mutex);
@@ -133,14 +143,31 @@ struct LiveMapper::Impl {
       p->index = index;
       const auto t0 = std::chrono::steady_clock::now();
       try {
-        const Eigen::Vector3f g_camera =
-            (frame.T_world_camera.linear().transpose() * config.gravity_down_world.normalized()).cast<float>();
-        p->result = pipeline.process(frame.depth, frame.intrinsics, g_camera);
+        const Eigen::Isometry3d& T = frame.depth ? frame.depth->T_world_camera
+                                     : frame.cloud ? frame.cloud->T_world_camera
+                                                   : frame.perceived->T_world_camera;
+        const Eigen::Vector3f g_camera = (T.linear().transpose() * config.gravity_down_world.normalized()).cast<float>();
+        p->T_world_camera = T;
+        if (frame.depth) {
+          p->result = pipeline.process(frame.depth->depth, frame.depth->intrinsics, g_camera);
+          p->stamp_s = frame.depth->stamp_s;
+          p->intrinsics = frame.depth->intrinsics;
+          p->depth = std::move(frame.depth->depth);
+        } else if (frame.cloud) {
+          const CloudFrame& c = *frame.cloud;
+          p->result = c.height > 1 ? pipeline.processOrganized(c.points, c.width, c.height, g_camera)
+                                   : pipeline.process(c.points, g_camera);
+          p->stamp_s = c.stamp_s;
+        } else {
+          p->result = std::move(frame.perceived->result);
+          p->stamp_s = frame.perceived->stamp_s;
+          p->intrinsics = frame.perceived->intrinsics;
+          p->depth = std::move(frame.perceived->depth);
+        }
       } catch (const std::exception& e) {
         p->error = e.what();
       }
       p->perception_ms = msSince(t0);
-      p->frame = std::move(frame);
       {
         const std::lock_guard<std::mutex> lock(mutex);
         perceived.emplace(index, std::move(p));
@@ -173,14 +200,27 @@ struct LiveMapper::Impl {
     missed.clear();
   }
 
+  // The map with every frame fused so far, finalized, becomes what snapshot() gives.
+  void finalizeAndPublish() {
+    if (!config.serve_snapshots) {
+      front->map->finalize();
+      const std::lock_guard<std::mutex> lock(mutex);
+      finalized = true;
+      return;
+    }
+    prepareBack();
+    back->map->finalize();
+    publish(true);
+  }
+
   bool frontFinalized() {
     const std::lock_guard<std::mutex> lock(mutex);
     return finalized;
   }
 
-  void integrateInto(MobilityMap& map, const Perceived& p) {
-    const bool clear = config.clear_free_space;
-    (void)map.integrate(p.result, p.frame.T_world_camera, clear ? &p.frame.depth : nullptr, clear ? &p.frame.intrinsics : nullptr);
+  IntegrationReport integrateInto(MobilityMap& map, const Perceived& p) {
+    const bool clear = config.clear_free_space && p.depth.has_value();
+    return map.integrate(p.result, p.T_world_camera, clear ? &*p.depth : nullptr, clear ? &p.intrinsics : nullptr);
   }
 
   void publish(bool now_finalized) {
@@ -204,7 +244,7 @@ struct LiveMapper::Impl {
                  (finish_requests > finishes_done && idle());
         });
         if (stopping) return;
-        if (cancelled) {
+        if (cancelled && !perceived.empty()) {
           perceived.clear();
           continue;
         }
@@ -216,11 +256,7 @@ struct LiveMapper::Impl {
         }
       }
       if (!p) {  // finish(): every frame is fused; publish the map finalized
-        if (!frontFinalized()) {
-          prepareBack();
-          back->map->finalize();
-          publish(true);
-        }
+        if (!frontFinalized()) finalizeAndPublish();
         {
           const std::lock_guard<std::mutex> lock(mutex);
           finishes_done = finish_requests;
@@ -230,29 +266,35 @@ struct LiveMapper::Impl {
       }
       FrameReport report;
       report.index = p->index;
-      report.stamp_s = p->frame.stamp_s;
+      report.stamp_s = p->stamp_s;
       report.perception_ms = p->perception_ms;
       report.error = p->error;
       if (p->error.empty()) {
         const auto t0 = std::chrono::steady_clock::now();
+        MobilityMap& target = config.serve_snapshots ? *back->map : *front->map;
         if (!origin_set) {
           // The first frame's camera, rounded, as `mobmap build`. Nothing is fused yet;
           // the buffer readers see keeps its origin and is replaced after this frame.
-          back->map->setOriginWorld(roundedOrigin(p->frame.T_world_camera.translation()));
+          target.setOriginWorld(roundedOrigin(p->T_world_camera.translation()));
           origin_set = true;
           rebuild_back = true;
-        } else {
+        } else if (config.serve_snapshots) {
           prepareBack();
         }
-        report.integration = back->map->integrate(p->result, p->frame.T_world_camera,
-                                                  config.clear_free_space ? &p->frame.depth : nullptr,
-                                                  config.clear_free_space ? &p->frame.intrinsics : nullptr);
-        report.frames_integrated = back->map->framesIntegrated();
+        MobilityMap& into = config.serve_snapshots ? *back->map : *front->map;
+        report.integration = integrateInto(into, *p);
+        report.stages = p->result.stages;
+        report.frames_integrated = into.framesIntegrated();
         report.fused = true;
         report.points = p->result.points.size();
         report.ground_found = p->result.ground_plane.has_value();
-        publish(false);
-        missed.push_back(p);
+        if (config.serve_snapshots) {
+          publish(false);
+          missed.push_back(p);
+        } else {
+          const std::lock_guard<std::mutex> lock(mutex);
+          finalized = false;
+        }
         report.fusion_ms = msSince(t0);
       }
       {
@@ -260,6 +302,15 @@ struct LiveMapper::Impl {
         ++(report.fused ? stats.fused : stats.failed);
       }
       if (config.on_frame) config.on_frame(report);
+      if (report.fused && config.finalize_after && config.finalize_after(report)) {
+        finalizeAndPublish();
+        std::shared_ptr<MapBuffer> finalized_front;
+        {
+          const std::lock_guard<std::mutex> lock(publish_mutex);
+          finalized_front = front;
+        }
+        if (config.on_finalized) config.on_finalized(*finalized_front->map, report);
+      }
       changed.notify_all();
     }
   }
@@ -273,17 +324,17 @@ LiveMapper::LiveMapper(Config config, std::unique_ptr<MobilityOcTree> tree, cons
 
 LiveMapper::~LiveMapper() = default;
 
-void LiveMapper::push(DepthFrame frame) {
-  const auto& k = frame.intrinsics;
-  if (frame.depth.width != k.width || frame.depth.height != k.height ||
-      frame.depth.depth_m.size() != static_cast<std::size_t>(frame.depth.width) * static_cast<std::size_t>(frame.depth.height)) {
-    throw std::invalid_argument("LiveMapper::push: the depth image is " + std::to_string(frame.depth.width) + "x" +
-                                std::to_string(frame.depth.height) + " but the intrinsics are for " +
-                                std::to_string(k.width) + "x" + std::to_string(k.height));
-  }
-  if (auto problem = checkRigid(frame.T_world_camera.matrix())) {
+namespace {
+
+void checkPose(const Eigen::Isometry3d& T) {
+  if (auto problem = checkRigid(T.matrix())) {
     throw std::invalid_argument("LiveMapper::push: T_world_camera is not a rigid transform: " + *problem);
   }
+}
+
+}  // namespace
+
+void LiveMapper::enqueue(Pending&& frame) {
   Impl& m = *impl_;
   {
     std::unique_lock<std::mutex> lock(m.mutex);
@@ -301,6 +352,38 @@ void LiveMapper::push(DepthFrame frame) {
   m.changed.notify_all();
 }
 
+void LiveMapper::push(DepthFrame frame) {
+  const auto& k = frame.intrinsics;
+  if (frame.depth.width != k.width || frame.depth.height != k.height ||
+      frame.depth.depth_m.size() != static_cast<std::size_t>(frame.depth.width) * static_cast<std::size_t>(frame.depth.height)) {
+    throw std::invalid_argument("LiveMapper::push: the depth image is " + std::to_string(frame.depth.width) + "x" +
+                                std::to_string(frame.depth.height) + " but the intrinsics are for " +
+                                std::to_string(k.width) + "x" + std::to_string(k.height));
+  }
+  checkPose(frame.T_world_camera);
+  Pending p;
+  p.depth = std::move(frame);
+  enqueue(std::move(p));
+}
+
+void LiveMapper::push(CloudFrame frame) {
+  if (frame.height > 1 && frame.points.size() != static_cast<std::size_t>(frame.width) * static_cast<std::size_t>(frame.height)) {
+    throw std::invalid_argument("LiveMapper::push: an organized cloud of " + std::to_string(frame.width) + "x" +
+                                std::to_string(frame.height) + " has " + std::to_string(frame.points.size()) + " points");
+  }
+  checkPose(frame.T_world_camera);
+  Pending p;
+  p.cloud = std::move(frame);
+  enqueue(std::move(p));
+}
+
+void LiveMapper::push(PerceivedFrame frame) {
+  checkPose(frame.T_world_camera);
+  Pending p;
+  p.perceived = std::move(frame);
+  enqueue(std::move(p));
+}
+
 std::shared_ptr<const MobilityMap> LiveMapper::snapshot() const {
   std::shared_ptr<MapBuffer> buffer;
   {
@@ -316,10 +399,9 @@ std::shared_ptr<const MobilityMap> LiveMapper::snapshot() const {
 void LiveMapper::finish() {
   Impl& m = *impl_;
   std::unique_lock<std::mutex> lock(m.mutex);
-  if (m.cancelled) return;
   const std::uint64_t request = ++m.finish_requests;
   m.changed.notify_all();
-  m.changed.wait(lock, [&] { return m.cancelled || m.finishes_done >= request; });
+  m.changed.wait(lock, [&] { return m.finishes_done >= request; });
 }
 
 void LiveMapper::cancel() {

@@ -28,6 +28,26 @@ struct DepthFrame {
   double stamp_s = 0.0;
 };
 
+/// A point cloud frame (a .pcd): organized (row-major, width x height, non-finite =
+/// no measurement) when height > 1. Free space is not cleared for clouds.
+struct CloudFrame {
+  std::vector<Eigen::Vector3f> points;  ///< camera frame, metres
+  int width = 0;
+  int height = 1;
+  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
+  double stamp_s = 0.0;
+};
+
+/// A frame perceived already (FramePipeline), fused as it is. With its depth image and
+/// intrinsics, free space is cleared as for a DepthFrame.
+struct PerceivedFrame {
+  perception::FrameResult result;
+  std::optional<perception::DepthImage> depth;
+  perception::PinholeIntrinsics intrinsics;
+  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
+  double stamp_s = 0.0;
+};
+
 /// What became of one frame, in push order (LiveMapper::Config::on_frame).
 struct FrameReport {
   std::uint64_t index = 0;  ///< among the frames taken for perception, from 0
@@ -40,6 +60,7 @@ struct FrameReport {
   int frames_integrated = 0;     ///< in the map after this frame
   double perception_ms = 0.0;
   double fusion_ms = 0.0;        ///< both map buffers (see LiveMapper)
+  std::vector<perception::StageTiming> stages;  ///< perception's, in pipeline order
 };
 
 /// Fuses a stream of depth frames into a MobilityMap and serves snapshots of it.
@@ -54,7 +75,8 @@ struct FrameReport {
 ///
 /// Threading: push(), snapshot(), stats(), finish() and cancel() may be called from any
 /// thread. The map of a snapshot may be queried from several threads at once. Callbacks
-/// run on the fusion thread and must not call finish() or cancel().
+/// run on the fusion thread; they may call snapshot(), stats() and cancel(), not push()
+/// or finish().
 class LiveMapper {
  public:
   /// What push() does when `queue_capacity` frames already wait for perception.
@@ -82,8 +104,17 @@ class LiveMapper {
     WhenBusy when_busy = WhenBusy::kBlock;
     /// Clear voxels each frame sees through (MobilityMap::integrate with the depth image).
     bool clear_free_space = true;
+    /// false: one map buffer, each frame fused once (a batch job such as `mobmap build`
+    /// that queries nothing while it runs). snapshot() may then be called only from the
+    /// callbacks and after finish(), and its map changes as fusion goes on.
+    bool serve_snapshots = true;
     /// Called on the fusion thread after each frame, in push order.
     std::function<void(const FrameReport&)> on_frame;
+    /// Asked on the fusion thread after on_frame for each fused frame: true finalizes the
+    /// map (MobilityMap::finalize), publishes it and hands it to on_finalized before the
+    /// next frame (a checkpoint to save). Fusion then goes on in the finalized map.
+    std::function<bool(const FrameReport&)> finalize_after;
+    std::function<void(const MobilityMap&, const FrameReport&)> on_finalized;
   };
 
   struct Stats {
@@ -110,14 +141,19 @@ class LiveMapper {
   /// image and intrinsics do not match or its pose is not rigid; std::logic_error after
   /// cancel(). With WhenBusy::kBlock it waits while the queue is full.
   void push(DepthFrame frame);
+  /// The same for a point cloud (std::invalid_argument if width x height is not its size
+  /// for an organized cloud) and for a frame perceived already.
+  void push(CloudFrame frame);
+  void push(PerceivedFrame frame);
   /// The map after the last frame fused (an empty map before the first). Never null.
   [[nodiscard]] std::shared_ptr<const MobilityMap> snapshot() const;
   /// Returns when every frame pushed so far is fused (or failed); the snapshot then is
   /// finalized (MobilityMap::finalize: inner nodes, pruning), ready to save: the same
   /// map, byte for byte, as fusing the frames one by one into a MobilityMap and calling
-  /// finalize(). Frames may be pushed afterwards.
+  /// finalize(). Frames may be pushed afterwards (not after cancel()).
   void finish();
-  /// Drops the frames not yet fused and stops taking new ones.
+  /// Drops the frames not yet fused and stops taking new ones; a frame being fused
+  /// completes. finish() afterwards finalizes the map of the frames fused (Ctrl-C).
   void cancel();
   [[nodiscard]] Stats stats() const;
   /// The rotation and origin of the map frame (MobilityMap::worldToMap).
@@ -125,6 +161,8 @@ class LiveMapper {
 
  private:
   struct Impl;
+  struct Pending;
+  void enqueue(Pending&& frame);
   std::unique_ptr<Impl> impl_;
 };
 
