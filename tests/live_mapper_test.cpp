@@ -225,6 +225,23 @@ TEST(LiveMapper, KeepNewestDropsWaitingFramesAndCountsThem) {
   EXPECT_EQ(mapper.snapshot()->framesIntegrated(), static_cast<int>(s.fused));
 }
 
+TEST(LiveMapper, ACallbackThatThrowsStopsTheRunAndFinishRethrows) {
+  const Corridor& c = corridor();
+  LiveMapper::Config config;
+  config.gravity_down_world = c.scene.gravityDown();
+  config.on_frame = [](const FrameReport& r) {
+    if (r.index == 1) throw std::runtime_error("disk full");
+  };
+  LiveMapper mapper(config);
+  try {
+    for (std::size_t i = 0; i < 6; ++i) mapper.push(c.frame(i));
+  } catch (const std::logic_error&) {  // pushing after the run stopped
+  }
+  EXPECT_THROW(mapper.finish(), std::runtime_error);
+  // Fusion stopped with the frame whose callback threw: frames 0 and 1, finalized.
+  EXPECT_EQ(mapper.snapshot()->framesIntegrated(), 2);
+}
+
 TEST(LiveMapper, BadFramesAndParametersAreRefusedAtOnce) {
   const Corridor& c = corridor();
   LiveMapper::Config config;

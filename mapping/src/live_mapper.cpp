@@ -8,6 +8,7 @@
 #include <cmath>
 #include <condition_variable>
 #include <deque>
+#include <exception>
 #include <map>
 #include <mutex>
 #include <stdexcept>
@@ -70,6 +71,7 @@ struct LiveMapper::Impl {
   bool finalized = true;                 // the published buffer is finalized (an empty map is)
   bool stopping = false;
   bool cancelled = false;
+  std::exception_ptr callback_error;     // the first exception a callback threw
   Stats stats;
 
   mutable std::mutex publish_mutex;      // guards `front`
@@ -301,15 +303,22 @@ struct LiveMapper::Impl {
         const std::lock_guard<std::mutex> lock(mutex);
         ++(report.fused ? stats.fused : stats.failed);
       }
-      if (config.on_frame) config.on_frame(report);
-      if (report.fused && config.finalize_after && config.finalize_after(report)) {
-        finalizeAndPublish();
-        std::shared_ptr<MapBuffer> finalized_front;
-        {
-          const std::lock_guard<std::mutex> lock(publish_mutex);
-          finalized_front = front;
+      try {
+        if (config.on_frame) config.on_frame(report);
+        if (report.fused && config.finalize_after && config.finalize_after(report)) {
+          finalizeAndPublish();
+          std::shared_ptr<MapBuffer> finalized_front;
+          {
+            const std::lock_guard<std::mutex> lock(publish_mutex);
+            finalized_front = front;
+          }
+          if (config.on_finalized) config.on_finalized(*finalized_front->map, report);
         }
-        if (config.on_finalized) config.on_finalized(*finalized_front->map, report);
+      } catch (...) {  // a callback threw: the run stops, finish() rethrows it
+        const std::lock_guard<std::mutex> lock(mutex);
+        if (!callback_error) callback_error = std::current_exception();
+        cancelled = true;
+        waiting.clear();
       }
       changed.notify_all();
     }
@@ -402,6 +411,7 @@ void LiveMapper::finish() {
   const std::uint64_t request = ++m.finish_requests;
   m.changed.notify_all();
   m.changed.wait(lock, [&] { return m.finishes_done >= request; });
+  if (m.callback_error) std::rethrow_exception(m.callback_error);
 }
 
 void LiveMapper::cancel() {

@@ -150,7 +150,8 @@ class LiveMapper {
   /// Returns when every frame pushed so far is fused (or failed); the snapshot then is
   /// finalized (MobilityMap::finalize: inner nodes, pruning), ready to save: the same
   /// map, byte for byte, as fusing the frames one by one into a MobilityMap and calling
-  /// finalize(). Frames may be pushed afterwards (not after cancel()).
+  /// finalize(). Frames may be pushed afterwards (not after cancel()). If a callback
+  /// threw, the run stopped there (as cancel()) and finish() rethrows that exception.
   void finish();
   /// Drops the frames not yet fused and stops taking new ones; a frame being fused
   /// completes. finish() afterwards finalizes the map of the frames fused (Ctrl-C).
