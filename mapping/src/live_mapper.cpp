@@ -102,7 +102,10 @@ struct LiveMapper::Impl {
     const Eigen::Vector3d o = config.origin_world.value_or(Eigen::Vector3d::Zero());
     auto first = std::make_shared<MapBuffer>();
     auto second = std::make_shared<MapBuffer>();
-    if (tree) {
+    if (tree && !config.serve_snapshots) {  // one buffer: the second is never used
+      first->map = std::make_unique<MobilityMap>(std::move(tree), config.map, R_map_world, o);
+      second->map = std::make_unique<MobilityMap>(config.map, R_map_world, o);
+    } else if (tree) {
       first->map = std::make_unique<MobilityMap>(tree->clone(), config.map, R_map_world, o);
       second->map = std::make_unique<MobilityMap>(std::move(tree), config.map, R_map_world, o);
     } else {
