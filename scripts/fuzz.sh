@@ -51,8 +51,8 @@ link() {  # link TARGET SOURCES... -- LIBS...
 }
 for target in "${targets[@]}"; do
   case $target in
-    map_reader) link map_reader tests/fuzz/fuzz_map_reader.cpp "${mapping[@]}" perception/src/camera.cpp \
-                  -- -loctomap -loctomath "${mrpt[@]}" ;;
+    map_reader) link map_reader tests/fuzz/fuzz_map_reader.cpp "${mapping[@]}" "${perception[@]}" "${gp[@]}" \
+                  -- -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;
     config) link config tests/fuzz/fuzz_config.cpp apps/src/config.cpp apps/src/files.cpp "${gp[@]}" "${perception[@]}" \
               mapping/src/mobility_map.cpp mapping/src/mobility_octree.cpp mapping/src/gravity.cpp \
               -- -lyaml-cpp -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;
