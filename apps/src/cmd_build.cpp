@@ -809,7 +809,9 @@ Command addBuildCommand(CLI::App& app) {
         } else {
           mapper->push(mapping::CloudFrame{std::move(f.cloud), f.width, f.height, f.T_world_camera, 0.0});
         }
-      } catch (const std::logic_error&) {  // cancelled by a failed checkpoint or a held Ctrl-C
+      } catch (const std::invalid_argument& e) {  // a frame LiveMapper cannot take (image and camera disagree)
+        throw IoError(o->input, "frame " + std::to_string(number) + ": " + e.what());
+      } catch (const std::logic_error&) {  // the run was cancelled: a failed checkpoint or a held Ctrl-C
         break;
       }
     }
