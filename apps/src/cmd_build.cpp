@@ -536,10 +536,6 @@ Command addBuildCommand(CLI::App& app) {
     const Eigen::Matrix3d R_map_world = existing ? existing->R_map_world : mapping::gravityAlignment(g_world);
     // The map origin: the extended map's, --origin, or the first camera position rounded
     // to 100 m (a stream's first pose arrives with its first frame: set there).
-    const auto roundedOrigin = [](const Eigen::Vector3d& camera) {
-      return Eigen::Vector3d(std::round(camera.x() / 100) * 100, std::round(camera.y() / 100) * 100,
-                             std::round(camera.z() / 100) * 100);
-    };
     std::optional<Eigen::Vector3d> origin_world;
     std::string origin_source;
     if (existing) {
@@ -549,7 +545,7 @@ Command addBuildCommand(CLI::App& app) {
     } else if (!is_dir) {
       origin_world = Eigen::Vector3d::Zero(), origin_source = "the camera (a single frame)";
     } else if (const auto first = dir->pose(frames.front())) {
-      origin_world = roundedOrigin(first->translation()), origin_source = "the first camera position, rounded to 100 m";
+      origin_world = mapping::defaultMapOrigin(first->translation()), origin_source = "the first camera position, rounded to 100 m";
     }
 
     // The camera of the depth images (free space is cleared along their rays), if the

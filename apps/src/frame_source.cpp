@@ -95,17 +95,12 @@ PcdHeader readPcdHeader(const std::string& path) {
 
 namespace {
 
-// What the header declares must fit the file and mobmap's frame-size limit, checked
-// before PCL allocates the declared size (a header claiming 10^9 points over a few
-// kilobytes of data used to end in std::bad_alloc after gigabytes). Binary data must be
-// all there; ASCII data needs at least two bytes ("0 ") per value.
+// What the header declares must fit the file, checked before PCL allocates the declared
+// size (a header claiming 10^7 points over a few kilobytes of data); readPcdHeader has
+// held it to the frame-size limit already. Binary data must be all there; ASCII data
+// needs at least two bytes ("0 ") per value.
 void checkPcdDeclaredSize(const std::string& path, const PcdHeader& h) {
   const unsigned long long points = static_cast<unsigned long long>(h.fields.width) * h.fields.height;
-  if (points > static_cast<unsigned long long>(kMaxFramePixels)) {
-    throw IoError(path, "PCD header declares " + std::to_string(h.fields.width) + "x" + std::to_string(h.fields.height) +
-                            " = " + std::to_string(points) + " points, more than mobmap reads in one frame (" +
-                            std::to_string(kMaxFramePixels) + ")");
-  }
   std::error_code ec;
   const auto size = static_cast<unsigned long long>(std::filesystem::file_size(path, ec));
   if (ec) throw IoError(path, "cannot read its size: " + ec.message());
@@ -159,12 +154,8 @@ const pcl::PCLPointField* findField(const pcl::PCLPointCloud2& c, const std::str
 }  // namespace
 
 void checkPcdComplete(const std::string& path) {
-  const PcdHeader h = readPcdHeader(path);
-  if (h.data_type == 0) {  // ASCII: only loading it tells; the declared size is bounded here
-    const unsigned long long points = static_cast<unsigned long long>(h.fields.width) * h.fields.height;
-    if (points > static_cast<unsigned long long>(kMaxFramePixels)) checkPcdDeclaredSize(path, h);
-    return;
-  }
+  const PcdHeader h = readPcdHeader(path);  // the declared size within the frame limit
+  if (h.data_type == 0) return;  // ASCII: only loading it tells whether the points are all there
   checkPcdDeclaredSize(path, h);
 }
 

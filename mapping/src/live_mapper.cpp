@@ -22,10 +22,6 @@ double msSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
-Eigen::Vector3d roundedOrigin(const Eigen::Vector3d& camera) {
-  return {std::round(camera.x() / 100) * 100, std::round(camera.y() / 100) * 100, std::round(camera.z() / 100) * 100};
-}
-
 }  // namespace
 
 // A map buffer and the number of snapshots of it still held. Shared with the snapshots'
@@ -280,7 +276,7 @@ struct LiveMapper::Impl {
         if (!origin_set) {
           // The first frame's camera, rounded, as `mobmap build`. Nothing is fused yet;
           // the buffer readers see keeps its origin and is replaced after this frame.
-          target.setOriginWorld(roundedOrigin(p->T_world_camera.translation()));
+          target.setOriginWorld(defaultMapOrigin(p->T_world_camera.translation()));
           origin_set = true;
           rebuild_back = true;
         } else if (config.serve_snapshots) {

@@ -106,6 +106,7 @@ std::unique_ptr<MobilityOcTree> loadMobilityMap(const std::string& path) {
   }
   if (!have_size) ioFail(path, "header has no 'size' (the number of nodes)");
   if (!have_res) ioFail(path, "header has no 'res' (the voxel size)");
+  double res = 0.0;
   {
     // Whole tokens: "nan", "inf" and "12abc" are reported as what they are.
     char* end = nullptr;
@@ -116,7 +117,7 @@ std::unique_ptr<MobilityOcTree> loadMobilityMap(const std::string& path) {
     }
     size = static_cast<std::size_t>(n);
     end = nullptr;
-    const double res = std::strtod(res_text.c_str(), &end);
+    res = std::strtod(res_text.c_str(), &end);
     if (res_text.empty() || *end != '\0' || !std::isfinite(res)) {
       ioFail(path, "header's res '" + res_text + "' is not a finite number");
     }
@@ -124,7 +125,6 @@ std::unique_ptr<MobilityOcTree> loadMobilityMap(const std::string& path) {
       ioFail(path, "header's res " + res_text + " m is outside the voxel sizes mobmap maps use (0.001 to 10 m)");
     }
   }
-  const double res = std::strtod(res_text.c_str(), nullptr);
   // Each node takes 4 (occupancy) + 4 (payload) + 1 (children) bytes.
   const auto remaining = static_cast<std::uintmax_t>(file_size) - static_cast<std::uintmax_t>(in.tellg());
   if (size > remaining / 9 + 1) {

@@ -60,6 +60,10 @@ const char* toString(VoxelState s) {
   return "unknown";
 }
 
+Eigen::Vector3d defaultMapOrigin(const Eigen::Vector3d& first_camera_world) {
+  return (first_camera_world / 100).array().round().matrix() * 100;
+}
+
 std::optional<std::uint64_t> countOccupiedVoxels(const MobilityOcTree& tree, std::uint64_t limit) {
   const unsigned int depth = tree.getTreeDepth();
   std::uint64_t n = 0;

@@ -105,6 +105,11 @@ inline constexpr std::uint64_t kMinVoxelBudget = std::uint64_t{1} << 20;
 /// The problem of a tree that holds more voxels than its size allows (above), or nullopt.
 [[nodiscard]] std::optional<std::string> voxelBudgetProblem(const MobilityOcTree& tree);
 
+/// The map origin `mobmap build` and LiveMapper take unless told one: the first camera
+/// position (world frame) rounded to the nearest 100 m, so data near the world origin
+/// keep their coordinates and UTM-sized ones get small map coordinates.
+[[nodiscard]] Eigen::Vector3d defaultMapOrigin(const Eigen::Vector3d& first_camera_world);
+
 /// What integrate() did with a frame's points.
 struct IntegrationReport {
   std::size_t points_fused = 0;    ///< within max_range_m and inside the map's extent
