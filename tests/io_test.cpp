@@ -742,24 +742,6 @@ TEST(TopView, LargeMapsGetCellsOfSeveralColumnsShowingTheHighest) {
   EXPECT_THROW(computeTopView(tree, {Eigen::Vector2d(std::nan(""), 0.0)}, 1000), std::invalid_argument);
 }
 
-// MAP.json: one line per camera position, and the text parses back to what was written.
-TEST(MapMetadata, TrajectoryRowsTakeOneLineAndTheTextRoundTrips) {
-  const auto lines = [](const std::string& t) { return std::count(t.begin(), t.end(), '\n'); };
-  nlohmann::json meta{{"frames", 3}, {"tool", "mobmap test"}, {"R_map_world", {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}}};
-  const std::string without = formatMapMetadata(meta);
-  EXPECT_EQ(without, meta.dump(1) + "\n");
-  meta["trajectory_map"] = {{0.1, -2.5, 1e-17}, {1.0 / 3.0, 2.0, 3.0}, {4.0, 5.0, -6.0}};
-  const std::string text = formatMapMetadata(meta);
-  EXPECT_EQ(nlohmann::json::parse(text), meta);  // doubles survive exactly
-  EXPECT_EQ(lines(text), lines(without) + 1 + 3 + 1);  // "trajectory_map": [, the rows, ]
-  EXPECT_NE(text.find("\n  [0.1,-2.5,1e-17],\n"), std::string::npos) << text;
-  for (const nlohmann::json& m : {nlohmann::json{{"trajectory_map", nlohmann::json::array()}},
-                                  nlohmann::json{{"trajectory_map", {{1, 2, 3}}}},
-                                  nlohmann::json{{"frames", 0}, {"trajectory_map", nlohmann::json::array()}}}) {
-    EXPECT_EQ(nlohmann::json::parse(formatMapMetadata(m)), m) << formatMapMetadata(m);
-  }
-}
-
 TEST(RealData, SevenScenesRedkitchenReadsWithGravityAndRigidPoses) {
   const std::string dir = std::string(MOBMAP_SHARED_DATA_DIR) + "/7scenes-redkitchen";
   if (!fs::exists(dir)) GTEST_SKIP() << "shared data not found at " << dir;

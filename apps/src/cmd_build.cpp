@@ -138,7 +138,7 @@ GravityGuess estimateGravity(const Sequence& dir, const std::vector<int>& frames
 // built in (gravity in the input's world frame and the rotation to the map frame).
 struct ExistingMap {
   std::unique_ptr<mapping::MobilityOcTree> tree;
-  nlohmann::json meta;
+  mapping::MapMetadata meta;
   Eigen::Vector3d down_world;
   Eigen::Matrix3d R_map_world;
   Eigen::Vector3d origin_world;
@@ -147,22 +147,21 @@ struct ExistingMap {
 ExistingMap openForExtension(const std::string& ot_path) {
   ExistingMap m;
   m.tree = mapping::loadMobilityMap(ot_path);
-  const mapping::MapMetadata frame = mapping::readMapMetadata(ot_path);
-  m.meta = metadataJson(frame);  // the earlier runs' records, for the new MAP.json
-  m.origin_world = frame.origin_world;  // zero for a map from before origins were recorded
-  if (!frame.has_frame) {
-    throw IoError(frame.path, "missing, or without \"R_map_world\": --extend needs the metadata written beside the map "
-                              "(the rotation from the input's world frame to the map frame)");
+  m.meta = mapping::readMapMetadata(ot_path);  // the earlier runs' records, for the new MAP.json
+  m.origin_world = m.meta.originWorld();  // zero for a map from before origins were recorded
+  if (!m.meta.hasFrame()) {
+    throw IoError(m.meta.path, "missing, or without \"R_map_world\": --extend needs the metadata written beside the map "
+                               "(the rotation from the input's world frame to the map frame)");
   }
-  m.R_map_world = frame.R_map_world;
+  m.R_map_world = m.meta.R_map_world();
   m.down_world = m.R_map_world.transpose() * Eigen::Vector3d(0, 0, -1);
   // The recorded gravity gives the first run's rotation bit for bit (the matrix printed
   // in MAP.json goes through nearestRotation when read): then both are taken from it.
-  if (frame.gravity_down_world) {
-    const Eigen::Matrix3d r = mapping::gravityAlignment(*frame.gravity_down_world);
+  if (const auto g = m.meta.gravityDownWorld()) {
+    const Eigen::Matrix3d r = mapping::gravityAlignment(*g);
     if ((r - m.R_map_world).cwiseAbs().maxCoeff() < 1e-9) {
       m.R_map_world = r;
-      m.down_world = *frame.gravity_down_world;
+      m.down_world = *g;
     }
   }
   return m;
@@ -178,28 +177,6 @@ std::string formatVector(const Eigen::Vector3d& v) {
   return buf;
 }
 
-// MAP.json of an extended map: this run's record at the top level as for a new map,
-// except that `frames` counts every frame in the map and the camera path continues the
-// earlier one; the earlier runs' records (without their camera paths) go to
-// `earlier_runs`, oldest first, each with its own `frames_in_run`.
-void mergeEarlierRuns(nlohmann::json& meta, const nlohmann::json& earlier) {
-  nlohmann::json runs = earlier.contains("earlier_runs") && earlier["earlier_runs"].is_array() ? earlier["earlier_runs"]
-                                                                                               : nlohmann::json::array();
-  nlohmann::json previous = earlier;
-  const int earlier_frames = earlier.contains("frames") ? earlier["frames"].get<int>() : 0;
-  // A map from before frames_in_run was recorded has no earlier runs: its frames are its one run's.
-  if (!previous.contains("frames_in_run")) previous["frames_in_run"] = earlier_frames;
-  previous.erase("frames");
-  previous.erase("earlier_runs");
-  previous.erase("trajectory_map");
-  runs.push_back(previous);
-  meta["earlier_runs"] = runs;
-  meta["frames"] = earlier_frames + meta["frames_in_run"].get<int>();
-  nlohmann::json path = earlier.contains("trajectory_map") ? earlier["trajectory_map"] : nlohmann::json::array();
-  for (const auto& p : meta["trajectory_map"]) path.push_back(p);
-  meta["trajectory_map"] = path;
-}
-
 // The runs of an extended map that fused frames from the same input in the range
 // selected now: (run number from 1, first and last frame it fused). Fusing a frame
 // again counts it twice.
@@ -207,19 +184,13 @@ struct RunRange {
   std::size_t run = 0;
   long long first = 0, last = 0;
 };
-std::vector<RunRange> overlappingRuns(const nlohmann::json& earlier, const std::string& input, int first, int last) {
-  std::vector<const nlohmann::json*> runs;
-  if (earlier.contains("earlier_runs") && earlier["earlier_runs"].is_array()) {
-    for (const auto& r : earlier["earlier_runs"]) runs.push_back(&r);
-  }
-  runs.push_back(&earlier);
+std::vector<RunRange> overlappingRuns(const mapping::MapMetadata& earlier, const std::string& input, int first, int last) {
+  const std::vector<const mapping::MapRun*> runs = earlier.runs();
   std::vector<RunRange> out;
   for (std::size_t i = 0; i < runs.size(); ++i) {
-    const auto& r = *runs[i];
-    if (!r.contains("input") || r["input"] != input) continue;
-    const auto& n = r.contains("frame_numbers") ? r["frame_numbers"] : nlohmann::json();
-    if (!(n.is_array() && n.size() == 2 && n[0].is_number_integer() && n[1].is_number_integer())) continue;
-    const RunRange range{i + 1, n[0].get<long long>(), n[1].get<long long>()};
+    const mapping::MapRun& r = *runs[i];
+    if (r.input != input || !r.frame_numbers) continue;
+    const RunRange range{i + 1, (*r.frame_numbers)[0], (*r.frame_numbers)[1]};
     if (range.first <= last && first <= range.last) out.push_back(range);
   }
   return out;
@@ -488,7 +459,7 @@ Command addBuildCommand(CLI::App& app) {
       }
       gravity_world = existing->down_world;
       // The frame count stays a whole number a reader accepts, whatever this run adds.
-      const long long earlier_frames = existing->meta.contains("frames") ? existing->meta["frames"].get<long long>() : 0;
+      const long long earlier_frames = existing->meta.frames;
       const long long most = std::numeric_limits<int>::max();
       if (earlier_frames + static_cast<long long>(frames.size()) > most) {
         throw IoError(mapping::mapFileStem(o->out) + ".json",
@@ -496,16 +467,8 @@ Command addBuildCommand(CLI::App& app) {
                           " more would pass the " + std::to_string(most) + " a map counts (is \"frames\" right?)");
       }
       // Where the first run took it from (a map extended before records that first).
-      const auto& earlier = existing->meta;
-      const auto& first_run = earlier.contains("earlier_runs") && earlier["earlier_runs"].is_array() &&
-                                      !earlier["earlier_runs"].empty()
-                                  ? earlier["earlier_runs"][0]
-                                  : earlier;
-      gravity_source = "the map's first run (" +
-                       (first_run.contains("gravity_source") && first_run["gravity_source"].is_string()
-                            ? first_run["gravity_source"].get<std::string>()
-                            : std::string("its R_map_world")) +
-                       ")";
+      const mapping::MapRun& first_run = *existing->meta.runs().front();
+      gravity_source = "the map's first run (" + first_run.gravity_source.value_or("its R_map_world") + ")";
     }
     if (is_dir && !gravity_world && !live && !oni) {
       const GravityGuess guess = estimateGravity(*dir, frames, pp, model, o->skip_bad_frames);
@@ -580,7 +543,7 @@ Command addBuildCommand(CLI::App& app) {
     };
     int unreadable_in_run = 0;  // frames skipped as unreadable after the run started
     int last_fused = frames.front();  // frame number of the last frame fused
-    nlohmann::json trajectory = nlohmann::json::array();  // camera positions, map frame
+    std::vector<Eigen::Vector3d> trajectory;  // camera positions, map frame
     double read_ms = 0, fuse_ms = 0;
     struct Pushed {
       int number;
@@ -596,69 +559,60 @@ Command addBuildCommand(CLI::App& app) {
     // After the handler is in place: from here Ctrl-C saves the frames fused so far.
     if (live && !o->quiet) std::fprintf(stderr, "reading %s (Ctrl-C stops and saves the map)\n", device_label.c_str());
     auto writeMap = [&](const mapping::MobilityMap& map, bool checkpoint, double run_s) {
-      nlohmann::json meta;
-      meta["format"] = "mobmap-map-metadata";
-      meta["tool"] = std::string("mobmap ") + MOBMAP_VERSION_STRING;
-      meta["tree_type"] = mapping::MobilityOcTree::kTreeType;
-      meta["input"] = live ? device_label : fs::absolute(o->input, ec).lexically_normal().string();
-      meta["frames"] = used;
-      meta["frames_in_run"] = used;
-      meta["frames_selected"] = frames.size() + unreadable_before_run;
-      if (keyframes_considered > 0) {
-        meta["keyframes"] = {{"min_translation_m", o->keyframes[0]}, {"min_rotation_deg", o->keyframes[1]},
-                             {"frames_considered", keyframes_considered}};
-      }
-      if (is_dir && !dir->skipped().empty()) meta["skipped"] = dir->skipped();
+      mapping::MapRun run;
+      run.format = "mobmap-map-metadata";
+      run.tool = std::string("mobmap ") + MOBMAP_VERSION_STRING;
+      run.tree_type = mapping::MobilityOcTree::kTreeType;
+      run.input = live ? device_label : fs::absolute(o->input, ec).lexically_normal().string();
+      run.frames_in_run = used;
+      run.frames_selected = static_cast<long long>(frames.size()) + unreadable_before_run;
+      if (keyframes_considered > 0) run.keyframes = mapping::KeyframeRecord{o->keyframes[0], o->keyframes[1], keyframes_considered};
+      if (is_dir && !dir->skipped().empty()) run.skipped = dir->skipped();
       // How this run read its frames, so `overlay` can read them again the same way.
-      if (depth_k) {
-        meta["depth_intrinsics"] = {{"fx", depth_k->fx}, {"fy", depth_k->fy}, {"cx", depth_k->cx}, {"cy", depth_k->cy},
-                                    {"width", depth_k->width}, {"height", depth_k->height}};
-      }
-      if (!o->poses.empty()) meta["poses"] = fs::absolute(o->poses, ec).lexically_normal().string();
-      meta["max_pose_gap_s"] = o->max_pose_gap;
-      if (no_pose > 0) meta["frames_without_pose"] = no_pose;
-      if (!unreadable.empty()) {
-        meta["frames_unreadable"] = unreadable.size();
-        meta["unreadable"] = unreadable;
-      }
-      meta["frame_numbers"] = {frames.front(), last_fused};
-      meta["interrupted"] = g_interrupted.load();
-      meta["resolution_m"] = map.tree().getResolution();
-      meta["gravity_down_world"] = {g_world.x(), g_world.y(), g_world.z()};
-      meta["gravity_source"] = gravity_source;
-      meta["R_map_world"] = {{R_map_world(0, 0), R_map_world(0, 1), R_map_world(0, 2)},
-                             {R_map_world(1, 0), R_map_world(1, 1), R_map_world(1, 2)},
-                             {R_map_world(2, 0), R_map_world(2, 1), R_map_world(2, 2)}};
-      meta["origin_world"] = {map.originWorld().x(), map.originWorld().y(), map.originWorld().z()};
-      meta["origin_source"] = origin_source.empty() ? std::string("none") : origin_source;
+      if (depth_k) run.depth_intrinsics = mapping::DepthCameraRecord{depth_k->fx, depth_k->fy, depth_k->cx, depth_k->cy, depth_k->width, depth_k->height};
+      if (!o->poses.empty()) run.poses = fs::absolute(o->poses, ec).lexically_normal().string();
+      run.max_pose_gap_s = o->max_pose_gap;
+      if (no_pose > 0) run.frames_without_pose = no_pose;
+      run.unreadable = unreadable;
+      run.frame_numbers = std::array<long long, 2>{frames.front(), last_fused};
+      run.interrupted = g_interrupted.load();
+      run.resolution_m = map.tree().getResolution();
+      run.gravity_down_world = g_world;
+      run.gravity_source = gravity_source;
+      run.R_map_world = R_map_world;
+      run.origin_world = map.originWorld();
+      run.origin_source = origin_source.empty() ? std::string("none") : origin_source;
       if (points_outside > 0) {
-        meta["points_outside_map"] = points_outside;
-        meta["frames_outside_map"] = outside_frames;
+        run.points_outside_map = static_cast<long long>(points_outside);
+        run.frames_outside_map = outside_frames;
       }
-      meta["seconds"] = run_s;
-      meta["frames_per_second"] = run_s > 0 ? (used + no_pose) / run_s : 0.0;
-      if (checkpoint) meta["checkpoint"] = true;
+      run.seconds = run_s;
+      run.frames_per_second = run_s > 0 ? (used + no_pose) / run_s : 0.0;
+      if (checkpoint) run.checkpoint = true;
       // The configuration's values that --voxel rescales are recorded with the rest.
-      meta["perception"] = {{"max_range_m", pp.max_range_m}, {"voxel_size_m", pp.voxel_size_m},
-                            {"normal_k", pp.normal_k}, {"outlier_k", pp.outlier_k}, {"colour_threshold", pp.colour_threshold},
-                            {"min_segment_points", pp.min_segment_points}, {"ground_min_points", pp.ground_min_points},
-                            {"neighbour_distance_m", pp.neighbour_distance_m}, {"max_triangle_edge_m", pp.max_triangle_edge_m},
-                            {"rough_fragment_max_points", pp.rough_fragment_max_points}, {"rough_min_points", pp.rough_min_points},
-                            {"rough_smoothing_k", pp.rough_smoothing_k}};
-      meta["mapping"] = {{"resolution_m", mp.resolution_m}, {"max_range_m", mp.max_range_m},
-                         {"free_space_ray_stride_px", mp.free_space_ray_stride_px}, {"max_weight", mp.max_weight},
-                         {"clear_seen_through", !o->no_free_space}};
-      meta["model"] = {{"kind", config.model.model == gp::ModelKind::kGaussianProcess ? "gp" : "rule"},
-                       {"table", config.table_path.empty() ? "paper" : config.table_path},
-                       {"signal_std", config.model.signal_std}, {"length_scale", config.model.length_scale},
-                       {"noise_std", config.model.noise_std}};
-      if (!o->config.empty()) meta["config"] = fs::absolute(o->config, ec).lexically_normal().string();
-      meta["trajectory_map"] = trajectory;
-      if (existing) mergeEarlierRuns(meta, existing->meta);
+      run.perception = mapping::PerceptionRecord{pp.max_range_m, pp.voxel_size_m, pp.normal_k, pp.outlier_k, pp.colour_threshold,
+                                                 pp.min_segment_points, pp.ground_min_points, pp.neighbour_distance_m,
+                                                 pp.max_triangle_edge_m, pp.rough_fragment_max_points, pp.rough_min_points,
+                                                 pp.rough_smoothing_k};
+      run.mapping = mapping::MappingRecord{mp.resolution_m, mp.max_range_m, mp.free_space_ray_stride_px, mp.max_weight,
+                                           !o->no_free_space};
+      run.model = mapping::ModelRecord{config.model.model == gp::ModelKind::kGaussianProcess ? "gp" : "rule",
+                                       config.table_path.empty() ? "paper" : config.table_path, config.model.signal_std,
+                                       config.model.length_scale, config.model.noise_std};
+      if (!o->config.empty()) run.config = fs::absolute(o->config, ec).lexically_normal().string();
+      mapping::MapMetadata meta;
+      if (existing) {
+        meta = existing->meta;
+        meta.addRun(std::move(run), trajectory);
+      } else {
+        meta.frames = used;
+        meta.latest = std::move(run);
+        meta.trajectory_map = trajectory;
+      }
       // All four or none: a disk that fills up while they are written leaves the map
       // on disk as it was (an --extend run's map included), not a new .ot beside an old .json.
       const mapping::MobilityOcTree& tree = map.tree();
-      const std::string meta_text = formatMapMetadata(meta);
+      const std::string meta_text = mapping::formatMapMetadata(meta);
       writeFilesTogether({{map_paths[0], [&](const std::string& tmp) { mapping::saveMobilityMap(tree, tmp); }},
                           {map_paths[1], [&](const std::string& tmp) { mapping::saveOccupancyBt(tree, tmp); }},
                           {map_paths[2], [&](const std::string& tmp) { mapping::saveOctovisColorTree(tree, tmp); }},
@@ -863,20 +817,20 @@ Command addBuildCommand(CLI::App& app) {
       msg << ". Check the range, the depth unit and the intrinsics";
       throw IoError(live ? device_label : o->input, msg.str());
     }
-    const nlohmann::json meta = writeMap(*final_map, false, run_s);
+    const mapping::MapMetadata meta = writeMap(*final_map, false, run_s);
 
     const std::string keyframe_note =
         keyframes_considered > 0 ? ", keyframes of " + std::to_string(keyframes_considered) + " selected" : "";
     std::printf("\n%d of %zu frames fused (%d without a ground plane%s)%s in %.1f s (%.1f frames/s), %zu points, %zu map nodes (%zu leaves)\n",
                 used, frames.size() + unreadable_before_run, no_ground, keyframe_note.c_str(), g_interrupted.load() ? ", INTERRUPTED" : "", run_s,
-                meta["frames_per_second"].get<double>(), points, final_map->tree().size(), final_map->tree().getNumLeafNodes());
+                *meta.latest.frames_per_second, points, final_map->tree().size(), final_map->tree().getNumLeafNodes());
     if (points_outside > 0) {
       std::printf("%zu points lay outside the map's extent (%s) and were left out", points_outside, describeExtent(*final_map).c_str());
       if (outside_frames > 0) std::printf("; %d frames had no point inside and are not counted as fused", outside_frames);
       std::printf("\n");
     }
     if (existing) {
-      std::printf("the map now holds %d frames from %zu runs\n", meta["frames"].get<int>(), meta["earlier_runs"].size() + 1);
+      std::printf("the map now holds %d frames from %zu runs\n", meta.frames, meta.earlier_runs.size() + 1);
     }
     if (no_pose > 0) {
       std::printf("%d frames skipped: no pose within %g s of their time stamp in %s\n", no_pose, o->max_pose_gap,

@@ -51,7 +51,7 @@ Command addExportCommand(CLI::App& app) {
     if (o->png.empty()) return 0;
     // The camera path may run outside the mapped surfaces: draw all of it. A map extended
     // by later runs: each run's path starts afresh, marked by a square like the first.
-    const CameraPath camera = cameraPath(metadataJson(metadata));
+    const CameraPath camera = cameraPath(metadata);
     std::vector<Eigen::Vector2d> path = camera.xy();
     TopView view;
     try {
@@ -89,18 +89,11 @@ std::string normalInput(const std::string& path) {
 
 // The record in MAP.json of the latest run that read `input` (the run itself, or one of
 // its earlier_runs after build --extend), or null.
-const nlohmann::json* runOfInput(const nlohmann::json& meta, const std::string& input) {
+const mapping::MapRun* runOfInput(const mapping::MapMetadata& meta, const std::string& input) {
   const std::string wanted = normalInput(input);
-  auto reads = [&](const nlohmann::json& run) {
-    return run.is_object() && run.contains("input") && run["input"].is_string() &&
-           normalInput(run["input"].get<std::string>()) == wanted;
-  };
-  if (reads(meta)) return &meta;
-  if (meta.contains("earlier_runs") && meta["earlier_runs"].is_array()) {
-    const auto& runs = meta["earlier_runs"];
-    for (auto it = runs.rbegin(); it != runs.rend(); ++it) {
-      if (reads(*it)) return &*it;
-    }
+  const std::vector<const mapping::MapRun*> runs = meta.runs();
+  for (auto it = runs.rbegin(); it != runs.rend(); ++it) {
+    if ((*it)->input && normalInput(*(*it)->input) == wanted) return *it;
   }
   return nullptr;
 }
@@ -138,15 +131,15 @@ Command addOverlayCommand(CLI::App& app) {
     // MAP.json says how the map's runs read their frames: overlay reads them the same
     // way unless told otherwise (wrong intrinsics would shift the picture silently).
     const mapping::MapMetadata metadata = mapping::readMapMetadata(o->map);
-    const nlohmann::json meta = metadataJson(metadata);
     const auto colon = o->frame.rfind(':');
     std::string input;
     if (colon == std::string::npos) {
-      if (!meta.contains("input") || !meta["input"].is_string() || meta["input"].get<std::string>().rfind("OpenNI2 device", 0) == 0) {
+      const std::optional<std::string>& built_from = metadata.latest.input;
+      if (!built_from || built_from->rfind("OpenNI2 device", 0) == 0) {
         throw UsageError("--frame " + o->frame + ": give INPUT:N (" +
                          (metadata.found ? "MAP.json names no input to read frames from" : "there is no MAP.json to name the input") + ")");
       }
-      input = meta["input"].get<std::string>();
+      input = *built_from;
     } else {
       input = o->frame.substr(0, colon);
     }
@@ -163,27 +156,21 @@ Command addOverlayCommand(CLI::App& app) {
     if (!std::filesystem::exists(input, ec)) throw IoError(input, "no such file or directory");
     std::string intrinsics = o->intrinsics, poses = o->poses;
     double max_pose_gap = o->max_pose_gap;
-    if (const nlohmann::json* run = runOfInput(meta, input)) {
-      try {
-        if (intrinsics.empty() && run->contains("depth_intrinsics")) {
-          const auto& k = (*run)["depth_intrinsics"];
-          const double fx = k.at("fx").get<double>(), fy = k.at("fy").get<double>();
-          if (!(fx > 0 && fy > 0 && std::isfinite(fx) && std::isfinite(fy) && std::isfinite(k.at("cx").get<double>()) &&
-                std::isfinite(k.at("cy").get<double>()))) {
-            throw IoError(metadata.path, "\"depth_intrinsics\" of the run that read " + input +
-                                             " must have fx and fy > 0 and finite cx, cy, got " + k.dump() +
-                                             " (--intrinsics gives the camera instead)");
-          }
-          char spec[160];
-          std::snprintf(spec, sizeof spec, "%.17g,%.17g,%.17g,%.17g", k.at("fx").get<double>(), k.at("fy").get<double>(),
-                        k.at("cx").get<double>(), k.at("cy").get<double>());
-          intrinsics = spec;
+    if (const mapping::MapRun* run = runOfInput(metadata, input)) {
+      if (intrinsics.empty() && run->depth_intrinsics) {
+        const mapping::DepthCameraRecord& k = *run->depth_intrinsics;
+        if (!(k.fx > 0 && k.fy > 0)) {
+          char got[200];
+          std::snprintf(got, sizeof got, "fx %g, fy %g", k.fx, k.fy);
+          throw IoError(metadata.path, "\"depth_intrinsics\" of the run that read " + input + " must have fx and fy > 0, got " +
+                                           got + " (--intrinsics gives the camera instead)");
         }
-        if (poses.empty() && run->contains("poses")) poses = (*run)["poses"].get<std::string>();
-        if (gap->count() == 0 && run->contains("max_pose_gap_s")) max_pose_gap = (*run)["max_pose_gap_s"].get<double>();
-      } catch (const nlohmann::json::exception& e) {
-        throw IoError(metadata.path, std::string("depth_intrinsics, poses or max_pose_gap_s is malformed (") + e.what() + ")");
+        char spec[160];
+        std::snprintf(spec, sizeof spec, "%.17g,%.17g,%.17g,%.17g", k.fx, k.fy, k.cx, k.cy);
+        intrinsics = spec;
       }
+      if (poses.empty() && run->poses) poses = *run->poses;
+      if (gap->count() == 0 && run->max_pose_gap_s) max_pose_gap = *run->max_pose_gap_s;
     }
     // One .pcd or .png frame mapped in its own camera frame has no pose to read it by.
     const std::string ext = std::filesystem::path(input).extension().string();

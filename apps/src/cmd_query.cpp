@@ -157,7 +157,7 @@ Command addQueryCommand(CLI::App& app) {
     // With --reach: which places the robot can get to, worked out once for every answer.
     std::optional<ReachRun> run;
     if (o->reach) {
-      run = runReach(o->robot, map, o->map, o->frame == "world", cameraPath(metadataJson(metadata)));
+      run = runReach(o->robot, map, o->map, o->frame == "world", cameraPath(metadata));
       const mapping::FootPlace& s = run->result.footPlaces()[*run->result.start()];
       std::fprintf(stderr,
                    "note: reach from the surface at (%.2f, %.2f, %.2f) m, map frame (%s rule): %zu of %zu surface voxels "
@@ -276,116 +276,74 @@ namespace {
 
 // The metadata in a few lines: what the map was built from and how. The whole file
 // (with the camera path, one position per frame) is `info --json` or STEM.json.
-void printMetadataSummary(const nlohmann::json& meta, const std::string& json_path) {
-  const auto text = [&](const char* key) { return meta.contains(key) && meta[key].is_string() ? meta[key].get<std::string>() : std::string(); };
-  const auto number = [&](const nlohmann::json& obj, const char* key) {
-    return obj.is_object() && obj.contains(key) && obj[key].is_number() ? obj[key].get<double>() : std::nan("");
+void printMetadataSummary(const mapping::MapMetadata& meta) {
+  const auto frameRange = [](const mapping::MapRun& run) {
+    if (!run.frame_numbers) return std::string();
+    return " (frames " + std::to_string((*run.frame_numbers)[0]) + ".." + std::to_string((*run.frame_numbers)[1]) + ")";
   };
-  const auto frameRange = [](const nlohmann::json& run) {
-    const auto& nums = run.contains("frame_numbers") ? run["frame_numbers"] : nlohmann::json();
-    if (!(nums.is_array() && nums.size() == 2 && nums[0].is_number_integer() && nums[1].is_number_integer())) return std::string();
-    return " (frames " + std::to_string(nums[0].get<long long>()) + ".." + std::to_string(nums[1].get<long long>()) + ")";
-  };
+  const mapping::MapRun& run = meta.latest;
   // A map extended with `build --extend`: the earlier runs first, one line each.
-  const auto& runs = meta.contains("earlier_runs") ? meta["earlier_runs"] : nlohmann::json::array();
-  if (!runs.empty()) {
-    std::printf("built in %zu runs", runs.size() + 1);
-    if (meta.contains("frames")) std::printf(", %d frames in the map", meta["frames"].get<int>());
-    std::printf(":\n");
-    for (std::size_t i = 0; i < runs.size(); ++i) {
-      const auto& r = runs[i];
-      const std::string input = r.contains("input") && r["input"].is_string() ? r["input"].get<std::string>() : "an unrecorded input";
-      std::printf("  run %zu: %s", i + 1, input.c_str());
-      if (r.contains("frames_in_run")) std::printf(", %d frames fused", r["frames_in_run"].get<int>());
-      const double considered = number(r.contains("keyframes") ? r["keyframes"] : nlohmann::json(), "frames_considered");
-      if (std::isfinite(considered)) std::printf(" (keyframes of %.0f)", considered);
+  if (!meta.earlier_runs.empty()) {
+    std::printf("built in %zu runs, %d frames in the map:\n", meta.earlier_runs.size() + 1, meta.frames);
+    for (std::size_t i = 0; i < meta.earlier_runs.size(); ++i) {
+      const mapping::MapRun& r = meta.earlier_runs[i];
+      std::printf("  run %zu: %s", i + 1, r.input.value_or("an unrecorded input").c_str());
+      if (r.frames_in_run) std::printf(", %d frames fused", *r.frames_in_run);
+      if (r.keyframes) std::printf(" (keyframes of %lld)", r.keyframes->frames_considered);
       std::printf("%s", frameRange(r).c_str());
-      if (r.contains("interrupted") && r["interrupted"].is_boolean() && r["interrupted"].get<bool>()) std::printf(", INTERRUPTED");
-      if (r.contains("checkpoint") && r["checkpoint"] == true) std::printf(", ended at a checkpoint (the run did not finish)");
+      if (r.interrupted) std::printf(", INTERRUPTED");
+      if (r.checkpoint.value_or(false)) std::printf(", ended at a checkpoint (the run did not finish)");
       std::printf("\n");
     }
-    std::printf("  run %zu (latest): ", runs.size() + 1);
+    std::printf("  run %zu (latest): ", meta.earlier_runs.size() + 1);
   }
-  std::printf("built by %s from %s\n", text("tool").empty() ? "an unknown tool" : text("tool").c_str(),
-              text("input").empty() ? "an unrecorded input" : text("input").c_str());
-  if (meta.contains("frames")) {
-    // This run's frames (all of the map's unless it was extended).
-    std::printf("frames: %d fused", (meta.contains("frames_in_run") ? meta["frames_in_run"] : meta["frames"]).get<int>());
-    const double selected = number(meta, "frames_selected");
-    if (std::isfinite(selected)) std::printf(" of %.0f selected", selected);
-    const auto& kf = meta.contains("keyframes") ? meta["keyframes"] : nlohmann::json();
-    const double considered = number(kf, "frames_considered");
-    if (std::isfinite(considered)) {
-      const std::string rule = describeKeyframeRule(number(kf, "min_translation_m"), number(kf, "min_rotation_deg"));
-      std::printf(" (keyframes of %.0f%s%s)", considered, rule.empty() ? "" : ": ", rule.c_str());
-    }
-    std::printf("%s", frameRange(meta).c_str());
-    const double no_pose = number(meta, "frames_without_pose");
-    if (std::isfinite(no_pose)) std::printf(", %.0f skipped without a pose", no_pose);
-    if (meta.contains("interrupted") && meta["interrupted"].is_boolean() && meta["interrupted"].get<bool>()) {
-      std::printf(", INTERRUPTED (Ctrl-C): the map holds these frames only");
-    }
-    if (meta.contains("checkpoint") && meta["checkpoint"] == true) {
-      std::printf(", CHECKPOINT: saved while the run went on, which did not finish or is still going");
-    }
-    const double sec = number(meta, "seconds"), fps = number(meta, "frames_per_second");
-    if (std::isfinite(sec) && std::isfinite(fps)) std::printf(", %.1f s (%.1f frames/s)", sec, fps);
+  std::printf("built by %s from %s\n", run.tool.value_or("an unknown tool").c_str(), run.input.value_or("an unrecorded input").c_str());
+  // This run's frames (all of the map's unless it was extended).
+  std::printf("frames: %d fused", run.frames_in_run.value_or(meta.frames));
+  if (run.frames_selected) std::printf(" of %lld selected", *run.frames_selected);
+  if (run.keyframes) {
+    const std::string rule = describeKeyframeRule(run.keyframes->min_translation_m, run.keyframes->min_rotation_deg);
+    std::printf(" (keyframes of %lld%s%s)", run.keyframes->frames_considered, rule.empty() ? "" : ": ", rule.c_str());
+  }
+  std::printf("%s", frameRange(run).c_str());
+  if (run.frames_without_pose) std::printf(", %lld skipped without a pose", *run.frames_without_pose);
+  if (run.interrupted) std::printf(", INTERRUPTED (Ctrl-C): the map holds these frames only");
+  if (run.checkpoint.value_or(false)) std::printf(", CHECKPOINT: saved while the run went on, which did not finish or is still going");
+  if (run.seconds && run.frames_per_second) std::printf(", %.1f s (%.1f frames/s)", *run.seconds, *run.frames_per_second);
+  std::printf("\n");
+  if (run.skipped && !run.skipped->empty()) std::printf("skipped while reading: %s\n", run.skipped->c_str());
+  if (const auto g = meta.gravityDownWorld()) {
+    std::printf("gravity (down, in the input's world frame): (%.3f, %.3f, %.3f)", g->x(), g->y(), g->z());
+    if (run.gravity_source) std::printf(", from %s", run.gravity_source->c_str());
     std::printf("\n");
   }
-  if (!text("skipped").empty()) std::printf("skipped while reading: %s\n", text("skipped").c_str());
-  const auto& g = meta.contains("gravity_down_world") ? meta["gravity_down_world"] : nlohmann::json();
-  if (g.is_array() && g.size() == 3 && g[0].is_number() && g[1].is_number() && g[2].is_number()) {
-    std::printf("gravity (down, in the input's world frame): (%.3f, %.3f, %.3f)", g[0].get<double>(), g[1].get<double>(),
-                g[2].get<double>());
-    if (!text("gravity_source").empty()) std::printf(", from %s", text("gravity_source").c_str());
-    std::printf("\n");
-  }
-  const auto& o = meta.contains("origin_world") ? meta["origin_world"] : nlohmann::json();
-  const Eigen::Vector3d origin = o.is_array() && o.size() == 3 ? Eigen::Vector3d(o[0].get<double>(), o[1].get<double>(), o[2].get<double>())
-                                                               : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d origin = meta.originWorld();
   if (origin != Eigen::Vector3d::Zero()) {
     std::printf("map origin in the world frame: (%.3f, %.3f, %.3f)%s: map = R_map_world (world - origin)\n", origin.x(),
-                origin.y(), origin.z(), text("origin_source").empty() ? "" : (", " + text("origin_source")).c_str());
+                origin.y(), origin.z(), run.origin_source ? (", " + *run.origin_source).c_str() : "");
   }
-  const auto& per = meta.contains("perception") ? meta["perception"] : nlohmann::json();
-  const double voxel = number(per, "voxel_size_m"), range = number(per, "max_range_m");
-  if (std::isfinite(voxel) && std::isfinite(range)) {
-    std::printf("perception: %.0f mm voxels, range %.1f m", voxel * 1000, range);
-    const auto& model = meta.contains("model") ? meta["model"] : nlohmann::json();
-    if (model.is_object() && model.contains("kind") && model["kind"].is_string()) {
-      std::printf("; mobility model: %s", model["kind"].get<std::string>() == "gp" ? "Gaussian process" : "rule table");
-      if (model.contains("table") && model["table"].is_string()) {
-        const std::string table = model["table"].get<std::string>();
-        std::printf(" over %s", table == "paper" ? "the paper's table" : table.c_str());
-      }
+  if (run.perception && run.perception->voxel_size_m && run.perception->max_range_m) {
+    std::printf("perception: %.0f mm voxels, range %.1f m", *run.perception->voxel_size_m * 1000, *run.perception->max_range_m);
+    if (run.model && run.model->kind) {
+      std::printf("; mobility model: %s", *run.model->kind == "gp" ? "Gaussian process" : "rule table");
+      if (run.model->table) std::printf(" over %s", *run.model->table == "paper" ? "the paper's table" : run.model->table->c_str());
     }
     std::printf("\n");
   }
-  if (!text("config").empty()) std::printf("configuration: %s\n", text("config").c_str());
+  if (run.config) std::printf("configuration: %s\n", run.config->c_str());
   // How this run read its frames (what `overlay` reads them with again).
-  const auto& k = meta.contains("depth_intrinsics") ? meta["depth_intrinsics"] : nlohmann::json();
-  const double fx = number(k, "fx"), fy = number(k, "fy"), cx = number(k, "cx"), cy = number(k, "cy");
-  const double w = number(k, "width"), h = number(k, "height");
-  if (std::isfinite(fx) && std::isfinite(fy) && std::isfinite(cx) && std::isfinite(cy) && std::isfinite(w) && std::isfinite(h)) {
-    std::printf("depth camera: %.0fx%.0f, fx %.2f fy %.2f cx %.2f cy %.2f\n", w, h, fx, fy, cx, cy);
+  if (const auto& k = run.depth_intrinsics) {
+    std::printf("depth camera: %dx%d, fx %.2f fy %.2f cx %.2f cy %.2f\n", k->width, k->height, k->fx, k->fy, k->cx, k->cy);
   }
-  if (!text("poses").empty()) {
-    const double gap = number(meta, "max_pose_gap_s");
-    std::printf("poses: %s", text("poses").c_str());
-    if (std::isfinite(gap)) std::printf(" (frames whose neighbouring poses are over %.3g s apart are skipped)", gap);
+  if (run.poses) {
+    std::printf("poses: %s", run.poses->c_str());
+    if (run.max_pose_gap_s) std::printf(" (frames whose neighbouring poses are over %.3g s apart are skipped)", *run.max_pose_gap_s);
     std::printf("\n");
   }
-  if (meta.contains("trajectory_map")) {
-    const auto& traj = meta["trajectory_map"];
-    double length = 0.0;
-    for (std::size_t i = 1; i < traj.size(); ++i) {
-      const Eigen::Vector3d a(traj[i - 1][0].get<double>(), traj[i - 1][1].get<double>(), traj[i - 1][2].get<double>());
-      const Eigen::Vector3d b(traj[i][0].get<double>(), traj[i][1].get<double>(), traj[i][2].get<double>());
-      length += (b - a).norm();
-    }
-    std::printf("camera path: %zu position%s, %.2f m long\n", traj.size(), traj.size() == 1 ? "" : "s", length);
-  }
-  std::printf("all metadata: %s (or info --json)\n", json_path.c_str());
+  double length = 0.0;
+  for (std::size_t i = 1; i < meta.trajectory_map.size(); ++i) length += (meta.trajectory_map[i] - meta.trajectory_map[i - 1]).norm();
+  std::printf("camera path: %zu position%s, %.2f m long\n", meta.trajectory_map.size(), meta.trajectory_map.size() == 1 ? "" : "s", length);
+  std::printf("all metadata: %s (or info --json)\n", meta.path.c_str());
 }
 
 // Heights where walkable voxels (mobility >= 0.75) gather: floors, landings, table tops.
@@ -433,7 +391,6 @@ Command addInfoCommand(CLI::App& app) {
       }
       ++hist[static_cast<std::size_t>(std::clamp(static_cast<int>(it->mobility() * 10), 0, 9))];
     }
-    const auto meta = metadataJson(metadata);
     if (o->json) {
       nlohmann::json j{{"map", o->map},
                        {"tree_type", t.getTreeType()},
@@ -451,7 +408,7 @@ Command addInfoCommand(CLI::App& app) {
       }
       // An empty tree has no bounds (OctoMap reports its key range's limits).
       if (surface + free > 0) j["bounds_map"] = {{"min", {x0, y0, z0}}, {"max", {x1, y1, z1}}};
-      j["metadata"] = meta.empty() ? nlohmann::json(nullptr) : meta;
+      j["metadata"] = metadata.found ? nlohmann::json::parse(mapping::formatMapMetadata(metadata)) : nlohmann::json(nullptr);
       std::printf("%s\n", j.dump().c_str());
       return 0;
     }
@@ -478,10 +435,10 @@ Command addInfoCommand(CLI::App& app) {
       }
       std::printf("\n");
     }
-    if (meta.empty()) {
-      std::printf("no metadata (%s.json is absent)\n", mapping::mapFileStem(o->map).c_str());
+    if (!metadata.found) {
+      std::printf("no metadata (%s is absent)\n", metadata.path.c_str());
     } else {
-      printMetadataSummary(meta, mapping::mapFileStem(o->map) + ".json");
+      printMetadataSummary(metadata);
     }
     return 0;
   };

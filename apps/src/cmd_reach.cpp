@@ -75,7 +75,7 @@ Command addReachCommand(CLI::App& app) {
     const OpenedMap opened = openMapFiles(o->map);
     const mapping::MapMetadata& metadata = opened.metadata;
     const mapping::MobilityMap& map = opened.map;
-    const CameraPath camera = cameraPath(metadataJson(metadata));
+    const CameraPath camera = cameraPath(metadata);
     std::vector<Eigen::Vector2d> path = camera.xy();
     const ReachRun run = runReach(o->reach, map, o->map, o->frame == "world", camera);
     const mapping::Reachability& r = run.result;

@@ -5,8 +5,6 @@
 
 #include "mobmap/mapping/mobility_map.hpp"
 
-#include <nlohmann/json.hpp>
-
 #include <Eigen/Core>
 
 #include <string>
@@ -27,15 +25,6 @@ OpenedMap openMapFiles(const std::string& ot_path);
 /// MAP.octovis.ot and MAP.json.
 std::vector<NamedPath> mapFilesAsInputs(const std::string& ot_path);
 
-/// MAP.json as read and checked by mapping::readMapMetadata(): an empty object if there
-/// is none.
-nlohmann::json metadataJson(const mapping::MapMetadata& meta);
-
-/// MAP.json's text: indented like nlohmann's dump(1), except that each trajectory_map
-/// position takes one line ("[x,y,z]") instead of five (a run of 100,000 frames writes
-/// 5 MB rather than 15). Parses back to `meta`.
-std::string formatMapMetadata(const nlohmann::json& meta);
-
 /// The rule of `build --keyframes` in words, naming only the tests in use (a limit of
 /// 0 is off): "camera moved >= 0.05 m or turned >= 5 degrees".
 std::string describeKeyframeRule(double min_translation_m, double min_rotation_deg);
@@ -48,6 +37,6 @@ struct CameraPath {
   /// The positions seen from above (x, y): what a top view draws and covers.
   [[nodiscard]] std::vector<Eigen::Vector2d> xy() const;
 };
-CameraPath cameraPath(const nlohmann::json& meta);
+CameraPath cameraPath(const mapping::MapMetadata& meta);
 
 }  // namespace mobmap::app

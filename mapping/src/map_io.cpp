@@ -1,5 +1,7 @@
 #include "mobmap/mapping/mobility_map.hpp"
 
+#include "atomic_write.hpp"
+
 #include <octomap/ColorOcTree.h>
 
 #include <unistd.h>
@@ -20,8 +22,16 @@ namespace {
 
 [[noreturn]] void ioFail(const std::string& path, const std::string& reason) { throw MapIoError(path + ": " + reason); }
 
-// Writes through a temporary file beside `path` and renames it into place, so the map
-// on disk is always either the old one or the complete new one.
+template <typename Visit>
+void forEachOccupiedVoxel(const MobilityOcTree& tree, Visit visit) {
+  for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it) {
+    if (!tree.isNodeOccupied(*it)) continue;
+    visit(it);
+  }
+}
+
+}  // namespace
+
 void writeAtomically(const std::string& path, const std::function<bool(std::ostream&)>& write) {
   const std::filesystem::path target(path);
   std::error_code ec;
@@ -44,16 +54,6 @@ void writeAtomically(const std::string& path, const std::function<bool(std::ostr
     ioFail(path, "cannot move the temporary file into place: " + reason);
   }
 }
-
-template <typename Visit>
-void forEachOccupiedVoxel(const MobilityOcTree& tree, Visit visit) {
-  for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it) {
-    if (!tree.isNodeOccupied(*it)) continue;
-    visit(it);
-  }
-}
-
-}  // namespace
 
 void saveMobilityMap(const MobilityOcTree& tree, const std::string& path) {
   writeAtomically(path, [&](std::ostream& s) { return tree.write(s); });

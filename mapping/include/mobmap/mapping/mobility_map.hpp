@@ -3,6 +3,7 @@
 /// Fusing scored frames into a MobilityOcTree, and the queries a footstep planner asks.
 
 #include "mobmap/mapping/foot.hpp"
+#include "mobmap/mapping/map_metadata.hpp"
 #include "mobmap/mapping/mobility_octree.hpp"
 #include "mobmap/perception/camera.hpp"
 #include "mobmap/perception/frame_result.hpp"
@@ -254,36 +255,13 @@ void saveOctovisColorTree(const MobilityOcTree& tree, const std::string& path,
 /// Surface voxel centres as ASCII PCD with fields x y z mobility variance count.
 void saveSurfacePcd(const MobilityOcTree& tree, const std::string& path);
 
-/// "maps/x.ot" -> "maps/x": the stem that MAP.bt, MAP.octovis.ot and MAP.json share.
-std::string mapFileStem(const std::string& ot_path);
-
-/// What MAP.json, written by `mobmap build` beside MAP.ot, says about the map's frame.
-struct MapMetadata {
-  bool found = false;     ///< false: there is no MAP.json (the rest are the defaults)
-  std::string path;       ///< MAP.json's path
-  bool has_frame = false; ///< R_map_world was recorded
-  /// World (the input's poses) to map (z up) rotation; identity if not recorded.
-  Eigen::Matrix3d R_map_world = Eigen::Matrix3d::Identity();
-  /// The map frame's origin in the world frame ("origin_world"); zero if not recorded.
-  Eigen::Vector3d origin_world = Eigen::Vector3d::Zero();
-  std::optional<Eigen::Vector3d> gravity_down_world;  ///< in the world frame, as recorded
-  int frames = 0;         ///< frames fused into the map
-  std::string text;       ///< the whole file, as read and checked (empty if not found)
-};
-
-/// Reads MAP.json beside `ot_path` (nothing found is not an error) and checks every entry
-/// the mobmap tools read: MapIoError "MAP.json: <problem>" if it is not JSON, or if
-/// frames, R_map_world (must be a rotation), origin_world, gravity_down_world, trajectory_map or
-/// earlier_runs is malformed.
-MapMetadata readMapMetadata(const std::string& ot_path);
-
 /// A map as `mobmap build` left it: MAP.ot with the frame recorded in MAP.json, so
 /// worldToMap() takes points in the world frame of the poses it was built from. Errors
 /// as loadMobilityMap() and readMapMetadata().
 MobilityMap openMap(const std::string& ot_path, MapParams params = {});
 /// The same from a tree already loaded (loadMobilityMap) and its metadata already read
-/// (readMapMetadata), for callers that also want the rest of MAP.json (metadata.text)
-/// without reading and checking it twice.
+/// (readMapMetadata), for callers that also want the rest of MAP.json without reading
+/// and checking it twice.
 MobilityMap openMap(std::unique_ptr<MobilityOcTree> tree, const MapMetadata& metadata, MapParams params = {});
 
 }  // namespace mobmap::mapping
