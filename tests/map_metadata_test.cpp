@@ -97,6 +97,14 @@ TEST(MapMetadata, EveryEntryRoundTripsBitForBit) {
   expectSameRun(back.latest, m.latest);
   expectSameRun(back.earlier_runs[0], m.earlier_runs[0]);
   expectSameRun(back.earlier_runs[1], m.earlier_runs[1]);
+  // Every entry was read into its own member: only the unknown ones are left over.
+  EXPECT_EQ(back.earlier_runs[1].other_entries, "");
+  EXPECT_EQ(Json::parse(back.earlier_runs[0].other_entries), Json::parse(m.earlier_runs[0].other_entries));
+  EXPECT_EQ(Json::parse(back.latest.other_entries), Json::parse(m.latest.other_entries));
+  EXPECT_EQ(back.latest.config, m.latest.config);
+  EXPECT_EQ(back.latest.depth_intrinsics->cy, 240.0625);
+  EXPECT_EQ(back.latest.perception->rough_smoothing_k, 8);
+  EXPECT_EQ(back.latest.frames_per_second, 1.0 / 7.0);
   // Written again: the same bytes.
   EXPECT_EQ(formatMapMetadata(back), text);
   // Entries this version does not know are kept where they were.
