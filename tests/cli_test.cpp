@@ -846,6 +846,33 @@ TEST(Cli, LoungeFloorIsWalkableWithGravityFoundFromTheFloor) {
   fs::remove_all(dir);
 }
 
+// `info` lists every walkable level in height order, however many: on the corridor the
+// floor, all four stair treads (17 cm apart) and the box tops, which the scene puts at
+// known heights (a tread's voxels have their top faces up to one voxel above it).
+TEST(Cli, InfoListsEveryStairTreadAsAWalkableLevel) {
+  const std::string dir = tempDir("all-levels");
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 240 --noise none --quiet").code, 0);
+  ASSERT_EQ(run("build " + dir + "/seq --frames 0:239:4 --out " + dir + "/m.ot --quiet").code, 0);
+  const Result info = run("info " + dir + "/m.ot --json");
+  ASSERT_EQ(info.code, 0) << info.out;
+  const auto levels = nlohmann::json::parse(info.out)["walkable_levels"];
+  std::vector<double> z;
+  for (const auto& l : levels) {
+    z.push_back(l["z_m"].get<double>());
+    EXPECT_GE(l["share"].get<double>(), 0.005) << levels.dump();
+  }
+  EXPECT_TRUE(std::is_sorted(z.begin(), z.end())) << levels.dump();
+  for (const double tread : {0.0, 0.17, 0.34, 0.51, 0.6, 0.68}) {
+    EXPECT_TRUE(std::any_of(z.begin(), z.end(), [&](double l) { return l >= tread - 0.005 && l <= tread + 0.025; }))
+        << "no level at " << tread << ": " << levels.dump();
+  }
+  const Result text = run("info " + dir + "/m.ot");
+  for (const char* tread : {"z = 0.18 m", "z = 0.35 m", "z = 0.51 m", "z = 0.69 m"}) {
+    EXPECT_NE(text.out.find(tread), std::string::npos) << text.out;
+  }
+  fs::remove_all(dir);
+}
+
 // `info`'s walkable levels on the real kitchen (frames 40-100, every third, which show
 // most floor): the floor about 1.47 m and the table top about 0.77 m below the world
 // origin along gravity (data README), the floor holding most walkable voxels.

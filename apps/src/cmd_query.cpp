@@ -346,6 +346,9 @@ void printMetadataSummary(const mapping::MapMetadata& meta) {
   std::printf("all metadata: %s (or info --json)\n", meta.path.c_str());
 }
 
+// A walkable level holds at least this share of the walkable voxels (docs/MAPPING.md).
+constexpr double kMinLevelShare = 0.005;
+
 // Heights where walkable voxels (mobility >= 0.75) gather: floors, landings, table tops.
 // Top faces are binned per voxel (a pruned leaf counts once per column it covers).
 std::vector<Level> walkableLevels(const mapping::MobilityOcTree& t) {
@@ -355,7 +358,10 @@ std::vector<Level> walkableLevels(const mapping::MobilityOcTree& t) {
     if (!t.isNodeOccupied(*it) || !it->hasMobility() || it->mobility() < 0.75) continue;
     bins[std::lround((it.getZ() + it.getSize() / 2) / res)] += static_cast<std::size_t>(std::lround(std::pow(it.getSize() / res, 2)));
   }
-  return gatherLevels(std::move(bins), res);
+  // Every level, however many: a staircase of 7 treads has 8. In height order.
+  std::vector<Level> levels = gatherLevels(std::move(bins), res, std::numeric_limits<std::size_t>::max(), kMinLevelShare);
+  std::sort(levels.begin(), levels.end(), [](const Level& a, const Level& b) { return a.z_m < b.z_m; });
+  return levels;
 }
 
 }  // namespace
