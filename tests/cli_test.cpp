@@ -982,6 +982,43 @@ TEST(Cli, InfoAndReachFindTheRedkitchenFloorAndTableTop) {
 // MAP.json is plain text beside the map and may be edited or damaged: the tools that
 // read it back name the file and the entry, instead of a JSON type error or a silent
 // non-rigid map frame.
+// --depth-scale reads depth in the unit given; depth that reads implausibly (here
+// millimetres taken for centimetres: ten times too far, all beyond the range) is named
+// with the unit that fits, by analyze and by build, which writes no map. What the range
+// took is reported and recorded.
+TEST(Cli, DepthInAnotherUnitIsNamedWithTheScaleThatFits) {
+  const std::string dir = tempDir("depth-unit");
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 4 --noise none --quiet").code, 0);
+  const std::string png = dir + "/seq/frame-000000.depth.png";
+  const Result wrong = run("analyze " + png + " --depth-scale 100");
+  EXPECT_EQ(wrong.code, 0) << wrong.out;
+  EXPECT_NE(wrong.out.find("warning: " + png + ": the depth looks like it is in another unit: read at 100 units per metre"),
+            std::string::npos)
+      << wrong.out;
+  EXPECT_NE(wrong.out.find("; --depth-scale 1000 (millimetres) puts the median at"), std::string::npos) << wrong.out;
+  const Result right = run("analyze " + png + " --json");
+  ASSERT_EQ(right.code, 0) << right.out;
+  EXPECT_EQ(right.out.find("warning"), std::string::npos) << right.out;
+  const auto j = nlohmann::json::parse(right.out.substr(right.out.find('{')));
+  EXPECT_GT(j["range"]["valid_points"].get<long long>(), 100000);
+  EXPECT_EQ(j["range"]["max_range_m"], 3.0);
+  EXPECT_LE(j["range"]["beyond_max_range"].get<long long>(), j["range"]["valid_points"].get<long long>());
+  EXPECT_EQ(run("analyze " + png + " --depth-scale 0").code, 2);
+  const Result built_wrong = run("build " + dir + "/seq --out " + dir + "/w.ot --depth-scale 100 --quiet");
+  EXPECT_EQ(built_wrong.code, 1) << built_wrong.out;
+  EXPECT_NE(built_wrong.out.find("--depth-scale 1000 (millimetres) puts the median at"), std::string::npos) << built_wrong.out;
+  EXPECT_FALSE(fs::exists(dir + "/w.ot"));
+  const Result built = run("build " + dir + "/seq --out " + dir + "/m.ot --depth-scale 1000");
+  ASSERT_EQ(built.code, 0) << built.out;
+  EXPECT_NE(built.out.find("range: "), std::string::npos) << built.out;
+  std::ifstream in(dir + "/m.json");
+  const nlohmann::json meta = nlohmann::json::parse(in);
+  EXPECT_EQ(meta["depth_units_per_m"], 1000.0);
+  EXPECT_GT(meta["points_in_view"].get<long long>(), 4 * 100000);
+  EXPECT_LT(meta["points_beyond_range"].get<long long>(), meta["points_in_view"].get<long long>());
+  fs::remove_all(dir);
+}
+
 TEST(Cli, DamagedMapMetadataIsReportedByFileAndEntry) {
   const std::string dir = tempDir("meta");
   ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 2 --noise none --quiet").code, 0);

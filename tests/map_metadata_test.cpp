@@ -49,6 +49,9 @@ MapRun fullRun(double salt) {
   r.origin_source = "--origin";
   r.points_outside_map = 123456789012LL;
   r.frames_outside_map = 2;
+  r.depth_units_per_m = 5000.0;
+  r.points_in_view = 9876543210LL;
+  r.points_beyond_range = 12345;
   r.seconds = 12.345678901234567;
   r.frames_per_second = 1.0 / 7.0;
   r.perception = PerceptionRecord{3.0, 0.02, 30, 16, 12.5, 13, 125, 0.05, 0.1, 38, 25, 8};

@@ -1,6 +1,7 @@
 #include "canvas.hpp"
 #include "commands.hpp"
 #include "config.hpp"
+#include "depth_checks.hpp"
 #include "files.hpp"
 #include "frame_source.hpp"
 #include "io_error.hpp"
@@ -46,6 +47,24 @@ nlohmann::json frameResultJson(const perception::FrameResult& r) {
                     {"mobility", s.mobility}, {"variance", s.variance}});
   }
   j["segments"] = segs;
+  const perception::RangeReport& range = r.range;
+  j["range"] = {{"valid_points", range.valid_points},
+                {"beyond_max_range", range.beyond_max_range},
+                {"nearer_than_min_range", range.nearer_than_min_range},
+                {"share_beyond", range.shareBeyond()},
+                {"min_range_m", range.min_range_m},
+                {"max_range_m", range.max_range_m},
+                {"median_range_m", range.median_range_m},
+                {"range_p95_m", range.range_p95_m},
+                {"down_from_gravity", range.down_from_gravity}};
+  if (range.lowest) {
+    j["range"]["lowest_surface"] = {{"below_camera_m", range.lowest->below_camera_m},
+                                    {"share_beyond", range.lowest->share_beyond},
+                                    {"range_p95_m", range.lowest->range_p95_m},
+                                    {"sampled_points", range.lowest->sampled}};
+  } else {
+    j["range"]["lowest_surface"] = nullptr;
+  }
   return j;
 }
 
@@ -110,6 +129,7 @@ Command addAnalyzeCommand(CLI::App& app) {
     std::string overlay;
     std::string background = "colour";
     double max_range = -1;
+    double depth_scale = 0;
     double voxel = 0;
     std::string config;
   };
@@ -119,6 +139,7 @@ Command addAnalyzeCommand(CLI::App& app) {
   cmd->add_option("--gravity", o->gravity, "Gravity (down) in the camera frame, X,Y,Z (default: from the pose and gravity-direction.txt if present; without gravity the largest plane is the ground, or, if it leans more than ground_upright_prior_deg from the image's up axis, the largest floor within that cone; 0,1,0 for a level camera)");
   cmd->add_option("--intrinsics", o->intrinsics, kIntrinsicsHelp);
   cmd->add_option("--max-range", o->max_range, "Maximum range in metres (default 3)");
+  auto* depth_scale = cmd->add_option("--depth-scale", o->depth_scale, kDepthScaleHelp)->check(CLI::PositiveNumber);
   cmd->add_option("--config", o->config, "YAML file with any of the parameters of `mobmap config --print-default`");
   auto* voxel = cmd->add_option("--voxel", o->voxel, kVoxelHelp);
   cmd->add_flag("--json", o->json, "Print one JSON object instead of tables");
@@ -127,7 +148,7 @@ Command addAnalyzeCommand(CLI::App& app) {
   cmd->add_option("--background", o->background, kBackgroundHelp)
       ->check(CLI::IsMember({"colour", "depth"}))
       ->capture_default_str();
-  return [o, voxel]() {
+  return [o, voxel, depth_scale]() {
     {
       std::vector<NamedPath> inputs{{"the input", o->input}, {"--config", o->config}};
       std::error_code ec;
@@ -143,6 +164,7 @@ Command addAnalyzeCommand(CLI::App& app) {
       refuseToOverwriteInputs({{"--segments", o->segments}, {"--overlay", o->overlay}}, inputs);
     }
     if (!f.note.empty()) std::fprintf(stderr, "note: %s\n", f.note.c_str());
+    if (depth_scale->count() > 0) rescaleDepth(f, o->depth_scale);
     if (!o->gravity.empty()) f.gravity_camera = parseVector3(o->gravity, "--gravity");
     Config config = o->config.empty() ? Config{} : loadConfig(o->config);
     if (o->max_range > 0) config.perception.max_range_m = o->max_range;
@@ -163,6 +185,15 @@ Command addAnalyzeCommand(CLI::App& app) {
       const std::string note = groundChoiceNote(r, config.perception.ground_upright_prior_deg);
       if (!note.empty()) std::fprintf(stderr, "%s\n", note.c_str());
     }
+    // Depth in another unit, or a range that cuts away most of the frame or its floor.
+    if (const auto unit = depthUnitProblem(r.range, f.depth_unit)) {
+      std::fprintf(stderr, "warning: %s: %s\n", o->input.c_str(), unit->c_str());
+    } else {
+      const std::optional<double> ground = r.ground_plane ? std::optional<double>((*r.ground_plane)(3)) : std::nullopt;
+      for (const auto& problem : {rangeCutProblem(r.range), floorCutProblem(r.range, ground)}) {
+        if (problem) std::fprintf(stderr, "warning: %s: %s\n", o->input.c_str(), problem->c_str());
+      }
+    }
     if (!o->segments.empty()) writeSegmentsPcd(o->segments, r);
     if (!o->overlay.empty()) {
       if (width == 0) throw UsageError("--overlay needs an organized input (depth image or organized PCD)");
@@ -177,6 +208,11 @@ Command addAnalyzeCommand(CLI::App& app) {
     std::printf("%s\n\n%-20s %10s %10s %10s\n", f.description.c_str(), "stage", "ms", "points in", "points out");
     for (const auto& s : r.stages) std::printf("%-20s %10.2f %10zu %10zu\n", s.name.c_str(), s.milliseconds, s.points_in, s.points_out);
     std::printf("%-20s %10.2f\n\n", "total", r.totalMilliseconds());
+    const perception::RangeReport& range = r.range;
+    std::printf("range: %zu valid points, %zu (%.1f %%) beyond --max-range %g m, %zu nearer than %g m; median range %.2f m, "
+                "95 %% within %.2f m\n",
+                range.valid_points, range.beyond_max_range, 100.0 * range.shareBeyond(), range.max_range_m,
+                range.nearer_than_min_range, range.min_range_m, range.median_range_m, range.range_p95_m);
     if (r.ground_plane) {
       std::printf("ground plane: normal (%.3f, %.3f, %.3f), %.3f m from the camera (chosen as: %s)\n", (*r.ground_plane)(0),
                   (*r.ground_plane)(1), (*r.ground_plane)(2), (*r.ground_plane)(3), perception::toString(r.ground_rule));

@@ -205,6 +205,7 @@ Command addBuildCommand(CLI::App& app) {
     std::string out;
     std::string frames;
     double max_range = 3.0;
+    double depth_scale = 0;
     double resolution = 0.02;
     double voxel = 0;
     std::string gravity;
@@ -246,6 +247,7 @@ Command addBuildCommand(CLI::App& app) {
   auto* resolution = cmd->add_option("--resolution", o->resolution, "Voxel size of the map, metres")->capture_default_str();
   cmd->add_option("--config", o->config, "YAML file with any of the parameters of `mobmap config --print-default`");
   auto* voxel = cmd->add_option("--voxel", o->voxel, kVoxelHelp);
+  auto* depth_scale = cmd->add_option("--depth-scale", o->depth_scale, kDepthScaleHelp)->check(CLI::PositiveNumber);
   cmd->add_option("--gravity", o->gravity, "Gravity (down) in the data's world frame X,Y,Z (default: gravity-direction.txt, else the floor's "
                   "normal in up to 8 frames spread over the run, else the cameras' mean +y axis; a single .pcd or .png "
                   "frame: its ground plane's normal; OpenNI2: the camera's +y without --poses, -z with them)");
@@ -277,7 +279,7 @@ Command addBuildCommand(CLI::App& app) {
                 "corrupt or cut short, a pose file that is missing or not a rigid transform, an unreadable .pcd) "
                 "instead of stopping the run; the summary and MAP.json count them. For sequences of files");
   cmd->add_flag("--quiet,-q", o->quiet, "No progress output");
-  return [o, max_range, resolution, device, voxel, keyframes, origin]() {
+  return [o, max_range, resolution, device, voxel, keyframes, origin, depth_scale]() {
     namespace fs = std::filesystem;
     std::error_code ec;
     if (fs::path(o->out).extension() != ".ot") throw UsageError("--out must end in .ot, got '" + o->out + "'");
@@ -373,6 +375,7 @@ Command addBuildCommand(CLI::App& app) {
     }
     if (is_dir) {
       if (!dir) dir = openSequence(o->input, o->intrinsics, o->max_pose_gap, o->poses);
+      if (depth_scale->count() > 0) dir = withDepthScale(std::move(dir), o->depth_scale);
       const FrameRange range = parseRange(o->frames);
       for (int f : dir->frames()) {
         if (f >= range.first && (range.last < 0 || f <= range.last) && (f - range.first) % range.step == 0) frames.push_back(f);
@@ -430,6 +433,7 @@ Command addBuildCommand(CLI::App& app) {
     } else {
       single = loadSingleFrame(o->input, -1, o->intrinsics);
       if (!single.note.empty()) std::fprintf(stderr, "note: %s\n", single.note.c_str());
+      if (depth_scale->count() > 0) rescaleDepth(single, o->depth_scale);
       frames.push_back(0);
       if (!o->frames.empty()) throw UsageError("--frames needs a directory input");
       if (keyframes->count() > 0) throw UsageError("--keyframes needs a sequence of frames");
@@ -558,6 +562,8 @@ Command addBuildCommand(CLI::App& app) {
     const std::string device_label = "OpenNI2 device " + (o->device.empty() ? std::string("(first attached)") : o->device);
     // After the handler is in place: from here Ctrl-C saves the frames fused so far.
     if (live && !o->quiet) std::fprintf(stderr, "reading %s (Ctrl-C stops and saves the map)\n", device_label.c_str());
+    DepthCheckTally depth_checks;  // under `state`, as the rest the callbacks update
+    const DepthUnit depth_unit = dir ? dir->depthUnit() : single.depth_unit;
     auto writeMap = [&](const mapping::MobilityMap& map, bool checkpoint, double run_s) {
       mapping::MapRun run;
       run.format = "mobmap-map-metadata";
@@ -600,6 +606,9 @@ Command addBuildCommand(CLI::App& app) {
                                        config.table_path.empty() ? "paper" : config.table_path, config.model.signal_std,
                                        config.model.length_scale, config.model.noise_std};
       if (!o->config.empty()) run.config = fs::absolute(o->config, ec).lexically_normal().string();
+      run.points_in_view = static_cast<long long>(depth_checks.validPoints());
+      run.points_beyond_range = static_cast<long long>(depth_checks.beyondMaxRange());
+      run.depth_units_per_m = depth_unit.units_per_m;
       mapping::MapMetadata meta;
       if (existing) {
         meta = existing->meta;
@@ -658,6 +667,12 @@ Command addBuildCommand(CLI::App& app) {
         origin_source = "the first camera position, rounded to 100 m";
       }
       fuse_ms += r.fusion_ms;
+      // Depth in another unit, or a range that cuts away most of the frame or its floor.
+      for (const std::string& w : depth_checks.add("frame " + std::to_string(f.number), r.range,
+                                                   r.ground_found ? std::optional<double>(r.ground_distance_m) : std::nullopt,
+                                                   depth_unit)) {
+        Progress::message(w);
+      }
       const mapping::IntegrationReport& fused = r.integration;
       if (fused.points_outside_map > 0) {
         points_outside += fused.points_outside_map;
@@ -815,6 +830,7 @@ Command addBuildCommand(CLI::App& app) {
         msg << "; no map written";
       }
       msg << ". Check the range, the depth unit and the intrinsics";
+      if (const auto unit = depth_checks.unitProblem()) msg << " (" << *unit << ")";
       throw IoError(live ? device_label : o->input, msg.str());
     }
     const mapping::MapMetadata meta = writeMap(*final_map, false, run_s);
@@ -832,6 +848,7 @@ Command addBuildCommand(CLI::App& app) {
     if (existing) {
       std::printf("the map now holds %d frames from %zu runs\n", meta.frames, meta.earlier_runs.size() + 1);
     }
+    for (const std::string& line : depth_checks.summary()) std::printf("%s\n", line.c_str());
     if (no_pose > 0) {
       std::printf("%d frames skipped: no pose within %g s of their time stamp in %s\n", no_pose, o->max_pose_gap,
                   o->poses.c_str());

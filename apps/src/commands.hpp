@@ -26,6 +26,12 @@ inline constexpr const char* kIntrinsicsHelp =
     "its parent's; for a PNG, the camera-intrinsics.txt beside it; TUM 525,525,319.5,239.5). Needed for Microsoft's "
     "7-Scenes download, which has no such file: 585,585,320,240";
 
+/// `--depth-scale` of analyze and build.
+inline constexpr const char* kDepthScaleHelp =
+    "Depth values per metre of the input (default: its own: 1000 for 7-Scenes, 3DMatch, PNG and OpenNI2 millimetres, "
+    "5000 for TUM, 1 for PCD metres). A warning suggests it when the depths read implausibly for a depth camera: "
+    "10000 for tenths of a millimetre, 1000 for a PCD in millimetres";
+
 /// `--background` of overlay and analyze --overlay.
 inline constexpr const char* kBackgroundHelp =
     "What the mobility colours are laid over, shown in grey: colour (the frame's colour image when the input has one "

@@ -206,6 +206,7 @@ LoadedFrame loadPcd(const std::string& path) {
   }
   f.width = static_cast<int>(cloud.width);
   f.height = static_cast<int>(cloud.height);
+  f.depth_unit = {1.0, true};  // PCD coordinates are metres
   if (rgb && cloud.height > 1) {
     ImageRgb c{f.width, f.height, {}};
     c.pixels.reserve(n);
@@ -238,6 +239,7 @@ LoadedFrame loadSequenceFrame(const Sequence& seq, const std::string& input, int
   f.colour = seq.colour(frame);
   f.T_world_camera = sf.T_world_camera.matrix();
   f.sources = seq.files(frame);
+  f.depth_unit = seq.depthUnit();
   return f;
 }
 
@@ -295,6 +297,17 @@ LoadedFrame loadSingleFrame(const std::string& input, int frame, const std::stri
   }
   if (!fs::exists(input, ec)) throw IoError(input, "no such file or directory");
   throw IoError(input, "unknown input type (expected a .pcd, a 16-bit depth .png, a 7-Scenes or a TUM RGB-D directory)");
+}
+
+void rescaleDepth(LoadedFrame& f, double units_per_m) {
+  if (!(units_per_m > 0) || !std::isfinite(units_per_m)) throw UsageError("--depth-scale must be a positive number of units per metre");
+  if (units_per_m == f.depth_unit.units_per_m) return;
+  const auto factor = static_cast<float>(f.depth_unit.units_per_m / units_per_m);
+  if (f.depth) {
+    for (float& z : f.depth->depth_m) z *= factor;
+  }
+  for (Eigen::Vector3f& p : f.points) p *= factor;
+  f.depth_unit.units_per_m = units_per_m;
 }
 
 perception::FrameResult perceiveFrame(const perception::FramePipeline& pipeline, const LoadedFrame& f,

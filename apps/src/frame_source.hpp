@@ -2,6 +2,7 @@
 // Loading one frame for `mobmap analyze`: a PCD file, a 16-bit depth PNG with
 // intrinsics, or one frame of a 7-Scenes layout or TUM RGB-D directory.
 
+#include "depth_checks.hpp"
 #include "png_io.hpp"
 
 #include "mobmap/perception/camera.hpp"
@@ -34,7 +35,13 @@ struct LoadedFrame {
   std::vector<std::string> sources;
   /// For the user, when loading chose something they did not ask for (empty if not).
   std::string note;
+  /// The unit the depth (or the cloud's coordinates) was read in.
+  DepthUnit depth_unit;
 };
+
+/// Reads `f`'s depth (or cloud coordinates) at `units_per_m` instead of the unit it was
+/// read in (`--depth-scale`). UsageError unless positive and finite.
+void rescaleDepth(LoadedFrame& f, double units_per_m);
 
 /// Reads a PCD file (x y z, optional rgb/rgba) with PCL. IoError naming the file if it
 /// is missing, unreadable, has no x/y/z fields or fewer points than declared.

@@ -62,6 +62,7 @@ namespace {
 // frame in file-name order, or timestamped poses matched to time stamps in the names.
 class PcdSequence : public Sequence {
  public:
+  [[nodiscard]] DepthUnit depthUnit() const override { return {1.0, true}; }
   PcdSequence(const std::string& input, const std::string& intrinsics_spec, double max_gap, const std::string& poses)
       : input_(input), poses_path_(poses) {
     std::error_code ec;
@@ -220,6 +221,7 @@ class PcdSequence : public Sequence {
 
 class TumSequence : public Sequence {
  public:
+  [[nodiscard]] DepthUnit depthUnit() const override { return {5000.0, false}; }
   TumSequence(const std::string& dir, const std::string& intrinsics_spec, double max_gap) : dir_(dir) {
     const std::string gt_path = (fs::path(dir) / "groundtruth.txt").string();
     std::error_code ec;
@@ -306,6 +308,46 @@ class TumSequence : public Sequence {
 };
 
 }  // namespace
+
+namespace {
+
+// A sequence read in another depth unit (`--depth-scale`).
+class ScaledSequence : public Sequence {
+ public:
+  ScaledSequence(std::unique_ptr<Sequence> inner, double units_per_m)
+      : inner_(std::move(inner)), unit_{units_per_m, inner_->depthUnit().cloud},
+        factor_(static_cast<float>(inner_->depthUnit().units_per_m / units_per_m)) {}
+  [[nodiscard]] std::string describe() const override { return inner_->describe(); }
+  [[nodiscard]] const perception::PinholeIntrinsics& intrinsics() const override { return inner_->intrinsics(); }
+  [[nodiscard]] bool hasDepth() const override { return inner_->hasDepth(); }
+  [[nodiscard]] std::optional<Eigen::Vector3d> gravityDown() const override { return inner_->gravityDown(); }
+  [[nodiscard]] const std::vector<int>& frames() const override { return inner_->frames(); }
+  void check(int n) const override { inner_->check(n); }
+  [[nodiscard]] SequenceFrame load(int n) const override {
+    SequenceFrame f = inner_->load(n);
+    for (float& z : f.depth.depth_m) z *= factor_;
+    for (Eigen::Vector3f& p : f.cloud) p *= factor_;
+    return f;
+  }
+  [[nodiscard]] std::optional<Eigen::Isometry3d> pose(int n) const override { return inner_->pose(n); }
+  [[nodiscard]] std::optional<ImageRgb> colour(int n) const override { return inner_->colour(n); }
+  [[nodiscard]] std::vector<std::string> files(int n) const override { return inner_->files(n); }
+  [[nodiscard]] std::string skipped() const override { return inner_->skipped(); }
+  [[nodiscard]] DepthUnit depthUnit() const override { return unit_; }
+
+ private:
+  std::unique_ptr<Sequence> inner_;
+  DepthUnit unit_;
+  float factor_;
+};
+
+}  // namespace
+
+std::unique_ptr<Sequence> withDepthScale(std::unique_ptr<Sequence> seq, double units_per_m) {
+  if (!(units_per_m > 0) || !std::isfinite(units_per_m)) throw UsageError("--depth-scale must be a positive number of units per metre");
+  if (seq->depthUnit().units_per_m == units_per_m) return seq;
+  return std::make_unique<ScaledSequence>(std::move(seq), units_per_m);
+}
 
 std::unique_ptr<Sequence> openSequence(const std::string& input, const std::string& intrinsics_spec, double max_pose_gap_s,
                                        const std::string& poses_path) {

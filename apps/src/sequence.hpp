@@ -1,6 +1,7 @@
 #pragma once
 // Posed depth sequences for `mobmap build`: the 7-Scenes / 3DMatch layout and TUM RGB-D.
 
+#include "depth_checks.hpp"
 #include "png_io.hpp"
 
 #include "mobmap/perception/camera.hpp"
@@ -57,7 +58,15 @@ class Sequence {
   [[nodiscard]] virtual std::vector<std::string> files(int /*n*/) const { return {}; }
   /// Frames left out and why ("12 depth frames without a pose within 0.05 s"), or "".
   [[nodiscard]] virtual std::string skipped() const { return {}; }
+  /// The unit load() gives depth in, as the input is read: a depth image's values per
+  /// metre (1000 for 7-Scenes and OpenNI2, 5000 for TUM), 1 for clouds in metres.
+  [[nodiscard]] virtual DepthUnit depthUnit() const { return {}; }
 };
+
+/// `seq` with its depth read at `units_per_m` instead of its own unit (depth and cloud
+/// coordinates multiplied by own / units_per_m; poses unchanged). `seq` itself when the
+/// two agree.
+std::unique_ptr<Sequence> withDepthScale(std::unique_ptr<Sequence> seq, double units_per_m);
 
 /// Opens INPUT: a TUM RGB-D directory (it has depth.txt), a directory of .pcd frames
 /// or a single .pcd (these need `poses_path`), else a 7-Scenes layout directory.

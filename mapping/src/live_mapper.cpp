@@ -289,6 +289,8 @@ struct LiveMapper::Impl {
         report.fused = true;
         report.points = p->result.points.size();
         report.ground_found = p->result.ground_plane.has_value();
+        if (report.ground_found) report.ground_distance_m = (*p->result.ground_plane)(3);
+        report.range = p->result.range;
         if (config.serve_snapshots) {
           publish(false);
           missed.push_back(p);

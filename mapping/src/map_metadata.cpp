@@ -106,6 +106,9 @@ void fields(MapRun& r, V& v) {
   v("origin_source", r.origin_source);
   v("points_outside_map", r.points_outside_map);
   v("frames_outside_map", r.frames_outside_map);
+  v("depth_units_per_m", r.depth_units_per_m);
+  v("points_in_view", r.points_in_view);
+  v("points_beyond_range", r.points_beyond_range);
   v("seconds", r.seconds);
   v("frames_per_second", r.frames_per_second);
   v("perception", r.perception);

@@ -152,36 +152,102 @@ double FrameResult::totalMilliseconds() const {
 namespace {
 
 // The range crop: a point is kept when its squared distance from the camera is within
-// [min_range_m^2, max_range_m^2] (as floats).
+// [lo2, hi2] = [min_range_m^2, max_range_m^2] (as floats).
 struct RangeGate {
   explicit RangeGate(const PerceptionParams& p)
       : lo2(static_cast<float>(p.min_range_m * p.min_range_m)), hi2(static_cast<float>(p.max_range_m * p.max_range_m)) {}
-  bool operator()(const Eigen::Vector3f& q) const {
-    const float r2 = q.squaredNorm();
-    return !(r2 < lo2 || r2 > hi2);
-  }
   float lo2, hi2;
 };
 
+// A sample of a frame's valid points (about one in 16): their ranges and their heights
+// below the camera along `down`, for the RangeReport.
+struct RangeSample {
+  explicit RangeSample(const std::optional<Eigen::Vector3f>& gravity)
+      : down(gravity && gravity->allFinite() && gravity->stableNorm() > 1e-6f ? gravity->normalized()
+                                                                             : Eigen::Vector3f(0.f, 1.f, 0.f)),
+        from_gravity(gravity && gravity->allFinite() && gravity->stableNorm() > 1e-6f) {}
+  void add(const Eigen::Vector3f& q) {
+    range.push_back(q.norm());
+    height.push_back(q.dot(down));
+  }
+  Eigen::Vector3f down;
+  bool from_gravity;
+  std::vector<float> range, height;
+};
+
+// The q-quantile of `v` (reordered); 0 for an empty one.
+double quantile(std::vector<float>& v, double q) {
+  if (v.empty()) return 0.0;
+  const auto k = static_cast<std::ptrdiff_t>(std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size()))));
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[static_cast<std::size_t>(k)];
+}
+
+RangeReport summarizeRanges(RangeSample sample, const PerceptionParams& p, std::size_t valid, std::size_t beyond,
+                            std::size_t nearer) {
+  RangeReport r;
+  r.valid_points = valid;
+  r.beyond_max_range = beyond;
+  r.nearer_than_min_range = nearer;
+  r.min_range_m = p.min_range_m;
+  r.max_range_m = p.max_range_m;
+  r.down_from_gravity = sample.from_gravity;
+  std::vector<float> ranges = sample.range;
+  r.median_range_m = quantile(ranges, 0.5);
+  r.range_p95_m = quantile(ranges, 0.95);
+  constexpr std::size_t kMinSample = 200;
+  if (sample.range.size() < kMinSample) return r;
+  // The lowest surface: a band of 8 cm either side of the 98th percentile of height
+  // (the lowest 2 % may be noise under the floor).
+  std::vector<float> heights = sample.height;
+  const double floor_h = quantile(heights, 0.98);
+  std::vector<float> band_range, band_height;
+  for (std::size_t i = 0; i < sample.range.size(); ++i) {
+    if (std::abs(sample.height[i] - floor_h) > 0.08) continue;
+    band_range.push_back(sample.range[i]);
+    band_height.push_back(sample.height[i]);
+  }
+  if (band_range.size() < kMinSample / 4) return r;
+  RangeReport::Lowest low;
+  low.sampled = band_range.size();
+  std::size_t far = 0;
+  for (float x : band_range) far += x > p.max_range_m;
+  low.share_beyond = static_cast<double>(far) / static_cast<double>(band_range.size());
+  low.below_camera_m = quantile(band_height, 0.5);
+  low.range_p95_m = quantile(band_range, 0.95);
+  r.lowest = low;
+  return r;
+}
+
 // The finite points of `points` within the range limits, in order; `index` (if given)
-// receives the position of each in `points`, `valid` the number of finite points.
+// receives the position of each in `points`; `range` what the limits took.
 std::vector<Eigen::Vector3f> finiteInRange(const std::vector<Eigen::Vector3f>& points, const RangeGate& in_range,
-                                           std::vector<int>* index, std::size_t& valid) {
+                                           std::vector<int>* index, const PerceptionParams& p,
+                                           const std::optional<Eigen::Vector3f>& gravity, RangeReport& range) {
   // Sized for every point and cut to the kept ones after (not a push_back per point).
   std::vector<Eigen::Vector3f> raw(points.size());
   if (index) index->resize(points.size());
-  std::size_t n = 0;
-  valid = 0;
+  RangeSample sample(gravity);
+  std::size_t n = 0, valid = 0, beyond = 0, nearer = 0;
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (!points[i].allFinite()) continue;
-    ++valid;
-    if (!in_range(points[i])) continue;
+    if (valid++ % 16 == 0) sample.add(points[i]);
+    const float r2 = points[i].squaredNorm();
+    if (r2 > in_range.hi2) {
+      ++beyond;
+      continue;
+    }
+    if (r2 < in_range.lo2) {
+      ++nearer;
+      continue;
+    }
     raw[n] = points[i];
     if (index) (*index)[n] = static_cast<int>(i);
     ++n;
   }
   raw.resize(n);
   if (index) index->resize(n);
+  range = summarizeRanges(std::move(sample), p, valid, beyond, nearer);
   return raw;
 }
 
@@ -209,8 +275,9 @@ FrameResult FramePipeline::process(const DepthImage& depth, const PinholeIntrins
   const RangeGate in_range(params_);
   std::vector<Eigen::Vector3f> raw(depth.depth_m.size());
   std::vector<int> pixel_of_raw(depth.depth_m.size());
-  std::size_t n = 0, valid = 0;
+  std::size_t n = 0, valid = 0, beyond = 0, nearer = 0;
   const float inv_fx = static_cast<float>(1.0 / k.fx), inv_fy = static_cast<float>(1.0 / k.fy);
+  RangeSample sample(gravity);
   for (int v = 0; v < k.height; ++v) {
     const float ry = (static_cast<float>(v) - static_cast<float>(k.cy)) * inv_fy;
     for (int u = 0; u < k.width; ++u) {
@@ -218,14 +285,25 @@ FrameResult FramePipeline::process(const DepthImage& depth, const PinholeIntrins
       if (!(z > 0.f) || !std::isfinite(z)) continue;
       ++valid;
       const Eigen::Vector3f q((static_cast<float>(u) - static_cast<float>(k.cx)) * inv_fx * z, ry * z, z);
-      if (!in_range(q)) continue;
+      if (((u | v) & 3) == 0) sample.add(q);  // every 4th pixel of every 4th row
+      const float r2 = q.squaredNorm();
+      if (r2 > in_range.hi2) {
+        ++beyond;
+        continue;
+      }
+      if (r2 < in_range.lo2) {
+        ++nearer;
+        continue;
+      }
       raw[n] = q;
       pixel_of_raw[n++] = v * k.width + u;
     }
   }
   raw.resize(n);
   pixel_of_raw.resize(n);
-  return run(std::move(raw), std::move(pixel_of_raw), depth.depth_m.size(), valid, started, gravity);
+  FrameResult out = run(std::move(raw), std::move(pixel_of_raw), depth.depth_m.size(), valid, started, gravity);
+  out.range = summarizeRanges(std::move(sample), params_, valid, beyond, nearer);
+  return out;
 }
 
 FrameResult FramePipeline::processOrganized(const std::vector<Eigen::Vector3f>& points, int width, int height,
@@ -238,17 +316,21 @@ FrameResult FramePipeline::processOrganized(const std::vector<Eigen::Vector3f>& 
   }
   const auto started = std::chrono::steady_clock::now();
   std::vector<int> pixel_of_raw;
-  std::size_t valid = 0;
-  std::vector<Eigen::Vector3f> raw = finiteInRange(points, RangeGate(params_), &pixel_of_raw, valid);
-  return run(std::move(raw), std::move(pixel_of_raw), points.size(), valid, started, gravity);
+  RangeReport range;
+  std::vector<Eigen::Vector3f> raw = finiteInRange(points, RangeGate(params_), &pixel_of_raw, params_, gravity, range);
+  FrameResult out = run(std::move(raw), std::move(pixel_of_raw), points.size(), range.valid_points, started, gravity);
+  out.range = std::move(range);
+  return out;
 }
 
 FrameResult FramePipeline::process(const std::vector<Eigen::Vector3f>& points,
                                    const std::optional<Eigen::Vector3f>& gravity) const {
   const auto started = std::chrono::steady_clock::now();
-  std::size_t valid = 0;
-  std::vector<Eigen::Vector3f> raw = finiteInRange(points, RangeGate(params_), nullptr, valid);
-  return run(std::move(raw), {}, 0, valid, started, gravity);
+  RangeReport range;
+  std::vector<Eigen::Vector3f> raw = finiteInRange(points, RangeGate(params_), nullptr, params_, gravity, range);
+  FrameResult out = run(std::move(raw), {}, 0, range.valid_points, started, gravity);
+  out.range = std::move(range);
+  return out;
 }
 
 FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int> pixel_of_raw, std::size_t pixels,

@@ -57,6 +57,10 @@ struct FrameReport {
   IntegrationReport integration;
   std::size_t points = 0;        ///< after perception's reduction
   bool ground_found = false;
+  /// The ground plane's distance below the camera when ground_found.
+  double ground_distance_m = 0.0;
+  /// Where the frame's points lay and what the range limits took (RangeReport).
+  perception::RangeReport range;
   int frames_integrated = 0;     ///< in the map after this frame
   double perception_ms = 0.0;
   double fusion_ms = 0.0;        ///< both map buffers (see LiveMapper)

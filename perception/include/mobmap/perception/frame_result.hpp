@@ -55,6 +55,33 @@ struct Segment {
   double area_m2 = 0.0;         ///< true (3D) area of the triangulation
 };
 
+/// Where a frame's points lay and what the range limits (min_range_m, max_range_m) took
+/// from it: enough to tell a range that cuts away most of a frame or its floor, and
+/// depth in the wrong unit. Ranges are Euclidean distances from the camera.
+struct RangeReport {
+  std::size_t valid_points = 0;     ///< finite points in front of the camera
+  std::size_t beyond_max_range = 0;  ///< dropped: farther than max_range_m
+  std::size_t nearer_than_min_range = 0;  ///< dropped: nearer than min_range_m
+  double min_range_m = 0, max_range_m = 0;  ///< the limits applied
+  /// Percentiles of the valid points' ranges (from a sample of about one point in 16);
+  /// 0 when no point was valid.
+  double median_range_m = 0, range_p95_m = 0;
+  /// The lowest surface in view: the points within 8 cm of the 98th percentile of height
+  /// below the camera along `down` (gravity when the frame had it, else the camera's +y).
+  struct Lowest {
+    double below_camera_m = 0;  ///< its depth below the camera along down
+    double share_beyond = 0;    ///< of its points, the share farther than max_range_m
+    double range_p95_m = 0;     ///< the range within which 95 % of its points lie
+    std::size_t sampled = 0;    ///< its points in the sample
+  };
+  std::optional<Lowest> lowest;  ///< unset when the sample is too small (under 200 points)
+  bool down_from_gravity = false;
+  /// beyond_max_range / valid_points (0 for no valid point).
+  [[nodiscard]] double shareBeyond() const {
+    return valid_points ? static_cast<double>(beyond_max_range) / static_cast<double>(valid_points) : 0.0;
+  }
+};
+
 /// Output of FramePipeline::process().
 struct FrameResult {
   std::vector<StageTiming> stages;
@@ -71,6 +98,7 @@ struct FrameResult {
   /// For organized input: the index into `points` of each pixel's voxel, -1 if the
   /// pixel was invalid, cropped or removed as an outlier. Empty for unorganized input.
   std::vector<int> point_of_pixel;
+  RangeReport range;  ///< what the range limits took, and where the points lay
   [[nodiscard]] double totalMilliseconds() const;
 };
 

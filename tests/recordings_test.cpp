@@ -1,0 +1,189 @@
+// Real recordings, right answers: the input mistakes labs make with their own cameras
+// (a range that cuts away the floor, depth in another unit), reproduced on the
+// simulated corridor, whose geometry is exact, and caught.
+#include "dataset.hpp"
+#include "depth_checks.hpp"
+#include "frame_source.hpp"
+#include "io_error.hpp"
+
+#include "mobmap/perception/pipeline.hpp"
+#include "mobmap/sim/corridor_scene.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <unistd.h>
+
+namespace mobmap::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A frame of the noise-free corridor from a camera `pitch_deg` below the horizon.
+sim::RenderedFrame corridorFrame(double pitch_deg, int frame = 60) {
+  sim::CorridorParams p;
+  p.pitch_down_deg = pitch_deg;
+  p.bob_m = 0.0;
+  return sim::CorridorScene(p).render(frame);
+}
+
+Eigen::Vector3f gravityInCamera(const sim::RenderedFrame& f) {
+  return (f.T_world_camera.linear().transpose() * Eigen::Vector3d(0, 0, -1)).cast<float>();
+}
+
+// The counts against a brute-force pass over the pixels; the sampled percentiles within
+// a few percent of the exact ones.
+TEST(RangeReport, CountsWhatTheRangeTookAndWhereThePointsLay) {
+  const sim::RenderedFrame f = corridorFrame(35.0);
+  const sim::CorridorParams params;
+  const perception::PinholeIntrinsics& k = params.intrinsics;
+  // The range limits at the 20th and 80th percentiles of the frame's ranges.
+  std::vector<double> ranges;
+  std::vector<Eigen::Vector3f> points;
+  for (int v = 0; v < k.height; ++v) {
+    for (int u = 0; u < k.width; ++u) {
+      const float z = f.depth.depth_m[static_cast<std::size_t>(v) * k.width + u];
+      if (!(z > 0.f)) continue;
+      // As the pipeline back-projects (float, reciprocal focal lengths), so that a point
+      // on a range limit falls on the same side.
+      const float inv_fx = static_cast<float>(1.0 / k.fx), inv_fy = static_cast<float>(1.0 / k.fy);
+      points.emplace_back((static_cast<float>(u) - static_cast<float>(k.cx)) * inv_fx * z,
+                          ((static_cast<float>(v) - static_cast<float>(k.cy)) * inv_fy) * z, z);
+      ranges.push_back(points.back().norm());
+    }
+  }
+  std::sort(ranges.begin(), ranges.end());
+  perception::PerceptionParams pp;
+  pp.min_range_m = ranges[ranges.size() / 5];
+  pp.max_range_m = ranges[ranges.size() * 4 / 5];
+  const perception::FramePipeline pipeline(pp, gp::MobilityModel{});
+  const perception::FrameResult r = pipeline.process(f.depth, k, gravityInCamera(f));
+  std::size_t beyond = 0, nearer = 0;
+  for (const Eigen::Vector3f& q : points) {
+    const float r2 = q.squaredNorm();
+    beyond += r2 > static_cast<float>(pp.max_range_m * pp.max_range_m);
+    nearer += r2 < static_cast<float>(pp.min_range_m * pp.min_range_m);
+  }
+  const std::size_t valid = points.size();
+  EXPECT_EQ(r.range.valid_points, valid);
+  EXPECT_EQ(r.range.beyond_max_range, beyond);
+  EXPECT_EQ(r.range.nearer_than_min_range, nearer);
+  ASSERT_GT(beyond, 1000u);
+  ASSERT_GT(nearer, 1000u);
+  EXPECT_EQ(r.stages.front().points_in, valid);
+  EXPECT_NEAR(r.range.median_range_m, ranges[ranges.size() / 2], 0.03 * ranges[ranges.size() / 2]);
+  EXPECT_NEAR(r.range.range_p95_m, ranges[ranges.size() * 95 / 100], 0.03 * ranges[ranges.size() * 95 / 100]);
+  EXPECT_TRUE(r.range.down_from_gravity);
+  // The floor is the lowest surface: the camera height below the camera.
+  ASSERT_TRUE(r.range.lowest.has_value());
+  EXPECT_NEAR(r.range.lowest->below_camera_m, params.camera_height_m, 0.02);
+}
+
+// The office case: a camera 1.35 m up looking level sees the floor only from 3.4 m on
+// (its lower field of view is 21.5 degrees), so the default 3 m range drops all of it and
+// leaves a box top or nothing as "ground". The warning says so and names the range that
+// keeps it, which then finds the floor 1.35 m below.
+TEST(RangeChecks, AFloorBeyondTheRangeIsFoundAndTheSuggestedRangeKeepsIt) {
+  const sim::RenderedFrame f = corridorFrame(0.0);
+  const sim::CorridorParams params;
+  perception::PerceptionParams pp;  // max_range_m 3
+  const perception::FrameResult r =
+      perception::FramePipeline(pp, gp::MobilityModel{}).process(f.depth, params.intrinsics, gravityInCamera(f));
+  ASSERT_TRUE(r.range.lowest.has_value());
+  EXPECT_NEAR(r.range.lowest->below_camera_m, params.camera_height_m, 0.03);
+  EXPECT_GT(r.range.lowest->share_beyond, 0.99);
+  const std::optional<double> ground = r.ground_plane ? std::optional<double>((*r.ground_plane)(3)) : std::nullopt;
+  if (ground) {
+    EXPECT_LT(*ground, 1.0);  // not the floor
+  }
+  const auto problem = floorCutProblem(r.range, ground);
+  ASSERT_TRUE(problem.has_value());
+  EXPECT_NE(problem->find("1.35 m below the camera (along gravity)"), std::string::npos) << *problem;
+  const double suggested = rangeToSuggest(r.range.lowest->range_p95_m);
+  EXPECT_NE(problem->find("--max-range " + std::to_string(static_cast<int>(suggested)) +
+                          (suggested == std::floor(suggested) ? " " : ".5 ")),
+            std::string::npos)
+      << *problem;
+  EXPECT_GE(suggested, 3.5);
+  pp.max_range_m = suggested;
+  const perception::FrameResult kept =
+      perception::FramePipeline(pp, gp::MobilityModel{}).process(f.depth, params.intrinsics, gravityInCamera(f));
+  ASSERT_TRUE(kept.ground_plane.has_value());
+  EXPECT_NEAR((*kept.ground_plane)(3), params.camera_height_m, 0.03);
+  EXPECT_FALSE(floorCutProblem(kept.range, (*kept.ground_plane)(3)).has_value());
+  // Pitched down as a walking head is, the floor is near and nothing is said.
+  const sim::RenderedFrame walking = corridorFrame(35.0);
+  const perception::FrameResult w = perception::FramePipeline(perception::PerceptionParams{}, gp::MobilityModel{})
+                                        .process(walking.depth, params.intrinsics, gravityInCamera(walking));
+  EXPECT_FALSE(floorCutProblem(w.range, w.ground_plane ? std::optional<double>((*w.ground_plane)(3)) : std::nullopt));
+  EXPECT_FALSE(rangeCutProblem(w.range));
+  // Most of the level view lies beyond 1.5 m: that is said too, with the range that keeps it.
+  pp.max_range_m = 1.5;
+  const perception::FrameResult cut =
+      perception::FramePipeline(pp, gp::MobilityModel{}).process(f.depth, params.intrinsics, gravityInCamera(f));
+  ASSERT_GT(cut.range.shareBeyond(), 0.5);
+  const auto most = rangeCutProblem(cut.range);
+  ASSERT_TRUE(most.has_value());
+  EXPECT_NE(most->find("beyond --max-range 1.5 m"), std::string::npos) << *most;
+}
+
+struct TempDir {
+  TempDir() : path(fs::temp_directory_path() / ("mobmap_recordings_" + std::to_string(::getpid()))) {
+    fs::remove_all(path);
+    fs::create_directories(path);
+  }
+  ~TempDir() { fs::remove_all(path); }
+  fs::path path;
+};
+
+// A 16-bit depth PNG of the corridor written in `units_per_m`.
+std::string writeDepthIn(const TempDir& dir, const sim::RenderedFrame& f, double units_per_m) {
+  Image16 img{f.depth.width, f.depth.height, {}};
+  for (float z : f.depth.depth_m) {
+    const double v = std::round(static_cast<double>(z) * units_per_m);
+    img.pixels.push_back(z > 0.f && v < 65535 ? static_cast<std::uint16_t>(v) : 0);
+  }
+  const std::string path = (dir.path / ("d" + std::to_string(static_cast<int>(units_per_m)) + ".png")).string();
+  writePng16(path, img);
+  writeIntrinsicsFile((dir.path / "camera-intrinsics.txt").string(), sim::CorridorParams{}.intrinsics);
+  return path;
+}
+
+// Depth written in tenths of a millimetre and read as millimetres lies 10 times too far:
+// the check names the unit that fits, and read in it the floor is found.
+TEST(DepthUnit, DepthInAnotherUnitIsCaughtAndTheSuggestedScaleReadsIt) {
+  const TempDir dir;
+  // Pitched 60 degrees down: every depth within 6.5 m fits the 16-bit PNG at 10000 per metre.
+  const sim::RenderedFrame f = corridorFrame(60.0);
+  const std::string png = writeDepthIn(dir, f, 10000.0);
+  LoadedFrame frame = loadSingleFrame(png, -1, "");
+  EXPECT_EQ(frame.depth_unit.units_per_m, 1000.0);
+  const perception::FramePipeline pipeline(perception::PerceptionParams{}, gp::MobilityModel{});
+  const perception::FrameResult wrong = perceiveFrame(pipeline, frame, gravityInCamera(f));
+  EXPECT_GT(wrong.range.median_range_m, kPlausibleMedianMax);
+  const auto problem = depthUnitProblem(wrong.range, frame.depth_unit);
+  ASSERT_TRUE(problem.has_value());
+  // 10000 puts the median at 1.65 m, 5000 at 3.3 m: both are named, the nearer to 2 m first.
+  EXPECT_NE(problem->find("; --depth-scale 10000 (tenths of a millimetre) puts the median at 1.6"), std::string::npos) << *problem;
+  EXPECT_NE(problem->find(", 5000 (TUM's unit) puts the median at 3.29 m"), std::string::npos) << *problem;
+  EXPECT_FALSE(wrong.ground_plane.has_value());
+  rescaleDepth(frame, 10000.0);
+  const perception::FrameResult right = perceiveFrame(pipeline, frame, gravityInCamera(f));
+  EXPECT_FALSE(depthUnitProblem(right.range, frame.depth_unit).has_value());
+  ASSERT_TRUE(right.ground_plane.has_value());
+  EXPECT_NEAR((*right.ground_plane)(3), sim::CorridorParams{}.camera_height_m, 0.02);
+  // Read 10 times too near (a millimetre PNG taken for tenths): caught from the other side.
+  LoadedFrame near = loadSingleFrame(writeDepthIn(dir, f, 1000.0), -1, "");
+  rescaleDepth(near, 10000.0);
+  const perception::FrameResult too_near = perceiveFrame(pipeline, near, gravityInCamera(f));
+  EXPECT_LT(too_near.range.median_range_m, kPlausibleMedianMin);
+  const auto other = depthUnitProblem(too_near.range, near.depth_unit);
+  ASSERT_TRUE(other.has_value());
+  EXPECT_NE(other->find("--depth-scale 1000 (millimetres)"), std::string::npos) << *other;
+  EXPECT_THROW(rescaleDepth(near, 0.0), UsageError);
+}
+
+}  // namespace
+}  // namespace mobmap::app
