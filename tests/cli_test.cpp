@@ -1019,6 +1019,38 @@ TEST(Cli, DepthInAnotherUnitIsNamedWithTheScaleThatFits) {
   fs::remove_all(dir);
 }
 
+// --intrinsics takes a ROS or OpenCV camera file as well as the matrix text, with the
+// same result; --fov stands in for an unknown calibration and excludes --intrinsics.
+TEST(Cli, CameraFilesAndFieldOfViewAreTakenAsIntrinsics) {
+  const std::string dir = tempDir("camera-files");
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 1 --noise none --quiet").code, 0);
+  const std::string png = dir + "/seq/frame-000000.depth.png";
+  std::ofstream(dir + "/cam.yml") << "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n"
+                                     "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n"
+                                     "   data: [ 585., 0., 320., 0., 585., 240., 0., 0., 1. ]\n";
+  const auto segments = [&](const std::string& options) {
+    const Result r = run("analyze " + png + " --json " + options);
+    EXPECT_EQ(r.code, 0) << r.out;
+    return nlohmann::json::parse(r.out.substr(r.out.find('{')))["segments"];
+  };
+  const nlohmann::json from_text = segments("--intrinsics " + dir + "/seq/camera-intrinsics.txt");
+  ASSERT_FALSE(from_text.empty());
+  EXPECT_EQ(segments("--intrinsics " + dir + "/cam.yml"), from_text);
+  // The simulator's Kinect: fx 585 at 640 pixels is a field of view of 2 atan(320 / 585).
+  // --fov gives the camera fx = fy = 320 / tan(fov / 2) centred at (319.5, 239.5).
+  const double fov = 2 * std::atan(320.0 / 585.0) * 180.0 / M_PI;
+  const double f = 0.5 * 640 / std::tan(0.5 * fov * M_PI / 180.0);
+  EXPECT_NEAR(f, 585.0, 1e-9);
+  char fov_option[64], same[160];
+  std::snprintf(fov_option, sizeof fov_option, "--fov %.17g", fov);
+  std::snprintf(same, sizeof same, "--intrinsics %.17g,%.17g,319.5,239.5", f, f);
+  EXPECT_EQ(segments(fov_option), segments(same));
+  const Result both = run("analyze " + png + " --fov 60 --intrinsics " + dir + "/cam.yml");
+  EXPECT_EQ(both.code, 2) << both.out;
+  EXPECT_NE(both.out.find("excludes"), std::string::npos) << both.out;
+  fs::remove_all(dir);
+}
+
 TEST(Cli, DamagedMapMetadataIsReportedByFileAndEntry) {
   const std::string dir = tempDir("meta");
   ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 2 --noise none --quiet").code, 0);

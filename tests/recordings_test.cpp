@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <unistd.h>
 
 namespace mobmap::app {
@@ -183,6 +184,69 @@ TEST(DepthUnit, DepthInAnotherUnitIsCaughtAndTheSuggestedScaleReadsIt) {
   ASSERT_TRUE(other.has_value());
   EXPECT_NE(other->find("--depth-scale 1000 (millimetres)"), std::string::npos) << *other;
   EXPECT_THROW(rescaleDepth(near, 0.0), UsageError);
+}
+
+// Camera files as labs have them: ROS 1 and ROS 2 camera_info dumps, a ROS calibration
+// file and OpenCV's calibration YAML all give the camera the plain 3x3 text gives.
+TEST(CameraFiles, RosAndOpenCvYamlGiveTheSameCameraAsTheMatrixText) {
+  const TempDir dir;
+  const perception::PinholeIntrinsics want{640, 480, 585.5, 586.25, 320.125, 240.0625};
+  const auto write = [&](const std::string& name, const std::string& text) {
+    const std::string path = (dir.path / name).string();
+    std::ofstream(path) << text;
+    return path;
+  };
+  const std::vector<std::string> files = {
+      write("k.txt", "585.5 0 320.125\n0 586.25 240.0625\n0 0 1\n"),
+      write("ros1.yaml", "header:\n  seq: 12\n  stamp: {secs: 1, nsecs: 2}\n  frame_id: \"camera_depth_optical_frame\"\n"
+                         "height: 480\nwidth: 640\ndistortion_model: \"plumb_bob\"\nD: [0.0, 0.0, 0.0, 0.0, 0.0]\n"
+                         "K: [585.5, 0.0, 320.125, 0.0, 586.25, 240.0625, 0.0, 0.0, 1.0]\n"
+                         "R: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]\n"
+                         "P: [585.5, 0.0, 320.125, 0.0, 0.0, 586.25, 240.0625, 0.0, 0.0, 0.0, 1.0, 0.0]\nbinning_x: 0\n"),
+      write("ros2.yaml", "header:\n  frame_id: depth\nheight: 0\nwidth: 0\nd: []\n"
+                         "k:\n- 585.5\n- 0.0\n- 320.125\n- 0.0\n- 586.25\n- 240.0625\n- 0.0\n- 0.0\n- 1.0\n"),
+      write("ost.yaml", "image_width: 640\nimage_height: 480\ncamera_name: depth\ncamera_matrix:\n  rows: 3\n  cols: 3\n"
+                        "  data: [585.5, 0, 320.125, 0, 586.25, 240.0625, 0, 0, 1]\ndistortion_model: plumb_bob\n"
+                        "distortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [0, 0, 0, 0, 0]\n"),
+      write("opencv.yml", "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\ncamera_matrix: !!opencv-matrix\n"
+                          "   rows: 3\n   cols: 3\n   dt: d\n   data: [ 5.8550000000000000e+02, 0., 3.2012500000000000e+02, 0.,\n"
+                          "       5.8625000000000000e+02, 2.4006250000000000e+02, 0., 0., 1. ]\n"
+                          "distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 5\n   dt: d\n"
+                          "   data: [ 0., 0., 0., 0., 0. ]\n"),
+  };
+  for (const std::string& f : files) {
+    SCOPED_TRACE(f);
+    EXPECT_EQ(readIntrinsicsFile(f, 640, 480), want);
+    EXPECT_EQ(parseIntrinsics(f, 640, 480), want);
+  }
+  // What is wrong is named, with the file.
+  const auto refused = [&](const std::string& name, const std::string& text, const std::string& message) {
+    const std::string path = write(name, text);
+    try {
+      readIntrinsicsFile(path, 640, 480);
+      ADD_FAILURE() << "accepted " << name;
+    } catch (const IoError& e) {
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+    }
+  };
+  refused("hd.yaml", "image_width: 1280\nimage_height: 720\ncamera_matrix:\n  rows: 3\n  cols: 3\n"
+                     "  data: [900, 0, 640, 0, 900, 360, 0, 0, 1]\n",
+          "is for 1280x720 images, but the depth frames are 640x480");
+  refused("eight.yaml", "K: [1, 0, 2, 0, 1, 2, 0, 0]\n", "\"K\" must hold 9 numbers");
+  refused("skew.yaml", "K: [585, 3, 320, 0, 585, 240, 0, 0, 1]\n", "not a pinhole camera matrix");
+  refused("text.yaml", "K: [585, 0, 320, 0, five, 240, 0, 0, 1]\n", "\"K\" entry 4 is not a finite number");
+  refused("4x4.yaml", "camera_matrix:\n  rows: 4\n  cols: 4\n  data: [1]\n", "\"camera_matrix\" must be 3x3");
+  refused("none.yaml", "%YAML:1.0\n---\ndistortion_coefficients: [0, 0]\n", "has no camera matrix");
+  refused("broken.yaml", "K: [585, 0, 320\n", "not valid YAML");
+  // A camera known by its field of view: fx = fy = (w / 2) / tan(fov / 2), centred.
+  const perception::PinholeIntrinsics fov = parseIntrinsics("fov:57", 640, 480);
+  EXPECT_NEAR(fov.fx, 320.0 / std::tan(28.5 * M_PI / 180.0), 1e-9);
+  EXPECT_EQ(fov.fx, fov.fy);
+  EXPECT_EQ(fov.cx, 319.5);
+  EXPECT_EQ(fov.cy, 239.5);
+  EXPECT_THROW(parseIntrinsics("fov:180", 640, 480), UsageError);
+  EXPECT_THROW(parseIntrinsics("fov:wide", 640, 480), UsageError);
 }
 
 }  // namespace

@@ -124,6 +124,7 @@ Command addAnalyzeCommand(CLI::App& app) {
     int frame = -1;
     std::string gravity;
     std::string intrinsics;
+    double fov = 0;
     bool json = false;
     std::string segments;
     std::string overlay;
@@ -137,7 +138,8 @@ Command addAnalyzeCommand(CLI::App& app) {
   cmd->add_option("INPUT", o->input, "A .pcd, a 16-bit depth .png (millimetres), a 7-Scenes layout directory or a TUM RGB-D directory")->required();
   cmd->add_option("--frame", o->frame, "Frame number in a directory, as build numbers them (default: the first)");
   cmd->add_option("--gravity", o->gravity, "Gravity (down) in the camera frame, X,Y,Z (default: from the pose and gravity-direction.txt if present; without gravity the largest plane is the ground, or, if it leans more than ground_upright_prior_deg from the image's up axis, the largest floor within that cone; 0,1,0 for a level camera)");
-  cmd->add_option("--intrinsics", o->intrinsics, kIntrinsicsHelp);
+  auto* intrinsics = cmd->add_option("--intrinsics", o->intrinsics, kIntrinsicsHelp);
+  auto* fov = cmd->add_option("--fov", o->fov, kFovHelp)->excludes(intrinsics);
   cmd->add_option("--max-range", o->max_range, "Maximum range in metres (default 3)");
   auto* depth_scale = cmd->add_option("--depth-scale", o->depth_scale, kDepthScaleHelp)->check(CLI::PositiveNumber);
   cmd->add_option("--config", o->config, "YAML file with any of the parameters of `mobmap config --print-default`");
@@ -148,7 +150,8 @@ Command addAnalyzeCommand(CLI::App& app) {
   cmd->add_option("--background", o->background, kBackgroundHelp)
       ->check(CLI::IsMember({"colour", "depth"}))
       ->capture_default_str();
-  return [o, voxel, depth_scale]() {
+  return [o, voxel, depth_scale, fov]() {
+    if (fov->count() > 0) o->intrinsics = fovSpec(o->fov);
     {
       std::vector<NamedPath> inputs{{"the input", o->input}, {"--config", o->config}};
       std::error_code ec;

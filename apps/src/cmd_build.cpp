@@ -219,6 +219,7 @@ Command addBuildCommand(CLI::App& app) {
     bool skip_bad_frames = false;
     std::string config;
     std::string intrinsics;
+    double fov = 0;
     double max_pose_gap = 0.05;
     std::string poses;
     std::string device;
@@ -232,7 +233,8 @@ Command addBuildCommand(CLI::App& app) {
                                  "Read a live OpenNI2 depth sensor instead of INPUT: the first attached one, or the "
                                  "given device URI. Stops after --frames LAST (default 300 frames) or Ctrl-C")
                      ->expected(0, 1);
-  cmd->add_option("--intrinsics", o->intrinsics, kIntrinsicsHelp);
+  auto* intrinsics = cmd->add_option("--intrinsics", o->intrinsics, kIntrinsicsHelp);
+  auto* fov = cmd->add_option("--fov", o->fov, kFovHelp)->excludes(intrinsics);
   cmd->add_option("--poses", o->poses,
                   "Trajectory, TUM format 't tx ty tz qx qy qz qw' (camera to world). For .pcd frames: one line per "
                   "frame in file-name order, or timestamped and matched to time stamps in the file names. For .oni "
@@ -279,7 +281,8 @@ Command addBuildCommand(CLI::App& app) {
                 "corrupt or cut short, a pose file that is missing or not a rigid transform, an unreadable .pcd) "
                 "instead of stopping the run; the summary and MAP.json count them. For sequences of files");
   cmd->add_flag("--quiet,-q", o->quiet, "No progress output");
-  return [o, max_range, resolution, device, voxel, keyframes, origin, depth_scale]() {
+  return [o, max_range, resolution, device, voxel, keyframes, origin, depth_scale, fov]() {
+    if (fov->count() > 0) o->intrinsics = fovSpec(o->fov);
     namespace fs = std::filesystem;
     std::error_code ec;
     if (fs::path(o->out).extension() != ".ot") throw UsageError("--out must end in .ot, got '" + o->out + "'");

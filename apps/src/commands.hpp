@@ -7,6 +7,7 @@
 #include <CLI/CLI.hpp>
 
 #include <functional>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -22,7 +23,8 @@ inline constexpr const char* kVoxelHelp =
 
 /// `--intrinsics` of analyze and build.
 inline constexpr const char* kIntrinsicsHelp =
-    "fx,fy,cx,cy or a camera-intrinsics.txt file (default: a 7-Scenes / 3DMatch directory's camera-intrinsics.txt, or "
+    "fx,fy,cx,cy or a camera file: a 3x3 matrix as text (camera-intrinsics.txt), ROS camera_info YAML (K, k or "
+    "camera_matrix) or OpenCV calibration YAML (default: a 7-Scenes / 3DMatch directory's camera-intrinsics.txt, or "
     "its parent's; for a PNG, the camera-intrinsics.txt beside it; TUM 525,525,319.5,239.5). Needed for Microsoft's "
     "7-Scenes download, which has no such file: 585,585,320,240";
 
@@ -31,6 +33,18 @@ inline constexpr const char* kDepthScaleHelp =
     "Depth values per metre of the input (default: its own: 1000 for 7-Scenes, 3DMatch, PNG and OpenNI2 millimetres, "
     "5000 for TUM, 1 for PCD metres). A warning suggests it when the depths read implausibly for a depth camera: "
     "10000 for tenths of a millimetre, 1000 for a PCD in millimetres";
+
+/// `--fov` of analyze and build.
+inline constexpr const char* kFovHelp =
+    "For a camera whose calibration is unknown: its horizontal field of view in degrees (fx = fy from it, the principal "
+    "point at the image centre; Kinect v1 about 57, Kinect v2 about 70, RealSense D435 depth about 87)";
+
+/// "fov:DEGREES", the intrinsics spec `--fov` stands for (parseIntrinsics).
+inline std::string fovSpec(double degrees) {
+  char text[64];
+  std::snprintf(text, sizeof text, "fov:%.17g", degrees);
+  return text;
+}
 
 /// `--background` of overlay and analyze --overlay.
 inline constexpr const char* kBackgroundHelp =

@@ -6,11 +6,14 @@
 
 #include "mobmap/mapping/gravity.hpp"
 
+#include <yaml-cpp/yaml.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iomanip>
+#include <optional>
 #include <regex>
 #include <sstream>
 
@@ -69,8 +72,94 @@ std::string frameStem(int index) {
   return buf;
 }
 
+namespace {
+
+// A camera file in YAML: ROS camera_info (a message dump with K or k, or a calibration
+// file with camera_matrix {rows, cols, data}) or OpenCV's FileStorage YAML ("%YAML:1.0",
+// camera_matrix: !!opencv-matrix). Returns K row by row and, when the file states it,
+// the image size it was calibrated for.
+struct YamlCamera {
+  Eigen::Matrix3d k;
+  std::optional<std::pair<int, int>> size;  // width, height
+};
+
+bool looksLikeYaml(const std::string& text) {
+  return text.rfind("%YAML", 0) == 0 || text.find("camera_matrix") != std::string::npos ||
+         std::regex_search(text, std::regex(R"((^|\n)\s*[Kk]\s*:)"));
+}
+
+YamlCamera readYamlCamera(const std::string& path, const std::string& text) {
+  // yaml-cpp reads YAML 1.2; OpenCV writes a YAML 1.0 directive ("%YAML:1.0") it refuses.
+  std::string body = text;
+  if (body.rfind("%YAML:", 0) == 0) body = body.substr(std::min(body.size(), body.find('\n')));
+  YAML::Node root;
+  try {
+    root = YAML::Load(body);
+  } catch (const YAML::Exception& e) {
+    throw IoError(path, std::string("not valid YAML: ") + e.what());
+  }
+  if (!root.IsMap()) throw IoError(path, "not a camera file (expected a YAML mapping with K, k or camera_matrix)");
+  YAML::Node data;
+  std::string key;
+  for (const char* name : {"camera_matrix", "K", "k"}) {
+    if (root[name]) {
+      key = name;
+      data = root[name];
+      break;
+    }
+  }
+  if (key.empty()) throw IoError(path, "has no camera matrix: expected K (ROS 1 camera_info), k (ROS 2) or camera_matrix");
+  if (data.IsMap()) {  // {rows: 3, cols: 3, data: [...]}, OpenCV's with dt
+    try {
+      if (data["rows"] && data["cols"] && (data["rows"].as<int>() != 3 || data["cols"].as<int>() != 3)) {
+        throw IoError(path, "\"" + key + "\" must be 3x3, it is " + data["rows"].as<std::string>() + "x" +
+                                data["cols"].as<std::string>());
+      }
+    } catch (const YAML::Exception&) {
+      throw IoError(path, "\"" + key + "\": rows and cols must be whole numbers");
+    }
+    data = data["data"];
+  }
+  if (!data || !data.IsSequence() || data.size() != 9) {
+    throw IoError(path, "\"" + key + "\" must hold 9 numbers (the 3x3 matrix row by row)");
+  }
+  YamlCamera cam;
+  for (std::size_t i = 0; i < 9; ++i) {
+    const auto v = data[i].IsScalar() ? parseFiniteNumber(data[i].Scalar()) : std::nullopt;
+    if (!v) throw IoError(path, "\"" + key + "\" entry " + std::to_string(i) + " is not a finite number");
+    cam.k(static_cast<int>(i / 3), static_cast<int>(i % 3)) = *v;
+  }
+  for (const auto& [w, h] : {std::pair<const char*, const char*>{"image_width", "image_height"}, {"width", "height"}}) {
+    if (!root[w] || !root[h]) continue;
+    // -1: not a number.
+    const double wv = root[w].IsScalar() ? parseFiniteNumber(root[w].Scalar()).value_or(-1.0) : -1.0;
+    const double hv = root[h].IsScalar() ? parseFiniteNumber(root[h].Scalar()).value_or(-1.0) : -1.0;
+    if (wv < 0 || hv < 0 || wv != std::floor(wv) || hv != std::floor(hv) || wv > 1e5 || hv > 1e5) {
+      throw IoError(path, std::string("\"") + w + "\" and \"" + h + "\" must be whole numbers of pixels");
+    }
+    // ROS writes 0 x 0 for a camera_info without a size.
+    if (wv > 0 && hv > 0) cam.size = std::make_pair(static_cast<int>(wv), static_cast<int>(hv));
+    break;
+  }
+  return cam;
+}
+
+}  // namespace
+
 perception::PinholeIntrinsics readIntrinsicsFile(const std::string& path, int width, int height) {
-  const Eigen::MatrixXd k = readMatrixFile(path, 3, 3);
+  const std::string text = readTextFile(path, 1 << 20);
+  Eigen::MatrixXd k;
+  if (looksLikeYaml(text)) {
+    const YamlCamera cam = readYamlCamera(path, text);
+    if (cam.size && (cam.size->first != width || cam.size->second != height)) {
+      throw IoError(path, "is for " + std::to_string(cam.size->first) + "x" + std::to_string(cam.size->second) +
+                              " images, but the depth frames are " + std::to_string(width) + "x" + std::to_string(height) +
+                              " (the calibration of another camera or resolution?)");
+    }
+    k = cam.k;
+  } else {
+    k = readMatrixFile(path, 3, 3);
+  }
   if (k(0, 1) != 0 || k(1, 0) != 0 || k(2, 0) != 0 || k(2, 1) != 0 || k(2, 2) != 1) {
     throw IoError(path, "not a pinhole camera matrix [fx 0 cx; 0 fy cy; 0 0 1]");
   }
@@ -145,7 +234,22 @@ perception::DepthImage readDepthPng(const std::string& path) {
   return d;
 }
 
+perception::PinholeIntrinsics intrinsicsFromFov(double horizontal_fov_deg, int width, int height) {
+  if (!(horizontal_fov_deg > 1.0 && horizontal_fov_deg < 179.0)) {
+    throw UsageError("--fov must be a horizontal field of view between 1 and 179 degrees");
+  }
+  const double f = 0.5 * width / std::tan(0.5 * horizontal_fov_deg * M_PI / 180.0);
+  perception::PinholeIntrinsics k{width, height, f, f, 0.5 * (width - 1), 0.5 * (height - 1)};
+  perception::validate(k);
+  return k;
+}
+
 perception::PinholeIntrinsics parseIntrinsics(const std::string& spec, int width, int height) {
+  if (spec.rfind(kFovSpecPrefix, 0) == 0) {
+    const auto fov = parseFiniteNumber(spec.substr(std::string(kFovSpecPrefix).size()));
+    if (!fov) throw UsageError("--fov must be a number of degrees, got '" + spec.substr(std::string(kFovSpecPrefix).size()) + "'");
+    return intrinsicsFromFov(*fov, width, height);
+  }
   const auto v = splitNumbers(spec);
   if (v.size() == 4) {
     perception::PinholeIntrinsics k{width, height, v[0], v[1], v[2], v[3]};
@@ -157,7 +261,8 @@ perception::PinholeIntrinsics parseIntrinsics(const std::string& spec, int width
     return k;
   }
   if (!std::filesystem::exists(spec)) {
-    throw UsageError("--intrinsics must be fx,fy,cx,cy or a camera-intrinsics.txt file; '" + spec + "' is neither");
+    throw UsageError("--intrinsics must be fx,fy,cx,cy or a camera file (3x3 matrix text, ROS camera_info or OpenCV YAML); '" +
+                     spec + "' is neither");
   }
   return readIntrinsicsFile(spec, width, height);
 }

@@ -18,11 +18,20 @@
 
 namespace mobmap::app {
 
-/// Parses a 3x3 camera matrix (camera-intrinsics.txt). IoError names the file, line
-/// and problem. Width and height are not in the file: pass them.
+/// Reads a camera file for images of `width` x `height`: a 3x3 camera matrix as text
+/// (camera-intrinsics.txt), ROS camera_info YAML (a message dump with K, ROS 2's k, or a
+/// calibration file with camera_matrix rows/cols/data) or OpenCV calibration YAML
+/// ("%YAML:1.0", camera_matrix: !!opencv-matrix). Distortion coefficients are not read
+/// (depth images are taken as undistorted). IoError naming the file and the problem,
+/// also when a YAML file states another image size.
 perception::PinholeIntrinsics readIntrinsicsFile(const std::string& path, int width, int height);
-/// Parses "fx,fy,cx,cy" (--intrinsics; UsageError if invalid) or reads a
-/// camera-intrinsics.txt file.
+/// `--fov DEGREES` is passed on as the intrinsics spec "fov:DEGREES".
+inline constexpr const char* kFovSpecPrefix = "fov:";
+/// A camera known only by its horizontal field of view: fx = fy = (width / 2) /
+/// tan(fov / 2), the principal point at the image centre. UsageError unless 1 < fov < 179.
+perception::PinholeIntrinsics intrinsicsFromFov(double horizontal_fov_deg, int width, int height);
+/// Parses "fx,fy,cx,cy" (--intrinsics; UsageError if invalid), "fov:DEGREES" (--fov),
+/// or reads a camera file (readIntrinsicsFile).
 perception::PinholeIntrinsics parseIntrinsics(const std::string& spec, int width, int height);
 /// Parses a 4x4 camera-to-world pose and checks it is rigid (mapping::checkRigid).
 Eigen::Matrix4d readPoseFile(const std::string& path);

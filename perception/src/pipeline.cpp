@@ -275,7 +275,7 @@ FrameResult FramePipeline::process(const DepthImage& depth, const PinholeIntrins
   const RangeGate in_range(params_);
   std::vector<Eigen::Vector3f> raw(depth.depth_m.size());
   std::vector<int> pixel_of_raw(depth.depth_m.size());
-  std::size_t n = 0, valid = 0, beyond = 0, nearer = 0;
+  std::size_t n = 0, valid = 0, beyond = 0;
   const float inv_fx = static_cast<float>(1.0 / k.fx), inv_fy = static_cast<float>(1.0 / k.fy);
   RangeSample sample(gravity);
   for (int v = 0; v < k.height; ++v) {
@@ -285,14 +285,9 @@ FrameResult FramePipeline::process(const DepthImage& depth, const PinholeIntrins
       if (!(z > 0.f) || !std::isfinite(z)) continue;
       ++valid;
       const Eigen::Vector3f q((static_cast<float>(u) - static_cast<float>(k.cx)) * inv_fx * z, ry * z, z);
-      if (((u | v) & 3) == 0) sample.add(q);  // every 4th pixel of every 4th row
       const float r2 = q.squaredNorm();
-      if (r2 > in_range.hi2) {
-        ++beyond;
-        continue;
-      }
-      if (r2 < in_range.lo2) {
-        ++nearer;
+      if (r2 < in_range.lo2 || r2 > in_range.hi2) {
+        beyond += r2 > in_range.hi2;
         continue;
       }
       raw[n] = q;
@@ -301,8 +296,19 @@ FrameResult FramePipeline::process(const DepthImage& depth, const PinholeIntrins
   }
   raw.resize(n);
   pixel_of_raw.resize(n);
+  // Every 4th pixel of every 4th row for the RangeReport.
+  sample.range.reserve(static_cast<std::size_t>((k.width + 3) / 4) * static_cast<std::size_t>((k.height + 3) / 4));
+  sample.height.reserve(sample.range.capacity());
+  for (int v = 0; v < k.height; v += 4) {
+    const float ry = (static_cast<float>(v) - static_cast<float>(k.cy)) * inv_fy;
+    for (int u = 0; u < k.width; u += 4) {
+      const float z = depth.depth_m[static_cast<std::size_t>(v) * k.width + u];
+      if (!(z > 0.f) || !std::isfinite(z)) continue;
+      sample.add(Eigen::Vector3f((static_cast<float>(u) - static_cast<float>(k.cx)) * inv_fx * z, ry * z, z));
+    }
+  }
   FrameResult out = run(std::move(raw), std::move(pixel_of_raw), depth.depth_m.size(), valid, started, gravity);
-  out.range = summarizeRanges(std::move(sample), params_, valid, beyond, nearer);
+  out.range = summarizeRanges(std::move(sample), params_, valid, beyond, valid - n - beyond);
   return out;
 }
 
