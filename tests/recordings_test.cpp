@@ -249,5 +249,31 @@ TEST(CameraFiles, RosAndOpenCvYamlGiveTheSameCameraAsTheMatrixText) {
   EXPECT_THROW(parseIntrinsics("fov:wide", 640, 480), UsageError);
 }
 
+// Looking straight down at the stairs (no gravity given): the largest plane is the floor
+// seen from above, 90 degrees from the image's up axis, with the treads parallel to it
+// at their heights. That is no wall, and --gravity 0,1,0 would be wrong: nothing is said.
+// A wall seen head-on above a floor still gets the note (Cli.WithoutGravity...).
+TEST(GroundNote, ALookStraightDownAtStairsIsNotTakenForAWall) {
+  sim::CorridorParams p;
+  p.frames = 300;
+  p.pitch_down_deg = 90.0;
+  p.bob_m = 0.0;
+  const sim::CorridorScene scene(p);
+  const perception::PerceptionParams pp;
+  const perception::FramePipeline pipeline(pp, gp::MobilityModel{});
+  for (const int frame : {264, 272, 280}) {  // the camera above treads 2 to 4 (x 6.6-7.0 m)
+    SCOPED_TRACE(frame);
+    const sim::RenderedFrame f = scene.render(frame);
+    const perception::FrameResult r = pipeline.process(f.depth, p.intrinsics, std::nullopt);
+    ASSERT_TRUE(r.ground_plane.has_value());
+    EXPECT_GT(perception::imageUpTiltDeg(*r.ground_plane), 80.0);  // what set the note off
+    EXPECT_EQ(groundChoiceNote(r, pp.ground_upright_prior_deg), "");
+    // Given gravity, the ground is the floor 1.35 m below.
+    const perception::FrameResult g = pipeline.process(f.depth, p.intrinsics, gravityInCamera(f));
+    ASSERT_TRUE(g.ground_plane.has_value());
+    EXPECT_NEAR((*g.ground_plane)(3), p.camera_height_m, 0.02);
+  }
+}
+
 }  // namespace
 }  // namespace mobmap::app

@@ -330,6 +330,35 @@ std::string groundChoiceNote(const perception::FrameResult& r, double upright_pr
     return buf;
   }
   if (r.ground_rule != perception::GroundRule::kLargestPlane || !(tilt > 45.0)) return {};
+  // A plane far from the image's up axis is a wall only if the camera was held upright.
+  // What else the frame shows decides whether to say so: a surface that would be the
+  // floor of an upright camera (within 30 degrees of the up axis) makes it likely; levels
+  // parallel to the plane at other heights (treads, a floor with things on it, seen from
+  // above) make it a floor, and nothing is said.
+  const Eigen::Vector3f n = r.ground_plane->head<3>();
+  const float d = (*r.ground_plane)(3);
+  // A segment counts as evidence with 1 % of the ground's points (a tread seen at the
+  // edge of a view from above has a few hundred), and at least 100.
+  std::size_t ground_points = 0;
+  for (const perception::Segment& s : r.segments) ground_points = std::max(ground_points, s.is_ground ? s.points.size() : 0);
+  const std::size_t substantial = std::max<std::size_t>(100, ground_points / 100);
+  bool upright_floor = false, parallel_level = false;
+  for (const perception::Segment& s : r.segments) {
+    if (s.is_ground || s.points.size() < substantial) continue;
+    const Eigen::Vector3f sn = s.normal.normalized();
+    const Eigen::Vector4f as_plane(sn.x(), sn.y(), sn.z(), -sn.dot(s.centroid));
+    if (perception::imageUpTiltDeg(as_plane) < 30.0) upright_floor = true;
+    const double offset = std::abs(n.dot(s.centroid) + d);
+    if (std::abs(sn.dot(n)) > std::cos(10.0 * M_PI / 180.0) && offset > 0.05) parallel_level = true;
+  }
+  if (!upright_floor && parallel_level) return {};
+  if (!upright_floor) {
+    std::snprintf(buf, sizeof buf,
+                  "note: no gravity given, so the ground is the largest plane, %.0f degrees from the image's up axis: a "
+                  "floor seen from above, or a wall if the camera was held level (then pass --gravity 0,1,0).",
+                  tilt);
+    return buf;
+  }
   if (upright_prior_deg > 0) {
     std::snprintf(buf, sizeof buf,
                   "note: no gravity given and no floor within %.0f degrees of the image's up axis, so the ground is the "

@@ -62,7 +62,10 @@ perception::FrameResult perceiveFrame(const perception::FramePipeline& pipeline,
 /// chosen, or empty: when the largest plane leaned away from the image's up axis and a
 /// floor within `upright_prior_deg` of it was taken instead (the camera assumed
 /// upright), and when the ground is the largest plane and more than 45 degrees from
-/// that axis, i.e. probably a wall. `analyze` and `build` both take `--gravity`.
+/// that axis: "may be a wall" when a surface within 30 degrees of that axis (the floor of
+/// an upright camera) is in view too; nothing when none is and surfaces parallel to the
+/// plane lie at other heights (levels seen from above: treads, a floor); else that it is
+/// a floor seen from above or a wall. `analyze` and `build` both take `--gravity`.
 std::string groundChoiceNote(const perception::FrameResult& r, double upright_prior_deg);
 
 /// Parses "X,Y,Z" (non-zero, finite), a direction: returned as a unit vector. Throws

@@ -145,7 +145,8 @@ void validate(const CorridorParams& p) {
   if (!(p.frame_rate_hz > 0) || !std::isfinite(p.frame_rate_hz)) fail("frame_rate_hz", p.frame_rate_hz, "must be > 0");
   if (!(p.speed_mps >= 0) || !std::isfinite(p.speed_mps)) fail("speed_mps", p.speed_mps, "must be >= 0");
   if (!(p.camera_height_m > 0.1 && p.camera_height_m < 2.4)) fail("camera_height_m", p.camera_height_m, "must be in (0.1, 2.4)");
-  if (!(p.pitch_down_deg > -80 && p.pitch_down_deg < 80)) fail("pitch_down_deg", p.pitch_down_deg, "must be in (-80, 80)");
+  // The camera's right axis does not depend on pitch: straight down (90) is a valid view.
+  if (!(p.pitch_down_deg >= -90 && p.pitch_down_deg <= 90)) fail("pitch_down_deg", p.pitch_down_deg, "must be in [-90, 90]");
   if (!(p.kinect.axial_sigma_at_1m_m >= 0)) fail("kinect.axial_sigma_at_1m_m", p.kinect.axial_sigma_at_1m_m, "must be >= 0");
   if (!(p.kinect.baseline_m > 0)) fail("kinect.baseline_m", p.kinect.baseline_m, "must be > 0");
   if (!(p.kinect.disparity_subpixel >= 0)) fail("kinect.disparity_subpixel", p.kinect.disparity_subpixel, "must be >= 0");
