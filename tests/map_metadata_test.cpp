@@ -44,6 +44,8 @@ MapRun fullRun(double salt) {
   r.resolution_m = 0.02;
   r.gravity_down_world = Eigen::Vector3d(0.1, 1.0 / 3.0, -0.9).normalized();
   r.gravity_source = "gravity-direction.txt";
+  r.gravity_given_world = Eigen::Vector3d(0.0, 0.07, -0.99);
+  r.gravity_floor_angle_deg = 3.7;
   r.R_map_world = gravityAlignment(*r.gravity_down_world);
   r.origin_world = Eigen::Vector3d(500100.0, -1e-17, 2.5 + salt);
   r.origin_source = "--origin";

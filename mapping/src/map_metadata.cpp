@@ -101,6 +101,8 @@ void fields(MapRun& r, V& v) {
   v("resolution_m", r.resolution_m);
   v("gravity_down_world", r.gravity_down_world);
   v("gravity_source", r.gravity_source);
+  v("gravity_given_world", r.gravity_given_world);
+  v("gravity_floor_angle_deg", r.gravity_floor_angle_deg);
   v("R_map_world", r.R_map_world);
   v("origin_world", r.origin_world);
   v("origin_source", r.origin_source);

@@ -74,6 +74,10 @@ struct MapRun {
   std::optional<double> resolution_m;
   std::optional<Eigen::Vector3d> gravity_down_world;  ///< down in the input's world frame
   std::optional<std::string> gravity_source;
+  /// The gravity the input or --gravity gave, when the one used was checked against the
+  /// floor (and by default refined to it), and the angle between the given and the floor.
+  std::optional<Eigen::Vector3d> gravity_given_world;
+  std::optional<double> gravity_floor_angle_deg;
   std::optional<Eigen::Matrix3d> R_map_world;  ///< world to map (z up); a rotation
   std::optional<Eigen::Vector3d> origin_world;  ///< the map origin in the world frame
   std::optional<std::string> origin_source;
