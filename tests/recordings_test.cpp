@@ -10,8 +10,12 @@
 #include "mobmap/sim/corridor_scene.hpp"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <sys/wait.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -273,6 +277,164 @@ TEST(GroundNote, ALookStraightDownAtStairsIsNotTakenForAWall) {
     ASSERT_TRUE(g.ground_plane.has_value());
     EXPECT_NEAR((*g.ground_plane)(3), p.camera_height_m, 0.02);
   }
+}
+
+// An organized cloud of the corridor frame in camera coordinates, moved by T (cloud =
+// T * camera).
+std::vector<Eigen::Vector3f> organizedCloud(const sim::RenderedFrame& f, const Eigen::Isometry3d& T) {
+  const perception::PinholeIntrinsics k = sim::CorridorParams{}.intrinsics;
+  std::vector<Eigen::Vector3f> cloud(static_cast<std::size_t>(k.width) * static_cast<std::size_t>(k.height),
+                                     Eigen::Vector3f::Constant(std::nanf("")));
+  for (int v = 0; v < k.height; ++v) {
+    for (int u = 0; u < k.width; ++u) {
+      const std::size_t i = static_cast<std::size_t>(v) * static_cast<std::size_t>(k.width) + static_cast<std::size_t>(u);
+      const float z = f.depth.depth_m[i];
+      if (z > 0.f) cloud[i] = (T * perception::backProject(k, u, v, z)).cast<float>();
+    }
+  }
+  return cloud;
+}
+
+// The pixel grid tells where each point's ray goes: the camera's intrinsics and its pose
+// in the cloud's frame come back from a cloud in any frame.
+TEST(OrganizedCamera, TheCameraOfACloudInAnotherFrameIsRecovered) {
+  const sim::RenderedFrame f = corridorFrame(35.0);
+  const perception::PinholeIntrinsics k = sim::CorridorParams{}.intrinsics;
+  // A Kinect v2 driver's frame: x down, y left (a quarter turn about the optical axis);
+  // a robot's base frame: turned and 1.2 m off; and the camera frame itself.
+  Eigen::Isometry3d quarter = Eigen::Isometry3d::Identity();
+  quarter.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  Eigen::Isometry3d robot = Eigen::Isometry3d::Identity();
+  robot.linear() = (Eigen::AngleAxisd(-M_PI / 2, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(-M_PI / 2 - 0.6, Eigen::Vector3d::UnitX()))
+                       .toRotationMatrix();
+  robot.translation() = Eigen::Vector3d(0.1, -0.05, 1.2);
+  for (const Eigen::Isometry3d& T : {Eigen::Isometry3d(Eigen::Isometry3d::Identity()), quarter, robot}) {
+    SCOPED_TRACE(T.matrix());
+    const auto fit = perception::fitOrganizedCamera(organizedCloud(f, T), k.width, k.height);
+    ASSERT_TRUE(fit.has_value());
+    EXPECT_LT(fit->rms_px, 0.01);
+    EXPECT_LT(std::abs(fit->skew), 1e-5);
+    EXPECT_NEAR(fit->intrinsics.fx, k.fx, 0.01);
+    EXPECT_NEAR(fit->intrinsics.fy, k.fy, 0.01);
+    EXPECT_NEAR(fit->intrinsics.cx, k.cx, 0.01);
+    EXPECT_NEAR(fit->intrinsics.cy, k.cy, 0.01);
+    EXPECT_LT((fit->T_cloud_camera.linear() - T.linear()).norm(), 1e-5);
+    EXPECT_LT((fit->T_cloud_camera.translation() - T.translation()).norm(), 1e-4);
+  }
+  // Points shuffled across the grid are no camera's image: the fit says so by its residual.
+  std::vector<Eigen::Vector3f> shuffled = organizedCloud(f, Eigen::Isometry3d::Identity());
+  std::reverse(shuffled.begin(), shuffled.begin() + static_cast<std::ptrdiff_t>(shuffled.size() / 2));
+  const auto bad = perception::fitOrganizedCamera(shuffled, k.width, k.height);
+  EXPECT_TRUE(!bad.has_value() || bad->rms_px > 5.0) << (bad ? bad->rms_px : -1.0);
+}
+
+// An organized binary PCD (x y z floats, NaN where there is no point).
+std::string writeOrganizedPcd(const TempDir& dir, const std::string& name, const std::vector<Eigen::Vector3f>& cloud, int w, int h) {
+  const std::string path = (dir.path / name).string();
+  std::ofstream out(path, std::ios::binary);
+  out << "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH " << w << "\nHEIGHT " << h
+      << "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << cloud.size() << "\nDATA binary\n";
+  out.write(reinterpret_cast<const char*>(cloud.data()), static_cast<std::streamsize>(cloud.size() * sizeof(Eigen::Vector3f)));
+  return path;
+}
+
+// A Kinect v2 cloud whose points are its camera frame turned a quarter (x down) was scored
+// upside down. Fitted from its pixel grid, it is scored in its camera's frame and gives the
+// camera-frame cloud's segments, reported in its own frame (normals and centroids turned).
+TEST(OrganizedCamera, ACloudInATurnedFrameScoresAsInItsCameraFrame) {
+  const TempDir dir;
+  const sim::RenderedFrame f = corridorFrame(35.0);
+  const perception::PinholeIntrinsics k = sim::CorridorParams{}.intrinsics;
+  Eigen::Isometry3d quarter = Eigen::Isometry3d::Identity();
+  quarter.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const std::string plain = writeOrganizedPcd(dir, "camera.pcd", organizedCloud(f, Eigen::Isometry3d::Identity()), k.width, k.height);
+  const std::string turned = writeOrganizedPcd(dir, "turned.pcd", organizedCloud(f, quarter), k.width, k.height);
+  const perception::FramePipeline pipeline(perception::PerceptionParams{}, gp::MobilityModel{});
+  LoadedFrame a = loadPcd(plain);
+  EXPECT_FALSE(a.T_cloud_camera.has_value());
+  EXPECT_EQ(a.note, "");
+  LoadedFrame b = loadPcd(turned);
+  ASSERT_TRUE(b.T_cloud_camera.has_value());
+  EXPECT_LT((b.T_cloud_camera->linear() - quarter.linear()).norm(), 1e-5);
+  EXPECT_NE(b.note.find("turned 90.0 degrees"), std::string::npos) << b.note;
+  perception::FrameResult ra = perceiveFrame(pipeline, a, std::nullopt);  // no gravity: the image's up axis decides
+  perception::FrameResult rb = perceiveFrame(pipeline, b, std::nullopt);
+  toInputFrame(ra, a);
+  toInputFrame(rb, b);
+  ASSERT_TRUE(ra.ground_plane.has_value());
+  ASSERT_TRUE(rb.ground_plane.has_value());
+  ASSERT_EQ(ra.segments.size(), rb.segments.size());
+  ASSERT_GT(ra.segments.size(), 5u);
+  const Eigen::Matrix3f R = quarter.linear().cast<float>();
+  for (std::size_t i = 0; i < ra.segments.size(); ++i) {
+    SCOPED_TRACE(i);
+    const auto& sa = ra.segments[i];
+    const auto& sb = rb.segments[i];
+    EXPECT_NEAR(sa.points.size(), sb.points.size(), 0.02 * sa.points.size() + 5);
+    EXPECT_NEAR(sa.slope_deg, sb.slope_deg, 0.5);
+    EXPECT_NEAR(sa.mobility, sb.mobility, 0.05);
+    EXPECT_LT((R * sa.normal - sb.normal).norm(), 0.01);
+    EXPECT_LT((R * sa.centroid - sb.centroid).norm(), 0.01);
+  }
+  EXPECT_NEAR((*ra.ground_plane)(3), (*rb.ground_plane)(3), 0.005);
+  // Points a shuffle took off their rays: no camera's; said, and scored as they are.
+  std::vector<Eigen::Vector3f> shuffled = organizedCloud(f, quarter);
+  std::reverse(shuffled.begin(), shuffled.begin() + static_cast<std::ptrdiff_t>(shuffled.size() / 2));
+  const LoadedFrame c = loadPcd(writeOrganizedPcd(dir, "shuffled.pcd", shuffled, k.width, k.height));
+  EXPECT_FALSE(c.T_cloud_camera.has_value());
+  EXPECT_NE(c.note.find("its frame cannot be recovered"), std::string::npos) << c.note;
+}
+
+// The output of `mobmap ARGS` (stdout and stderr) and its exit code.
+std::pair<int, std::string> mobmap(const std::string& args) {
+  const std::string cmd = std::string(MOBMAP_EXE) + " " + args + " 2>&1";
+  std::string out;
+  FILE* pipe = ::popen(cmd.c_str(), "r");
+  if (!pipe) return {-1, "popen failed"};
+  char buf[4096];
+  while (std::fgets(buf, sizeof buf, pipe)) out += buf;
+  const int status = ::pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+// `build` maps a turned cloud in its points' frame as it maps the camera-frame cloud in
+// the camera's: gravity comes from the same floor, so the heights of the walkable levels
+// and the mobility of the surfaces agree; `analyze` reports in the cloud's frame.
+TEST(OrganizedCamera, BuildAndAnalyzeTakeACloudInATurnedFrame) {
+  const TempDir dir;
+  const sim::RenderedFrame f = corridorFrame(35.0);
+  const perception::PinholeIntrinsics k = sim::CorridorParams{}.intrinsics;
+  Eigen::Isometry3d quarter = Eigen::Isometry3d::Identity();
+  quarter.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const std::string plain = writeOrganizedPcd(dir, "camera.pcd", organizedCloud(f, Eigen::Isometry3d::Identity()), k.width, k.height);
+  const std::string turned = writeOrganizedPcd(dir, "turned.pcd", organizedCloud(f, quarter), k.width, k.height);
+  const auto info = [&](const std::string& pcd, const std::string& name) {
+    const auto [code, out] = mobmap("build " + pcd + " --out " + (dir.path / name).string() + " --quiet");
+    EXPECT_EQ(code, 0) << out;
+    const auto [icode, iout] = mobmap("info " + (dir.path / name).string() + " --json");
+    EXPECT_EQ(icode, 0) << iout;
+    return std::make_pair(out, nlohmann::json::parse(iout));
+  };
+  const auto [plain_out, a] = info(plain, "a.ot");
+  const auto [turned_out, b] = info(turned, "b.ot");
+  EXPECT_NE(turned_out.find("its points are not in its camera's frame"), std::string::npos) << turned_out;
+  ASSERT_EQ(a["walkable_levels"].size(), b["walkable_levels"].size()) << a["walkable_levels"] << b["walkable_levels"];
+  for (std::size_t i = 0; i < a["walkable_levels"].size(); ++i) {
+    EXPECT_NEAR(a["walkable_levels"][i]["z_m"].get<double>(), b["walkable_levels"][i]["z_m"].get<double>(), 0.005);
+    EXPECT_NEAR(a["walkable_levels"][i]["share"].get<double>(), b["walkable_levels"][i]["share"].get<double>(), 0.03);
+  }
+  const double sa = a["surface_leaves"].get<double>(), sb = b["surface_leaves"].get<double>();
+  EXPECT_NEAR(sa, sb, 0.03 * sa);
+  // analyze --json: normals and the ground plane in the cloud's frame, the camera's pose in it.
+  const auto [code, out] = mobmap("analyze " + turned + " --json");
+  ASSERT_EQ(code, 0) << out;
+  const nlohmann::json j = nlohmann::json::parse(out.substr(out.find('{')));
+  ASSERT_TRUE(j.contains("T_cloud_camera"));
+  EXPECT_NEAR(j["T_cloud_camera"][0][1].get<double>(), -1.0, 1e-5);
+  // The ground's normal points up: in the camera frame mostly -y, in the cloud's mostly +x
+  // (the cloud's x is the camera's -y turned a quarter: R (0,-1,0) = (1,0,0)).
+  EXPECT_GT(j["ground_plane"][0].get<double>(), 0.7) << j["ground_plane"];
+  EXPECT_NEAR(j["ground_distance_m"].get<double>(), sim::CorridorParams{}.camera_height_m, 0.02);
 }
 
 }  // namespace

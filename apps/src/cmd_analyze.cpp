@@ -137,7 +137,7 @@ Command addAnalyzeCommand(CLI::App& app) {
   auto o = std::make_shared<Options>();
   cmd->add_option("INPUT", o->input, "A .pcd, a 16-bit depth .png (millimetres), a 7-Scenes layout directory or a TUM RGB-D directory")->required();
   cmd->add_option("--frame", o->frame, "Frame number in a directory, as build numbers them (default: the first)");
-  cmd->add_option("--gravity", o->gravity, "Gravity (down) in the camera frame, X,Y,Z (default: from the pose and gravity-direction.txt if present; without gravity the largest plane is the ground, or, if it leans more than ground_upright_prior_deg from the image's up axis, the largest floor within that cone; 0,1,0 for a level camera)");
+  cmd->add_option("--gravity", o->gravity, "Gravity (down) in the frame of the input's points (the camera's, unless an organized cloud is in another frame), X,Y,Z (default: from the pose and gravity-direction.txt if present; without gravity the largest plane is the ground, or, if it leans more than ground_upright_prior_deg from the image's up axis, the largest floor within that cone; 0,1,0 for a level camera)");
   auto* intrinsics = cmd->add_option("--intrinsics", o->intrinsics, kIntrinsicsHelp);
   auto* fov = cmd->add_option("--fov", o->fov, kFovHelp)->excludes(intrinsics);
   cmd->add_option("--max-range", o->max_range, "Maximum range in metres (default 3)");
@@ -168,7 +168,12 @@ Command addAnalyzeCommand(CLI::App& app) {
     }
     if (!f.note.empty()) std::fprintf(stderr, "note: %s\n", f.note.c_str());
     if (depth_scale->count() > 0) rescaleDepth(f, o->depth_scale);
-    if (!o->gravity.empty()) f.gravity_camera = parseVector3(o->gravity, "--gravity");
+    if (!o->gravity.empty()) {
+      // Given in the frame of the input's points: a cloud in another frame than its camera's.
+      const Eigen::Vector3f g = parseVector3(o->gravity, "--gravity");
+      const Eigen::Matrix3f R = f.T_cloud_camera ? Eigen::Matrix3f(f.T_cloud_camera->linear().cast<float>()) : Eigen::Matrix3f(Eigen::Matrix3f::Identity());
+      f.gravity_camera = Eigen::Vector3f(R.transpose() * g);
+    }
     Config config = o->config.empty() ? Config{} : loadConfig(o->config);
     if (o->max_range > 0) config.perception.max_range_m = o->max_range;
     try {
@@ -178,7 +183,7 @@ Command addAnalyzeCommand(CLI::App& app) {
       throw UsageError(e.what());
     }
     const perception::FramePipeline pipeline(config.perception, makeModel(config));
-    const perception::FrameResult r = perceiveFrame(pipeline, f, f.gravity_camera);
+    perception::FrameResult r = perceiveFrame(pipeline, f, f.gravity_camera);
     // The image grid for --overlay; 0 for an unorganized cloud.
     const int width = f.depth ? f.depth->width : f.height > 1 ? f.width : 0;
     const int height = f.depth ? f.depth->height : f.height > 1 ? f.height : 0;
@@ -197,6 +202,9 @@ Command addAnalyzeCommand(CLI::App& app) {
         if (problem) std::fprintf(stderr, "warning: %s: %s\n", o->input.c_str(), problem->c_str());
       }
     }
+    // The ground's distance from the camera, before the results go to the input's frame.
+    const double camera_ground = r.ground_plane ? static_cast<double>((*r.ground_plane)(3)) : 0.0;
+    toInputFrame(r, f);  // points, normals and planes as the input gave them
     if (!o->segments.empty()) writeSegmentsPcd(o->segments, r);
     if (!o->overlay.empty()) {
       if (width == 0) throw UsageError("--overlay needs an organized input (depth image or organized PCD)");
@@ -205,6 +213,12 @@ Command addAnalyzeCommand(CLI::App& app) {
     if (o->json) {
       auto j = frameResultJson(r);
       j["input"] = f.description;
+      if (r.ground_plane) j["ground_distance_m"] = camera_ground;
+      if (f.T_cloud_camera) {
+        const Eigen::Matrix4d T = f.T_cloud_camera->matrix();
+        j["T_cloud_camera"] = nlohmann::json::array();
+        for (int i = 0; i < 4; ++i) j["T_cloud_camera"].push_back({T(i, 0), T(i, 1), T(i, 2), T(i, 3)});
+      }
       std::cout << j.dump() << "\n";
       return 0;
     }
@@ -217,8 +231,9 @@ Command addAnalyzeCommand(CLI::App& app) {
                 range.valid_points, range.beyond_max_range, 100.0 * range.shareBeyond(), range.max_range_m,
                 range.nearer_than_min_range, range.min_range_m, range.median_range_m, range.range_p95_m);
     if (r.ground_plane) {
-      std::printf("ground plane: normal (%.3f, %.3f, %.3f), %.3f m from the camera (chosen as: %s)\n", (*r.ground_plane)(0),
-                  (*r.ground_plane)(1), (*r.ground_plane)(2), (*r.ground_plane)(3), perception::toString(r.ground_rule));
+      std::printf("ground plane: normal (%.3f, %.3f, %.3f)%s, %.3f m from the camera (chosen as: %s)\n", (*r.ground_plane)(0),
+                  (*r.ground_plane)(1), (*r.ground_plane)(2), f.T_cloud_camera ? " in the cloud's frame" : "",
+                  camera_ground, perception::toString(r.ground_rule));
     } else {
       std::printf("no ground plane found (no floor in view?)\n");
     }

@@ -163,8 +163,9 @@ std::optional<FloorCheck> floorNear(const Eigen::Vector3d& given_down, const Seq
     for (const auto& s : r.segments) weight += s.is_ground ? static_cast<double>(s.points.size()) : 0.0;
     floors.push_back({r_wc * -r.ground_plane->head<3>().cast<double>(), std::max(1.0, weight)});
   };
-  if (single) {
-    observe(perceiveFrame(finder, *single, given_down.cast<float>()), Eigen::Matrix3d::Identity());
+  if (single) {  // its world frame is its points' frame (the camera's, or the cloud's it was turned from)
+    const Eigen::Matrix3d r_wc = single->T_cloud_camera.value_or(Eigen::Isometry3d::Identity()).linear();
+    observe(perceiveFrame(finder, *single, (r_wc.transpose() * given_down).cast<float>()), r_wc);
   } else {
     const std::size_t samples = std::min<std::size_t>(8, frames.size());
     for (std::size_t i = 0; i < samples; ++i) {
@@ -587,11 +588,14 @@ Command addBuildCommand(CLI::App& app) {
     // A single frame is mapped in its camera frame; without --gravity, "down" is the
     // normal of the ground plane the pipeline finds, else the camera's +y axis. That run
     // measured slopes against the same ground normal, so its result is the frame's.
+    // A cloud whose points were turned from its camera's frame is mapped in their frame.
+    const Eigen::Isometry3d T_world_single = single.T_cloud_camera.value_or(Eigen::Isometry3d::Identity());
     std::optional<perception::FrameResult> single_result;
     if (!is_dir && !gravity_world) {
       single_result = perceiveFrame(pipeline, single, std::nullopt);
-      gravity_world = single_result->ground_plane ? Eigen::Vector3d(-single_result->ground_plane->head<3>().cast<double>())
-                                                  : Eigen::Vector3d(0, 1, 0);
+      gravity_world = T_world_single.linear() * (single_result->ground_plane
+                                                     ? Eigen::Vector3d(-single_result->ground_plane->head<3>().cast<double>())
+                                                     : Eigen::Vector3d(0, 1, 0));
       gravity_source = !single_result->ground_plane ? "the camera's +y axis (no ground plane)"
                        : single_result->ground_rule == perception::GroundRule::kUprightPrior
                            ? "the frame's ground plane (a floor within ground_upright_prior_deg of the image's up axis)"
@@ -835,13 +839,14 @@ Command addBuildCommand(CLI::App& app) {
         if (single_result) {
           f.result = std::move(*single_result);
         } else {
-          f.result = perceiveFrame(pipeline, single, g_world.cast<float>());  // the camera frame is the world frame
+          f.result = perceiveFrame(pipeline, single, (T_world_single.linear().transpose() * g_world).cast<float>());
         }
+        f.T_world_camera = T_world_single;
         if (single.depth) f.depth = *single.depth;  // free space by projection, as for a sequence
         f.intrinsics = single.intrinsics;
         {
           const std::lock_guard<std::mutex> lock(state);
-          pushed.push_back({number, Eigen::Isometry3d::Identity()});
+          pushed.push_back({number, T_world_single});
         }
         mapper->push(std::move(f));
         continue;

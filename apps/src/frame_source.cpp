@@ -159,7 +159,7 @@ void checkPcdComplete(const std::string& path) {
   checkPcdDeclaredSize(path, h);
 }
 
-LoadedFrame loadPcd(const std::string& path) {
+LoadedFrame loadPcd(const std::string& path, bool recover_camera) {
   const PcdHeader h = readPcdHeader(path);
   checkPcdDeclaredSize(path, h);
   pcl::PCDReader reader;
@@ -221,6 +221,7 @@ LoadedFrame loadPcd(const std::string& path) {
   std::ostringstream d;
   d << path << " (" << (cloud.height > 1 ? "organized " : "unorganized ") << cloud.width << "x" << cloud.height << ")";
   f.description = d.str();
+  if (recover_camera) recoverCameraFrame(f, path);
   return f;
 }
 
@@ -299,6 +300,56 @@ LoadedFrame loadSingleFrame(const std::string& input, int frame, const std::stri
   throw IoError(input, "unknown input type (expected a .pcd, a 16-bit depth .png, a 7-Scenes or a TUM RGB-D directory)");
 }
 
+void recoverCameraFrame(LoadedFrame& f, const std::string& path) {
+  if (f.height <= 1 || f.depth) return;
+  double rms = 0;
+  if (const auto k = perception::fitIntrinsics(f.points, f.width, f.height, &rms); k && rms < 0.5) return;  // the camera's frame
+  const auto fit = perception::fitOrganizedCamera(f.points, f.width, f.height);
+  char text[500];
+  if (!fit || !(fit->rms_px < 0.5) || !(std::abs(fit->skew) < 0.01)) {
+    std::size_t valid = 0;
+    for (const Eigen::Vector3f& p : f.points) valid += p.allFinite();
+    if (valid < 100) return;  // too few points to tell
+    std::snprintf(text, sizeof text,
+                  "%s: an organized cloud whose points do not lie on their pixels' rays for any pinhole camera "
+                  "(best fit: %s): its frame cannot be recovered, so it is scored as it is, with the image's up axis "
+                  "taken as up (--gravity in the cloud's frame says otherwise)",
+                  path.c_str(), fit ? ("RMS " + std::to_string(fit->rms_px) + " px").c_str() : "none");
+    f.note = text;
+    return;
+  }
+  const Eigen::Isometry3f T_camera_cloud = fit->T_cloud_camera.inverse().cast<float>();
+  for (Eigen::Vector3f& p : f.points) {
+    if (p.allFinite()) p = T_camera_cloud * p;
+  }
+  f.T_cloud_camera = fit->T_cloud_camera;
+  const double angle = Eigen::AngleAxisd(fit->T_cloud_camera.linear()).angle() * 180.0 / M_PI;
+  std::snprintf(text, sizeof text,
+                "%s: its points are not in its camera's frame; the camera, fitted from the pixel grid (fx %.1f fy %.1f "
+                "cx %.1f cy %.1f, RMS %.3f px), is turned %.1f degrees and moved %.3f m from the cloud's frame: scored "
+                "in the camera's frame, reported in the cloud's",
+                path.c_str(), fit->intrinsics.fx, fit->intrinsics.fy, fit->intrinsics.cx, fit->intrinsics.cy, fit->rms_px,
+                angle, fit->T_cloud_camera.translation().norm());
+  f.note = text;
+}
+
+void toInputFrame(perception::FrameResult& r, const LoadedFrame& f) {
+  if (!f.T_cloud_camera) return;
+  const Eigen::Isometry3f T = f.T_cloud_camera->cast<float>();
+  const Eigen::Matrix3f R = T.linear();
+  for (Eigen::Vector3f& p : r.points) p = T * p;
+  for (Eigen::Vector3f& n : r.normals) n = R * n;
+  for (perception::Segment& s : r.segments) {
+    s.centroid = T * s.centroid;
+    s.normal = R * s.normal;
+  }
+  if (r.ground_plane) {  // n.p + d = 0 in the camera frame: (R n).q + d - (R n).t = 0
+    const Eigen::Vector3f n = R * r.ground_plane->head<3>();
+    const float d = (*r.ground_plane)(3) - n.dot(T.translation());
+    *r.ground_plane = Eigen::Vector4f(n.x(), n.y(), n.z(), d);
+  }
+}
+
 void rescaleDepth(LoadedFrame& f, double units_per_m) {
   if (!(units_per_m > 0) || !std::isfinite(units_per_m)) throw UsageError("--depth-scale must be a positive number of units per metre");
   if (units_per_m == f.depth_unit.units_per_m) return;
@@ -307,6 +358,7 @@ void rescaleDepth(LoadedFrame& f, double units_per_m) {
     for (float& z : f.depth->depth_m) z *= factor;
   }
   for (Eigen::Vector3f& p : f.points) p *= factor;
+  if (f.T_cloud_camera) f.T_cloud_camera->translation() *= static_cast<double>(factor);
   f.depth_unit.units_per_m = units_per_m;
 }
 

@@ -9,6 +9,7 @@
 #include "mobmap/perception/pipeline.hpp"
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <optional>
 #include <string>
@@ -37,15 +38,33 @@ struct LoadedFrame {
   std::string note;
   /// The unit the depth (or the cloud's coordinates) was read in.
   DepthUnit depth_unit;
+  /// An organized cloud whose points were not in its camera's frame: the camera's pose in
+  /// the cloud's frame, fitted from the pixel grid (recoverCameraFrame). `points` then
+  /// hold the camera-frame points; outputs go back to the cloud's frame with it.
+  std::optional<Eigen::Isometry3d> T_cloud_camera;
 };
+
+/// For an organized cloud (height > 1) whose points are not a pinhole image in the
+/// camera frame: fits the camera from the pixel grid (perception::fitOrganizedCamera)
+/// and, when it fits (RMS under 0.5 px, no skew), moves the points into the camera frame
+/// and sets T_cloud_camera and a note. When no camera fits, the note says the frame
+/// cannot be recovered and the cloud is scored as it is. A cloud already in its
+/// camera's frame is left alone.
+void recoverCameraFrame(LoadedFrame& f, const std::string& path);
+
+/// The frame's results taken to the frame of the input's points: the cloud's when
+/// T_cloud_camera is set (points, normals, segment centroids and normals, ground
+/// plane); unchanged otherwise. Slopes, roughness and mobility do not change.
+void toInputFrame(perception::FrameResult& r, const LoadedFrame& f);
 
 /// Reads `f`'s depth (or cloud coordinates) at `units_per_m` instead of the unit it was
 /// read in (`--depth-scale`). UsageError unless positive and finite.
 void rescaleDepth(LoadedFrame& f, double units_per_m);
 
 /// Reads a PCD file (x y z, optional rgb/rgba) with PCL. IoError naming the file if it
-/// is missing, unreadable, has no x/y/z fields or fewer points than declared.
-LoadedFrame loadPcd(const std::string& path);
+/// is missing, unreadable, has no x/y/z fields or fewer points than declared. With
+/// `recover_camera`, an organized cloud goes through recoverCameraFrame().
+LoadedFrame loadPcd(const std::string& path, bool recover_camera = true);
 /// Checks cheaply (header only, no point parsed) that a .pcd can be loaded: a readable
 /// header with x, y and z, and for binary and binary_compressed data at least the bytes
 /// the header declares. ASCII data is not checked (counting its lines means reading it).

@@ -122,7 +122,7 @@ class PcdSequence : public Sequence {
     }
     // Organized frames that are a pinhole image become depth images, so free space
     // can be projected like for any depth camera.
-    const LoadedFrame first = loadPcd(entries_.front().path);
+    const LoadedFrame first = loadPcd(entries_.front().path, false);
     if (!intrinsics_spec.empty() && first.height > 1) {
       k_ = parseIntrinsics(intrinsics_spec, first.width, first.height);
       depth_ = true;
@@ -132,6 +132,14 @@ class PcdSequence : public Sequence {
         k_ = *k;
         depth_ = true;
         fit_rms_ = rms;
+      } else if (const auto fit = perception::fitOrganizedCamera(first.points, first.width, first.height);
+                 fit && fit->rms_px < 0.5 && std::abs(fit->skew) < 0.01) {
+        // Points in another frame than the camera's (a driver's, a robot's): the poses are
+        // the cloud frame's; the camera's pose in it comes from the pixel grid.
+        k_ = fit->intrinsics;
+        depth_ = true;
+        fit_rms_ = fit->rms_px;
+        T_cloud_camera_ = fit->T_cloud_camera;
       }
     }
   }
@@ -141,6 +149,10 @@ class PcdSequence : public Sequence {
     if (depth_) {
       s << "; pinhole fx " << k_.fx << " fy " << k_.fy << " cx " << k_.cx << " cy " << k_.cy;
       if (fit_rms_) s << " fitted to the first frame, RMS " << *fit_rms_ << " px";
+      if (T_cloud_camera_) {
+        s << "; its points are in a frame turned " << Eigen::AngleAxisd(T_cloud_camera_->linear()).angle() * 180.0 / M_PI
+          << " degrees from the camera's, which the poses are taken to be of";
+      }
     } else {
       s << "; clouds without a pinhole model: no free-space clearing";
     }
@@ -159,10 +171,17 @@ class PcdSequence : public Sequence {
   }
   SequenceFrame load(int n) const override {
     const Entry& e = entries_.at(static_cast<std::size_t>(n));
-    LoadedFrame lf = loadPcd(e.path);
+    LoadedFrame lf = loadPcd(e.path, false);
     SequenceFrame f;
     f.number = n;
     f.T_world_camera = e.pose;
+    if (T_cloud_camera_) {
+      const Eigen::Isometry3f T_camera_cloud = T_cloud_camera_->inverse().cast<float>();
+      for (Eigen::Vector3f& p : lf.points) {
+        if (p.allFinite()) p = T_camera_cloud * p;
+      }
+      f.T_world_camera = e.pose * *T_cloud_camera_;
+    }
     if (!depth_) {
       f.cloud = std::move(lf.points);
       f.width = lf.width;
@@ -194,12 +213,14 @@ class PcdSequence : public Sequence {
   }
   std::optional<ImageRgb> colour(int n) const override {
     if (!depth_) return std::nullopt;  // unorganized: no image to colour
-    LoadedFrame lf = loadPcd(entries_.at(static_cast<std::size_t>(n)).path);
+    LoadedFrame lf = loadPcd(entries_.at(static_cast<std::size_t>(n)).path, false);
     if (!lf.colour || lf.colour->width != k_.width || lf.colour->height != k_.height) return std::nullopt;
     return std::move(lf.colour);
   }
   std::string skipped() const override { return skipped_; }
-  std::optional<Eigen::Isometry3d> pose(int n) const override { return entries_.at(static_cast<std::size_t>(n)).pose; }
+  std::optional<Eigen::Isometry3d> pose(int n) const override {
+    return entries_.at(static_cast<std::size_t>(n)).pose * T_cloud_camera_.value_or(Eigen::Isometry3d::Identity());
+  }
   std::vector<std::string> files(int n) const override { return {entries_.at(static_cast<std::size_t>(n)).path, poses_path_}; }
 
  private:
@@ -211,6 +232,7 @@ class PcdSequence : public Sequence {
     frames_.push_back(static_cast<int>(entries_.size()));
     entries_.push_back({path, T});
   }
+  std::optional<Eigen::Isometry3d> T_cloud_camera_;  // when its points are not in the camera frame
   std::string input_, poses_path_, how_, skipped_;
   std::vector<Entry> entries_;
   std::vector<int> frames_;

@@ -4,6 +4,7 @@
 /// y down, z forward; metres).
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <cstdint>
 #include <optional>
@@ -71,5 +72,25 @@ std::vector<Eigen::Vector3d> depthToPoints(const DepthImage& depth, const Pinhol
 /// nullopt with fewer than 100 valid points or a degenerate fit (focal length not > 0).
 std::optional<PinholeIntrinsics> fitIntrinsics(const std::vector<Eigen::Vector3f>& organized, int width, int height,
                                                double* rms_px = nullptr);
+
+/// The camera behind an organized cloud whose points may be in another frame than the
+/// camera's (a driver's or a robot's): each valid pixel's point lies on that pixel's ray,
+/// so the pixel grid gives the camera's intrinsics and its pose in the cloud's frame.
+struct OrganizedCameraFit {
+  PinholeIntrinsics intrinsics;
+  /// Camera to cloud: a point p in the camera frame is T_cloud_camera * p in the cloud's.
+  Eigen::Isometry3d T_cloud_camera = Eigen::Isometry3d::Identity();
+  double rms_px = 0.0;      ///< RMS reprojection residual over the points used
+  double skew = 0.0;        ///< K(0, 1) / fx of the fitted camera (0 for a pinhole)
+  std::size_t points = 0;   ///< valid points used (a grid sample of at most ~20000)
+};
+
+/// Fits a projective camera u ~ P [q; 1] to the valid points q of an organized cloud
+/// (row-major, width x height; NaN or zero where there is no point) by the normalised
+/// direct linear transform and splits it into intrinsics and pose (RQ decomposition,
+/// the camera looking at its points). nullopt with fewer than 100 valid points or a
+/// degenerate system (the points on one plane through the camera, for example). The
+/// caller judges rms_px and skew: a cloud that is not a pinhole image fits badly.
+std::optional<OrganizedCameraFit> fitOrganizedCamera(const std::vector<Eigen::Vector3f>& organized, int width, int height);
 
 }  // namespace mobmap::perception
