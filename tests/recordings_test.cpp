@@ -19,6 +19,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <unistd.h>
 
 namespace mobmap::app {
@@ -139,7 +140,7 @@ struct TempDir {
     fs::remove_all(path);
     fs::create_directories(path);
   }
-  ~TempDir() { fs::remove_all(path); }
+  ~TempDir() { if (!std::getenv("KEEPTMP")) fs::remove_all(path); }
   fs::path path;
 };
 
@@ -435,6 +436,71 @@ TEST(OrganizedCamera, BuildAndAnalyzeTakeACloudInATurnedFrame) {
   // (the cloud's x is the camera's -y turned a quarter: R (0,-1,0) = (1,0,0)).
   EXPECT_GT(j["ground_plane"][0].get<double>(), 0.7) << j["ground_plane"];
   EXPECT_NEAR(j["ground_distance_m"].get<double>(), sim::CorridorParams{}.camera_height_m, 0.02);
+}
+
+// A .pcd sequence whose clouds are in a turned frame, with the poses of that frame: the
+// camera's pose in it is fitted once, and the map is the camera-frame sequence's.
+TEST(OrganizedCamera, APcdSequenceInATurnedFrameMapsAsInTheCameraFrame) {
+  const TempDir dir;
+  sim::CorridorParams p;
+  p.bob_m = 0.0;
+  const sim::CorridorScene scene(p);
+  Eigen::Isometry3d quarter = Eigen::Isometry3d::Identity();
+  quarter.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  fs::create_directories(dir.path / "camera");
+  fs::create_directories(dir.path / "turned");
+  std::ofstream camera_poses(dir.path / "camera.txt"), turned_poses(dir.path / "turned.txt");
+  camera_poses.precision(17);
+  turned_poses.precision(17);
+  const auto tum = [](std::ofstream& out, int i, const Eigen::Isometry3d& T) {
+    const Eigen::Quaterniond q(T.linear());
+    out << i << " " << T.translation().x() << " " << T.translation().y() << " " << T.translation().z() << " " << q.x() << " "
+        << q.y() << " " << q.z() << " " << q.w() << "\n";
+  };
+  for (int i = 0; i < 3; ++i) {
+    const sim::RenderedFrame f = scene.render(20 * i);
+    const std::string name = "frame-" + std::to_string(i) + ".pcd";
+    writeOrganizedPcd(dir, "camera/" + name, organizedCloud(f, Eigen::Isometry3d::Identity()), p.intrinsics.width, p.intrinsics.height);
+    writeOrganizedPcd(dir, "turned/" + name, organizedCloud(f, quarter), p.intrinsics.width, p.intrinsics.height);
+    tum(camera_poses, i, f.T_world_camera);
+    tum(turned_poses, i, f.T_world_camera * quarter.inverse());
+  }
+  camera_poses.close();
+  turned_poses.close();
+  const auto build = [&](const std::string& name) {
+    const auto [code, out] = mobmap("build " + (dir.path / name).string() + " --poses " + (dir.path / (name + ".txt")).string() +
+                                    " --gravity 0,0,-1 --out " + (dir.path / (name + ".ot")).string() + " --quiet");
+    EXPECT_EQ(code, 0) << out;
+    const auto [icode, iout] = mobmap("info " + (dir.path / (name + ".ot")).string() + " --json");
+    EXPECT_EQ(icode, 0) << iout;
+    return nlohmann::json::parse(iout);
+  };
+  const nlohmann::json a = build("camera"), b = build("turned");
+  ASSERT_FALSE(a["walkable_levels"].empty());
+  ASSERT_EQ(a["walkable_levels"].size(), b["walkable_levels"].size()) << a["walkable_levels"] << b["walkable_levels"];
+  for (std::size_t i = 0; i < a["walkable_levels"].size(); ++i) {
+    EXPECT_NEAR(a["walkable_levels"][i]["z_m"].get<double>(), b["walkable_levels"][i]["z_m"].get<double>(), 0.005);
+  }
+  // The floor lies exactly on a voxel boundary (z = 0), where the last bit of a turned
+  // point's height picks the voxel above or below: compare the columns the surfaces cover.
+  const auto columns = [&](const std::string& name) {
+    const std::string pcd = (dir.path / (name + ".pcd")).string();
+    EXPECT_EQ(mobmap("export " + (dir.path / (name + ".ot")).string() + " --pcd " + pcd).first, 0);
+    std::ifstream in(pcd);
+    std::string line;
+    while (std::getline(in, line) && line.rfind("DATA", 0) != 0) {
+    }
+    std::set<std::pair<long, long>> cells;
+    double x = 0, y = 0;
+    while (in >> x >> y && std::getline(in, line)) cells.insert({std::lround(x / 0.02), std::lround(y / 0.02)});
+    return cells;
+  };
+  const auto ca = columns("camera"), cb = columns("turned");
+  std::size_t common = 0;
+  for (const auto& c : ca) common += cb.count(c);
+  ASSERT_GT(ca.size(), 10000u);
+  EXPECT_GT(static_cast<double>(common), 0.995 * static_cast<double>(std::max(ca.size(), cb.size())))
+      << ca.size() << " and " << cb.size() << " columns, " << common << " in both";
 }
 
 }  // namespace
