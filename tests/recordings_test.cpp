@@ -140,7 +140,7 @@ struct TempDir {
     fs::remove_all(path);
     fs::create_directories(path);
   }
-  ~TempDir() { if (!std::getenv("KEEPTMP")) fs::remove_all(path); }
+  ~TempDir() { fs::remove_all(path); }
   fs::path path;
 };
 
