@@ -1093,6 +1093,7 @@ TEST(Cli, AGravityFileOffTheFloorIsRefinedToIt) {
   EXPECT_NE(refined["gravity_source"].get<std::string>().find("gravity-direction.txt, refined to the floor"), std::string::npos)
       << refined.dump();
   EXPECT_NE(refined_run.out.find("refined to the floor"), std::string::npos) << refined_run.out;  // said even with --quiet
+  EXPECT_NE(refined_run.out.find("gravity (down): (0.0000, 0.0698, -0.9976) given, ("), std::string::npos) << refined_run.out;
   const auto [kept_run, kept] = build("kept", "--gravity-refine off");
   EXPECT_NEAR(angleToTruth(kept["gravity_down_world"]), 4.0, 1e-4);
   EXPECT_NEAR(kept["gravity_floor_angle_deg"].get<double>(), 4.0, 0.3);

@@ -957,6 +957,10 @@ Command addBuildCommand(CLI::App& app) {
       std::printf("the map now holds %d frames from %zu runs\n", meta.frames, meta.earlier_runs.size() + 1);
     }
     for (const std::string& line : depth_checks.summary()) std::printf("%s\n", line.c_str());
+    if (gravity_given) {  // checked against the floor: what was given and what was used
+      std::printf("gravity (down): (%.4f, %.4f, %.4f) given, (%.4f, %.4f, %.4f) used: %s\n", gravity_given->x(),
+                  gravity_given->y(), gravity_given->z(), g_world.x(), g_world.y(), g_world.z(), gravity_source.c_str());
+    }
     if (no_pose > 0) {
       std::printf("%d frames skipped: no pose within %g s of their time stamp in %s\n", no_pose, o->max_pose_gap,
                   o->poses.c_str());
