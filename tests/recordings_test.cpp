@@ -339,17 +339,28 @@ std::string writeOrganizedPcd(const TempDir& dir, const std::string& name, const
   return path;
 }
 
+// A Kinect v2 driver's frame: the camera's turned a quarter about the optical axis (x down).
+Eigen::Isometry3d quarterTurn() {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  return T;
+}
+
+// The corridor frame as an organized PCD, its points moved by T.
+std::string writeFramePcd(const TempDir& dir, const std::string& name, const sim::RenderedFrame& f, const Eigen::Isometry3d& T) {
+  const perception::PinholeIntrinsics k = sim::CorridorParams{}.intrinsics;
+  return writeOrganizedPcd(dir, name, organizedCloud(f, T), k.width, k.height);
+}
+
 // A Kinect v2 cloud whose points are its camera frame turned a quarter (x down) was scored
 // upside down. Fitted from its pixel grid, it is scored in its camera's frame and gives the
 // camera-frame cloud's segments, reported in its own frame (normals and centroids turned).
 TEST(OrganizedCamera, ACloudInATurnedFrameScoresAsInItsCameraFrame) {
   const TempDir dir;
   const sim::RenderedFrame f = corridorFrame(35.0);
-  const perception::PinholeIntrinsics k = sim::CorridorParams{}.intrinsics;
-  Eigen::Isometry3d quarter = Eigen::Isometry3d::Identity();
-  quarter.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  const std::string plain = writeOrganizedPcd(dir, "camera.pcd", organizedCloud(f, Eigen::Isometry3d::Identity()), k.width, k.height);
-  const std::string turned = writeOrganizedPcd(dir, "turned.pcd", organizedCloud(f, quarter), k.width, k.height);
+  const Eigen::Isometry3d quarter = quarterTurn();
+  const std::string plain = writeFramePcd(dir, "camera.pcd", f, Eigen::Isometry3d::Identity());
+  const std::string turned = writeFramePcd(dir, "turned.pcd", f, quarter);
   const perception::FramePipeline pipeline(perception::PerceptionParams{}, gp::MobilityModel{});
   LoadedFrame a = loadPcd(plain);
   EXPECT_FALSE(a.T_cloud_camera.has_value());
@@ -381,6 +392,7 @@ TEST(OrganizedCamera, ACloudInATurnedFrameScoresAsInItsCameraFrame) {
   // Points a shuffle took off their rays: no camera's; said, and scored as they are.
   std::vector<Eigen::Vector3f> shuffled = organizedCloud(f, quarter);
   std::reverse(shuffled.begin(), shuffled.begin() + static_cast<std::ptrdiff_t>(shuffled.size() / 2));
+  const perception::PinholeIntrinsics k = sim::CorridorParams{}.intrinsics;
   const LoadedFrame c = loadPcd(writeOrganizedPcd(dir, "shuffled.pcd", shuffled, k.width, k.height));
   EXPECT_FALSE(c.T_cloud_camera.has_value());
   EXPECT_NE(c.note.find("its frame cannot be recovered"), std::string::npos) << c.note;
@@ -404,11 +416,9 @@ std::pair<int, std::string> mobmap(const std::string& args) {
 TEST(OrganizedCamera, BuildAndAnalyzeTakeACloudInATurnedFrame) {
   const TempDir dir;
   const sim::RenderedFrame f = corridorFrame(35.0);
-  const perception::PinholeIntrinsics k = sim::CorridorParams{}.intrinsics;
-  Eigen::Isometry3d quarter = Eigen::Isometry3d::Identity();
-  quarter.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  const std::string plain = writeOrganizedPcd(dir, "camera.pcd", organizedCloud(f, Eigen::Isometry3d::Identity()), k.width, k.height);
-  const std::string turned = writeOrganizedPcd(dir, "turned.pcd", organizedCloud(f, quarter), k.width, k.height);
+  const Eigen::Isometry3d quarter = quarterTurn();
+  const std::string plain = writeFramePcd(dir, "camera.pcd", f, Eigen::Isometry3d::Identity());
+  const std::string turned = writeFramePcd(dir, "turned.pcd", f, quarter);
   const auto info = [&](const std::string& pcd, const std::string& name) {
     const auto [code, out] = mobmap("build " + pcd + " --out " + (dir.path / name).string() + " --quiet");
     EXPECT_EQ(code, 0) << out;
@@ -445,8 +455,7 @@ TEST(OrganizedCamera, APcdSequenceInATurnedFrameMapsAsInTheCameraFrame) {
   sim::CorridorParams p;
   p.bob_m = 0.0;
   const sim::CorridorScene scene(p);
-  Eigen::Isometry3d quarter = Eigen::Isometry3d::Identity();
-  quarter.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const Eigen::Isometry3d quarter = quarterTurn();
   fs::create_directories(dir.path / "camera");
   fs::create_directories(dir.path / "turned");
   std::ofstream camera_poses(dir.path / "camera.txt"), turned_poses(dir.path / "turned.txt");
