@@ -156,7 +156,9 @@ Command addOverlayCommand(CLI::App& app) {
     if (!std::filesystem::exists(input, ec)) throw IoError(input, "no such file or directory");
     std::string intrinsics = o->intrinsics, poses = o->poses;
     double max_pose_gap = o->max_pose_gap;
+    std::optional<double> depth_units_per_m;  // the run's --depth-scale
     if (const mapping::MapRun* run = runOfInput(metadata, input)) {
+      depth_units_per_m = run->depth_units_per_m;
       if (intrinsics.empty() && run->depth_intrinsics) {
         const mapping::DepthCameraRecord& k = *run->depth_intrinsics;
         if (!(k.fx > 0 && k.fy > 0)) {
@@ -201,6 +203,10 @@ Command addOverlayCommand(CLI::App& app) {
       seq = openOpenNi(on);
     } else {
       seq = openSequence(input, intrinsics, max_pose_gap, poses);
+    }
+    // The frames in the depth unit the map's run read them in.
+    if (depth_units_per_m && *depth_units_per_m > 0 && std::isfinite(*depth_units_per_m)) {
+      seq = withDepthScale(std::move(seq), *depth_units_per_m);
     }
     if (!seq->hasDepth()) {
       throw IoError(input, "its frames are unorganized clouds, not images: there is no picture to draw the map into");
