@@ -57,7 +57,7 @@ for target in "${targets[@]}"; do
               mapping/src/mobility_map.cpp mapping/src/mobility_octree.cpp mapping/src/gravity.cpp \
               -- -lyaml-cpp -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;
     poses) link poses tests/fuzz/fuzz_poses.cpp apps/src/trajectory_files.cpp apps/src/dataset.cpp apps/src/files.cpp \
-             apps/src/png_io.cpp perception/src/camera.cpp mapping/src/gravity.cpp -- -lpng "${mrpt[@]}" ;;
+             apps/src/png_io.cpp perception/src/camera.cpp mapping/src/gravity.cpp -- -lpng -lyaml-cpp "${mrpt[@]}" ;;
     pipeline) link pipeline tests/fuzz/fuzz_pipeline.cpp "${gp[@]}" "${perception[@]}" -- -lgmp -lmpfr ;;
     *) echo "fuzz.sh: unknown target $target" >&2; exit 2 ;;
   esac
