@@ -26,6 +26,7 @@
 #include <cstdlib>
 #include <deque>
 #include <filesystem>
+#include <functional>
 #include <future>
 #include <iostream>
 #include <sstream>
@@ -80,6 +81,44 @@ perception::FrameResult perceive(const perception::FramePipeline& pipeline, cons
   return pipeline.process(f.cloud, gravity_down_camera);
 }
 
+// A frame's floor as a vote for "down" in the world frame: its ground plane's normal
+// turned by the camera's rotation r_wc, weighted by the plane's points. None without one.
+std::optional<mapping::DownObservation> floorVote(const perception::FrameResult& r, const Eigen::Matrix3d& r_wc) {
+  if (!r.ground_plane) return std::nullopt;
+  double weight = 0.0;
+  for (const auto& s : r.segments) weight += s.is_ground ? static_cast<double>(s.points.size()) : 0.0;
+  return mapping::DownObservation{r_wc * -r.ground_plane->head<3>().cast<double>(), std::max(1.0, weight)};
+}
+
+// Up to 8 posed frames spread over the selection, each perceived by `finder` with the
+// camera-frame gravity `down_in_camera(r_wc)` gives: their floors' votes, and the
+// rotations of the posed frames sampled. An unreadable frame is skipped with
+// --skip-bad-frames (the run skips it too, and says so), else its error stops the run.
+struct FloorSample {
+  std::vector<mapping::DownObservation> floors;
+  std::vector<Eigen::Matrix3d> rotations;
+};
+FloorSample sampleFloors(const Sequence& dir, const std::vector<int>& frames, const perception::FramePipeline& finder,
+                         const std::function<Eigen::Vector3f(const Eigen::Matrix3d&)>& down_in_camera, bool skip_unreadable) {
+  FloorSample sample;
+  const std::size_t samples = std::min<std::size_t>(8, frames.size());
+  for (std::size_t i = 0; i < samples; ++i) {
+    const std::size_t at = samples == 1 ? 0 : i * (frames.size() - 1) / (samples - 1);
+    SequenceFrame f;
+    try {
+      f = dir.load(frames[at]);
+    } catch (const IoError& e) {
+      if (!skip_unreadable) throw withSkipHint(e);
+      continue;
+    }
+    if (!f.has_pose) continue;
+    const Eigen::Matrix3d r_wc = f.T_world_camera.linear();
+    sample.rotations.push_back(r_wc);
+    if (auto vote = floorVote(perceive(finder, dir, f, down_in_camera(r_wc)), r_wc)) sample.floors.push_back(*vote);
+  }
+  return sample;
+}
+
 struct GravityGuess {
   Eigen::Vector3d down;
   std::string how;  // for the note and MAP.json
@@ -95,31 +134,13 @@ GravityGuess estimateGravity(const Sequence& dir, const std::vector<int>& frames
                              const gp::MobilityModel& model, bool skip_unreadable) {
   perception::PerceptionParams p = pp;
   p.ground_max_tilt_deg = 45.0;
-  const perception::FramePipeline finder(p, model);
-  const std::size_t samples = std::min<std::size_t>(8, frames.size());
-  std::vector<mapping::DownObservation> floors;
+  const FloorSample sample = sampleFloors(
+      dir, frames, perception::FramePipeline(p, model), [](const Eigen::Matrix3d&) { return Eigen::Vector3f(0, 1, 0); },
+      skip_unreadable);
+  const std::size_t posed = sample.rotations.size();
   Eigen::Vector3d camera_y_sum = Eigen::Vector3d::Zero();
-  int posed = 0;
-  for (std::size_t i = 0; i < samples; ++i) {
-    const std::size_t at = samples == 1 ? 0 : i * (frames.size() - 1) / (samples - 1);
-    SequenceFrame f;
-    try {
-      f = dir.load(frames[at]);
-    } catch (const IoError& e) {
-      if (!skip_unreadable) throw withSkipHint(e);
-      continue;  // the run skips it too, and says so
-    }
-    if (!f.has_pose) continue;
-    ++posed;
-    const Eigen::Matrix3d r_wc = f.T_world_camera.linear();
-    camera_y_sum += r_wc.col(1);
-    const perception::FrameResult r = perceive(finder, dir, f, Eigen::Vector3f(0, 1, 0));
-    if (!r.ground_plane) continue;
-    double weight = 0.0;
-    for (const auto& s : r.segments) weight += s.is_ground ? static_cast<double>(s.points.size()) : 0.0;
-    floors.push_back({r_wc * -r.ground_plane->head<3>().cast<double>(), std::max(1.0, weight)});
-  }
-  const auto vote = mapping::consensusDown(floors, 5.0);
+  for (const Eigen::Matrix3d& r_wc : sample.rotations) camera_y_sum += r_wc.col(1);
+  const auto vote = mapping::consensusDown(sample.floors, 5.0);
   std::ostringstream how;
   how.precision(2);
   if (vote && vote->weight_share >= 0.5) {
@@ -146,7 +167,7 @@ constexpr double kGravityAgreesDeg = 1.0;
 // in the world frame, vote as in estimateGravity. Nullopt when no floor agreed on.
 struct FloorCheck {
   mapping::DownConsensus vote;
-  int sampled = 0;
+  std::size_t sampled = 0;
 };
 std::optional<FloorCheck> floorNear(const Eigen::Vector3d& given_down, const Sequence* dir, const std::vector<int>& frames,
                                     const LoadedFrame* single, const perception::PerceptionParams& pp,
@@ -154,37 +175,18 @@ std::optional<FloorCheck> floorNear(const Eigen::Vector3d& given_down, const Seq
   perception::PerceptionParams p = pp;
   p.ground_max_tilt_deg = kGravityRefineConeDeg;
   const perception::FramePipeline finder(p, model);
-  std::vector<mapping::DownObservation> floors;
-  FloorCheck check;
-  const auto observe = [&](const perception::FrameResult& r, const Eigen::Matrix3d& r_wc) {
-    ++check.sampled;
-    if (!r.ground_plane) return;
-    double weight = 0.0;
-    for (const auto& s : r.segments) weight += s.is_ground ? static_cast<double>(s.points.size()) : 0.0;
-    floors.push_back({r_wc * -r.ground_plane->head<3>().cast<double>(), std::max(1.0, weight)});
-  };
+  const auto down_in_camera = [&](const Eigen::Matrix3d& r_wc) { return Eigen::Vector3f((r_wc.transpose() * given_down).cast<float>()); };
+  FloorSample sample;
   if (single) {  // its world frame is its points' frame (the camera's, or the cloud's it was turned from)
     const Eigen::Matrix3d r_wc = single->T_cloud_camera.value_or(Eigen::Isometry3d::Identity()).linear();
-    observe(perceiveFrame(finder, *single, (r_wc.transpose() * given_down).cast<float>()), r_wc);
+    sample.rotations.push_back(r_wc);
+    if (auto vote = floorVote(perceiveFrame(finder, *single, down_in_camera(r_wc)), r_wc)) sample.floors.push_back(*vote);
   } else {
-    const std::size_t samples = std::min<std::size_t>(8, frames.size());
-    for (std::size_t i = 0; i < samples; ++i) {
-      const std::size_t at = samples == 1 ? 0 : i * (frames.size() - 1) / (samples - 1);
-      SequenceFrame f;
-      try {
-        f = dir->load(frames[at]);
-      } catch (const IoError& e) {
-        if (!skip_unreadable) throw withSkipHint(e);
-        continue;
-      }
-      if (!f.has_pose) continue;
-      const Eigen::Matrix3d r_wc = f.T_world_camera.linear();
-      observe(perceive(finder, *dir, f, (r_wc.transpose() * given_down).cast<float>()), r_wc);
-    }
+    sample = sampleFloors(*dir, frames, finder, down_in_camera, skip_unreadable);
   }
-  const auto vote = mapping::consensusDown(floors, 5.0);
+  const auto vote = mapping::consensusDown(sample.floors, 5.0);
   if (!vote || vote->weight_share < 0.5) return std::nullopt;
-  return FloorCheck{*vote, check.sampled};
+  return FloorCheck{*vote, sample.rotations.size()};
 }
 
 // The map that --extend adds frames to: its tree, its metadata, and the frame it was
@@ -526,20 +528,23 @@ Command addBuildCommand(CLI::App& app) {
         gravity_floor_angle = angleDeg(*gravity_given, floor->vote.down);
         char text[400];
         if (*gravity_floor_angle <= kGravityAgreesDeg) {
-          std::snprintf(text, sizeof text, "%s (the floor in %d of %d sampled frames agrees within %.2f degrees)",
+          std::snprintf(text, sizeof text, "%s (the floor in %d of %zu sampled frames agrees within %.2f degrees)",
                         gravity_source.c_str(), floor->vote.agreeing, floor->sampled, *gravity_floor_angle);
         } else if (o->gravity_refine == "on") {
           gravity_world = floor->vote.down;
-          std::snprintf(text, sizeof text, "%s, refined to the floor in %d of %d sampled frames (%.2f degrees from it)",
+          std::snprintf(text, sizeof text, "%s, refined to the floor in %d of %zu sampled frames (%.2f degrees from it)",
                         gravity_source.c_str(), floor->vote.agreeing, floor->sampled, *gravity_floor_angle);
         } else {
-          std::snprintf(text, sizeof text, "%s, as given (--gravity-refine off; the floor in %d of %d sampled frames lies "
+          std::snprintf(text, sizeof text, "%s, as given (--gravity-refine off; the floor in %d of %zu sampled frames lies "
                         "%.2f degrees from it)", gravity_source.c_str(), floor->vote.agreeing, floor->sampled,
                         *gravity_floor_angle);
         }
         gravity_source = text;
       } else {
-        gravity_source += " (no floor agreed on within 10 degrees of it in the sampled frames: kept as given)";
+        char text[160];
+        std::snprintf(text, sizeof text, " (no floor agreed on within %g degrees of it in the sampled frames: kept as given)",
+                      kGravityRefineConeDeg);
+        gravity_source += text;
       }
       if (!o->quiet || (gravity_floor_angle && *gravity_floor_angle > 1.0)) {
         std::fprintf(stderr, "note: gravity (down) in the world frame (%.4f, %.4f, %.4f), from %s\n", gravity_world->x(),
