@@ -1,5 +1,7 @@
 #include "depth_checks.hpp"
 
+#include "io_error.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -7,6 +9,16 @@
 #include <vector>
 
 namespace mobmap::app {
+
+float depthRescaleFactor(const DepthUnit& from, double units_per_m) {
+  if (!(units_per_m > 0) || !std::isfinite(units_per_m)) throw UsageError("--depth-scale must be a positive number of units per metre");
+  return static_cast<float>(from.units_per_m / units_per_m);
+}
+
+void scaleDepth(std::vector<float>& depth_m, std::vector<Eigen::Vector3f>& points, float factor) {
+  for (float& z : depth_m) z *= factor;
+  for (Eigen::Vector3f& p : points) p *= factor;
+}
 
 std::optional<std::string> depthUnitProblem(const perception::RangeReport& r, const DepthUnit& unit) {
   constexpr std::size_t kMinValid = 100;  // fewer: nothing to judge by

@@ -5,6 +5,8 @@
 
 #include "mobmap/perception/frame_result.hpp"
 
+#include <Eigen/Core>
+
 #include <optional>
 #include <string>
 #include <vector>
@@ -18,6 +20,14 @@ struct DepthUnit {
   double units_per_m = 1000.0;
   bool cloud = false;
 };
+
+/// `--depth-scale`: the factor that takes depth (or cloud coordinates) read at
+/// `from.units_per_m` to a reading at `units_per_m`. UsageError unless `units_per_m` is
+/// positive and finite.
+float depthRescaleFactor(const DepthUnit& from, double units_per_m);
+
+/// Multiplies depth values and cloud points by `factor` (depthRescaleFactor).
+void scaleDepth(std::vector<float>& depth_m, std::vector<Eigen::Vector3f>& points, float factor);
 
 /// Depth cameras see about this far: a frame whose median valid depth lies outside is
 /// taken to be in another unit.

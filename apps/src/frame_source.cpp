@@ -300,13 +300,33 @@ LoadedFrame loadSingleFrame(const std::string& input, int frame, const std::stri
   throw IoError(input, "unknown input type (expected a .pcd, a 16-bit depth .png, a 7-Scenes or a TUM RGB-D directory)");
 }
 
+std::optional<CloudCamera> fitCloudCamera(const std::vector<Eigen::Vector3f>& organized, int width, int height,
+                                          double* best_rms_px) {
+  constexpr double kMaxRmsPx = 0.5, kMaxSkew = 0.01;
+  if (best_rms_px) *best_rms_px = std::nan("");
+  double rms = 0;
+  if (const auto k = perception::fitIntrinsics(organized, width, height, &rms); k && rms < kMaxRmsPx) return CloudCamera{*k, rms, {}};
+  const auto fit = perception::fitOrganizedCamera(organized, width, height);
+  if (!fit) return std::nullopt;
+  if (best_rms_px) *best_rms_px = fit->rms_px;
+  if (!(fit->rms_px < kMaxRmsPx) || !(std::abs(fit->skew) < kMaxSkew)) return std::nullopt;
+  return CloudCamera{fit->intrinsics, fit->rms_px, fit->T_cloud_camera};
+}
+
+void toCameraFrame(std::vector<Eigen::Vector3f>& points, const Eigen::Isometry3d& T_cloud_camera) {
+  const Eigen::Isometry3f T_camera_cloud = T_cloud_camera.inverse().cast<float>();
+  for (Eigen::Vector3f& p : points) {
+    if (p.allFinite()) p = T_camera_cloud * p;
+  }
+}
+
 void recoverCameraFrame(LoadedFrame& f, const std::string& path) {
   if (f.height <= 1 || f.depth) return;
-  double rms = 0;
-  if (const auto k = perception::fitIntrinsics(f.points, f.width, f.height, &rms); k && rms < 0.5) return;  // the camera's frame
-  const auto fit = perception::fitOrganizedCamera(f.points, f.width, f.height);
+  double best_rms = 0;
+  const auto camera = fitCloudCamera(f.points, f.width, f.height, &best_rms);
+  if (camera && !camera->T_cloud_camera) return;  // the camera's frame
   char text[500];
-  if (!fit || !(fit->rms_px < 0.5) || !(std::abs(fit->skew) < 0.01)) {
+  if (!camera) {
     std::size_t valid = 0;
     for (const Eigen::Vector3f& p : f.points) valid += p.allFinite();
     if (valid < 100) return;  // too few points to tell
@@ -314,22 +334,19 @@ void recoverCameraFrame(LoadedFrame& f, const std::string& path) {
                   "%s: an organized cloud whose points do not lie on their pixels' rays for any pinhole camera "
                   "(best fit: %s): its frame cannot be recovered, so it is scored as it is, with the image's up axis "
                   "taken as up (--gravity in the cloud's frame says otherwise)",
-                  path.c_str(), fit ? ("RMS " + std::to_string(fit->rms_px) + " px").c_str() : "none");
+                  path.c_str(), std::isnan(best_rms) ? "none" : ("RMS " + std::to_string(best_rms) + " px").c_str());
     f.note = text;
     return;
   }
-  const Eigen::Isometry3f T_camera_cloud = fit->T_cloud_camera.inverse().cast<float>();
-  for (Eigen::Vector3f& p : f.points) {
-    if (p.allFinite()) p = T_camera_cloud * p;
-  }
-  f.T_cloud_camera = fit->T_cloud_camera;
-  const double angle = Eigen::AngleAxisd(fit->T_cloud_camera.linear()).angle() * 180.0 / M_PI;
+  const Eigen::Isometry3d& T = *camera->T_cloud_camera;
+  toCameraFrame(f.points, T);
+  f.T_cloud_camera = T;
   std::snprintf(text, sizeof text,
                 "%s: its points are not in its camera's frame; the camera, fitted from the pixel grid (fx %.1f fy %.1f "
                 "cx %.1f cy %.1f, RMS %.3f px), is turned %.1f degrees and moved %.3f m from the cloud's frame: scored "
                 "in the camera's frame, reported in the cloud's",
-                path.c_str(), fit->intrinsics.fx, fit->intrinsics.fy, fit->intrinsics.cx, fit->intrinsics.cy, fit->rms_px,
-                angle, fit->T_cloud_camera.translation().norm());
+                path.c_str(), camera->intrinsics.fx, camera->intrinsics.fy, camera->intrinsics.cx, camera->intrinsics.cy,
+                camera->rms_px, Eigen::AngleAxisd(T.linear()).angle() * 180.0 / M_PI, T.translation().norm());
   f.note = text;
 }
 
@@ -351,13 +368,10 @@ void toInputFrame(perception::FrameResult& r, const LoadedFrame& f) {
 }
 
 void rescaleDepth(LoadedFrame& f, double units_per_m) {
-  if (!(units_per_m > 0) || !std::isfinite(units_per_m)) throw UsageError("--depth-scale must be a positive number of units per metre");
+  const float factor = depthRescaleFactor(f.depth_unit, units_per_m);
   if (units_per_m == f.depth_unit.units_per_m) return;
-  const auto factor = static_cast<float>(f.depth_unit.units_per_m / units_per_m);
-  if (f.depth) {
-    for (float& z : f.depth->depth_m) z *= factor;
-  }
-  for (Eigen::Vector3f& p : f.points) p *= factor;
+  std::vector<float> no_depth;
+  scaleDepth(f.depth ? f.depth->depth_m : no_depth, f.points, factor);
   if (f.T_cloud_camera) f.T_cloud_camera->translation() *= static_cast<double>(factor);
   f.depth_unit.units_per_m = units_per_m;
 }

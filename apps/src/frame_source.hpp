@@ -44,6 +44,23 @@ struct LoadedFrame {
   std::optional<Eigen::Isometry3d> T_cloud_camera;
 };
 
+/// The pinhole camera behind an organized cloud, fitted from its pixel grid: in the
+/// cloud's own frame (perception::fitIntrinsics), else in another frame with the
+/// camera's pose in it (perception::fitOrganizedCamera). A fit counts with an RMS under
+/// 0.5 px (and no skew). nullopt when neither fits; `best_rms_px` (if given) then gets
+/// the RMS of the pose fit, NaN when none could be made.
+struct CloudCamera {
+  perception::PinholeIntrinsics intrinsics;
+  double rms_px = 0.0;
+  std::optional<Eigen::Isometry3d> T_cloud_camera;  ///< unset: the cloud is in the camera's frame
+};
+std::optional<CloudCamera> fitCloudCamera(const std::vector<Eigen::Vector3f>& organized, int width, int height,
+                                          double* best_rms_px = nullptr);
+
+/// A cloud's finite points taken from its frame to its camera's (T_cloud_camera
+/// inverted); the others are left as they are.
+void toCameraFrame(std::vector<Eigen::Vector3f>& points, const Eigen::Isometry3d& T_cloud_camera);
+
 /// For an organized cloud (height > 1) whose points are not a pinhole image in the
 /// camera frame: fits the camera from the pixel grid (perception::fitOrganizedCamera)
 /// and, when it fits (RMS under 0.5 px, no skew), moves the points into the camera frame

@@ -127,19 +127,13 @@ class PcdSequence : public Sequence {
       k_ = parseIntrinsics(intrinsics_spec, first.width, first.height);
       depth_ = true;
     } else if (first.height > 1) {
-      double rms = 0;
-      if (auto k = perception::fitIntrinsics(first.points, first.width, first.height, &rms); k && rms < 0.5) {
-        k_ = *k;
+      // Points in another frame than the camera's (a driver's, a robot's) give the
+      // camera's pose in it as well: the poses are then the cloud frame's.
+      if (const auto camera = fitCloudCamera(first.points, first.width, first.height)) {
+        k_ = camera->intrinsics;
         depth_ = true;
-        fit_rms_ = rms;
-      } else if (const auto fit = perception::fitOrganizedCamera(first.points, first.width, first.height);
-                 fit && fit->rms_px < 0.5 && std::abs(fit->skew) < 0.01) {
-        // Points in another frame than the camera's (a driver's, a robot's): the poses are
-        // the cloud frame's; the camera's pose in it comes from the pixel grid.
-        k_ = fit->intrinsics;
-        depth_ = true;
-        fit_rms_ = fit->rms_px;
-        T_cloud_camera_ = fit->T_cloud_camera;
+        fit_rms_ = camera->rms_px;
+        T_cloud_camera_ = camera->T_cloud_camera;
       }
     }
   }
@@ -176,10 +170,7 @@ class PcdSequence : public Sequence {
     f.number = n;
     f.T_world_camera = e.pose;
     if (T_cloud_camera_) {
-      const Eigen::Isometry3f T_camera_cloud = T_cloud_camera_->inverse().cast<float>();
-      for (Eigen::Vector3f& p : lf.points) {
-        if (p.allFinite()) p = T_camera_cloud * p;
-      }
+      toCameraFrame(lf.points, *T_cloud_camera_);
       f.T_world_camera = e.pose * *T_cloud_camera_;
     }
     if (!depth_) {
@@ -336,9 +327,8 @@ namespace {
 // A sequence read in another depth unit (`--depth-scale`).
 class ScaledSequence : public Sequence {
  public:
-  ScaledSequence(std::unique_ptr<Sequence> inner, double units_per_m)
-      : inner_(std::move(inner)), unit_{units_per_m, inner_->depthUnit().cloud},
-        factor_(static_cast<float>(inner_->depthUnit().units_per_m / units_per_m)) {}
+  ScaledSequence(std::unique_ptr<Sequence> inner, double units_per_m, float factor)
+      : inner_(std::move(inner)), unit_{units_per_m, inner_->depthUnit().cloud}, factor_(factor) {}
   [[nodiscard]] std::string describe() const override { return inner_->describe(); }
   [[nodiscard]] const perception::PinholeIntrinsics& intrinsics() const override { return inner_->intrinsics(); }
   [[nodiscard]] bool hasDepth() const override { return inner_->hasDepth(); }
@@ -347,8 +337,7 @@ class ScaledSequence : public Sequence {
   void check(int n) const override { inner_->check(n); }
   [[nodiscard]] SequenceFrame load(int n) const override {
     SequenceFrame f = inner_->load(n);
-    for (float& z : f.depth.depth_m) z *= factor_;
-    for (Eigen::Vector3f& p : f.cloud) p *= factor_;
+    scaleDepth(f.depth.depth_m, f.cloud, factor_);
     return f;
   }
   [[nodiscard]] std::optional<Eigen::Isometry3d> pose(int n) const override { return inner_->pose(n); }
@@ -366,9 +355,9 @@ class ScaledSequence : public Sequence {
 }  // namespace
 
 std::unique_ptr<Sequence> withDepthScale(std::unique_ptr<Sequence> seq, double units_per_m) {
-  if (!(units_per_m > 0) || !std::isfinite(units_per_m)) throw UsageError("--depth-scale must be a positive number of units per metre");
+  const float factor = depthRescaleFactor(seq->depthUnit(), units_per_m);
   if (seq->depthUnit().units_per_m == units_per_m) return seq;
-  return std::make_unique<ScaledSequence>(std::move(seq), units_per_m);
+  return std::make_unique<ScaledSequence>(std::move(seq), units_per_m, factor);
 }
 
 std::unique_ptr<Sequence> openSequence(const std::string& input, const std::string& intrinsics_spec, double max_pose_gap_s,
