@@ -296,6 +296,13 @@ std::vector<Eigen::Vector3f> organizedCloud(const sim::RenderedFrame& f, const E
   return cloud;
 }
 
+// A Kinect v2 driver's frame: the camera's turned a quarter about the optical axis (x down).
+Eigen::Isometry3d quarterTurn() {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  return T;
+}
+
 // The pixel grid tells where each point's ray goes: the camera's intrinsics and its pose
 // in the cloud's frame come back from a cloud in any frame.
 TEST(OrganizedCamera, TheCameraOfACloudInAnotherFrameIsRecovered) {
@@ -303,8 +310,7 @@ TEST(OrganizedCamera, TheCameraOfACloudInAnotherFrameIsRecovered) {
   const perception::PinholeIntrinsics k = sim::CorridorParams{}.intrinsics;
   // A Kinect v2 driver's frame: x down, y left (a quarter turn about the optical axis);
   // a robot's base frame: turned and 1.2 m off; and the camera frame itself.
-  Eigen::Isometry3d quarter = Eigen::Isometry3d::Identity();
-  quarter.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const Eigen::Isometry3d quarter = quarterTurn();
   Eigen::Isometry3d robot = Eigen::Isometry3d::Identity();
   robot.linear() = (Eigen::AngleAxisd(-M_PI / 2, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(-M_PI / 2 - 0.6, Eigen::Vector3d::UnitX()))
                        .toRotationMatrix();
@@ -337,13 +343,6 @@ std::string writeOrganizedPcd(const TempDir& dir, const std::string& name, const
       << "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << cloud.size() << "\nDATA binary\n";
   out.write(reinterpret_cast<const char*>(cloud.data()), static_cast<std::streamsize>(cloud.size() * sizeof(Eigen::Vector3f)));
   return path;
-}
-
-// A Kinect v2 driver's frame: the camera's turned a quarter about the optical axis (x down).
-Eigen::Isometry3d quarterTurn() {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  return T;
 }
 
 // The corridor frame as an organized PCD, its points moved by T.

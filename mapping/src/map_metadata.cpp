@@ -119,7 +119,7 @@ void fields(MapRun& r, V& v) {
   v("config", r.config);
 }
 
-// Keys derived from others or kept at the top level, which a run record does not hold.
+// The map-wide entries, kept at the top level beside the latest run's: not run entries.
 const std::set<std::string> kMapWideKeys = {"frames", "trajectory_map", "earlier_runs"};
 
 std::optional<std::array<double, 3>> finite3(const Json& j) {
