@@ -20,7 +20,7 @@ cmake -DIN=apps/default.yaml -DOUT=build-fuzz/default_yaml.inc -P apps/embed.cma
 
 # Each source is compiled once, again when it or any first-party header is newer than
 # its object (a header change can change a struct's layout under an old object).
-newest_header=$(ls -t $(find gp perception mapping apps tests/fuzz -name '*.hpp') | head -n 1)
+newest_header=$(ls -t $(find gp perception mapping apps sim tests/fuzz -name '*.hpp') | head -n 1)
 objects() {
   for src in "$@"; do
     local o="build-fuzz/obj/${src//\//_}.o"
@@ -33,7 +33,7 @@ objects() {
 # A module's sources as its CMakeLists.txt lists them (SOURCES up to the *_DEPS line), so
 # a file added there is never missing here.
 module_sources() {
-  sed -n '/SOURCES/,/_DEPS/p' "$1/CMakeLists.txt" | grep -o 'src/[A-Za-z0-9_]*\.cpp' | sed "s|^|$1/|"
+  sed -n '/SOURCES/,/_DEPS/p' "$1/CMakeLists.txt" | grep -o 'src/[A-Za-z0-9_/]*\.cpp' | sed "s|^|$1/|"
 }
 mapfile -t gp < <(module_sources gp)
 mapfile -t perception < <(module_sources perception)

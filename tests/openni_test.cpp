@@ -1,6 +1,6 @@
 // OpenNI2 inputs of `mobmap build` and `mobmap record`, for real and without hardware:
 // OpenNI2's own Dummy device (the live path), no device at all, and a driver of ours
-// (tests/support/openni) that serves the synthetic corridor as a live sensor, whose
+// (sim/openni) that serves the synthetic corridor as a live sensor, whose
 // recordings OpenNI2's player plays back. The driver is loaded from a private folder
 // (build/openni-sim) by pointing LD_LIBRARY_PATH at it.
 #include "map_files.hpp"
