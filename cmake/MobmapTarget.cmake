@@ -19,6 +19,8 @@ function(mobmap_add_module name)
   target_include_directories(mobmap_${name} PUBLIC
     $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>
     $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+  # Private headers (not installed) are included by their path under src/.
+  target_include_directories(mobmap_${name} PRIVATE ${CMAKE_CURRENT_SOURCE_DIR}/src)
   target_link_libraries(mobmap_${name} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
   mobmap_configure_target(mobmap_${name})
   install(TARGETS mobmap_${name} EXPORT mobmapTargets

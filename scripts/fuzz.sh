@@ -14,7 +14,7 @@ mkdir -p build-fuzz/obj
 # -ffp-contract=off as perception/CMakeLists.txt sets it (its vector kernels match the
 # portable loops bit for bit only without fused multiply-adds).
 flags=(-std=c++17 -O1 -g -ffp-contract=off -fsanitize=address,undefined -fno-sanitize-recover=undefined
-       -Igp/include -Iperception/include -Imapping/include -Iapps/src -I/usr/include/eigen3 -I/usr/include/openni2 -Ibuild-fuzz)
+       -Igp/include -Iperception/include -Iperception/src -Imapping/include -Iapps/src -I/usr/include/eigen3 -I/usr/include/openni2 -Ibuild-fuzz)
 for d in /usr/include/mrpt/*/include; do flags+=("-I$d"); done
 cmake -DIN=apps/default.yaml -DOUT=build-fuzz/default_yaml.inc -P apps/embed.cmake
 

@@ -3,6 +3,7 @@
 #include "mobmap/perception/pipeline.hpp"
 #include "mobmap/perception/stages.hpp"
 #include "mobmap/sim/corridor_scene.hpp"
+#include "kernels/simd.hpp"  // private: pins the instruction set
 
 #include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
@@ -57,8 +58,9 @@ void expectSameGraph(const KnnGraph& fast, const KnnGraph& ref, const std::strin
 TEST(Neighbours, GridKnnEqualsBruteForce) {
   const auto pts = randomCloud(3000, 1);
   for (Simd simd : simdChoices()) {
+    const ScopedSimd use(simd);
     for (int k : {1, 8, 30}) {
-      expectSameGraph(buildKnnGraph(pts, k, 0.02f, 10.f, simd), bruteForceKnnGraph(pts, k),
+      expectSameGraph(buildKnnGraph(pts, k, 0.02f, 10.f), bruteForceKnnGraph(pts, k),
                       std::string(toString(simd)) + " k " + std::to_string(k));
     }
   }
@@ -79,9 +81,10 @@ TEST(Neighbours, SparseAndDenseRegionsTakeEveryBranchOfTheSearch) {
   for (int i = 0; i < 5; ++i) pts.emplace_back(2.f + 0.5f * static_cast<float>(i), -1.f, 0.3f);
   for (int i = 0; i < 600; ++i) pts.push_back(Eigen::Vector3f(-0.5f, 0.f, 0.f) + 0.01f * Eigen::Vector3f(u(rng), u(rng), u(rng)));
   for (Simd simd : simdChoices()) {
+    const ScopedSimd use(simd);
     for (int k : {4, 30}) {
       for (float max_radius : {0.25f, 1.f}) {
-        const KnnGraph fast = buildKnnGraph(pts, k, 0.02f, max_radius, simd);
+        const KnnGraph fast = buildKnnGraph(pts, k, 0.02f, max_radius);
         KnnGraph ref = bruteForceKnnGraph(pts, k);
         // The reference knows no radius: cut its rows at it.
         for (std::size_t i = 0; i < pts.size(); ++i) {
@@ -102,16 +105,23 @@ TEST(Neighbours, SparseAndDenseRegionsTakeEveryBranchOfTheSearch) {
   }
   for (Simd simd : {Simd::kAvx2, Simd::kAvx512}) {
     if (simdSupported(simd)) {
-      EXPECT_EQ(resolveSimd(simd, "test"), simd);
+      const ScopedSimd use(simd);
+      EXPECT_EQ(activeSimd(), simd);
     } else {
-      EXPECT_THROW(buildKnnGraph(pts, 4, 0.02f, 1.f, simd), std::invalid_argument);
+      EXPECT_THROW(ScopedSimd pin(simd), std::invalid_argument);
     }
   }
-  // kAuto takes the widest: AVX-512 where there is, else AVX2.
+  // Unpinned, the kernels take the widest: AVX-512 where there is, else AVX2; a pin
+  // ends with its scope.
   const Simd best = simdSupported(Simd::kAvx512) ? Simd::kAvx512
                     : simdSupported(Simd::kAvx2) ? Simd::kAvx2
                                                  : Simd::kPortable;
-  EXPECT_EQ(resolveSimd(Simd::kAuto, "test"), best);
+  EXPECT_EQ(activeSimd(), best);
+  {
+    const ScopedSimd portable(Simd::kPortable);
+    EXPECT_EQ(activeSimd(), Simd::kPortable);
+  }
+  EXPECT_EQ(activeSimd(), best);
 }
 
 TEST(Neighbours, GridKnnEqualsBruteForceOnALatticeFullOfTies) {
@@ -129,9 +139,10 @@ TEST(Neighbours, GridKnnEqualsBruteForceOnALatticeFullOfTies) {
     }
   }
   for (Simd simd : simdChoices()) {
+    const ScopedSimd use(simd);
     for (const auto* pts : {&plane, &slab}) {
       for (int k : {4, 16, 30}) {
-        expectSameGraph(buildKnnGraph(*pts, k, 0.0375f, 0.2f, simd), bruteForceKnnGraph(*pts, k),
+        expectSameGraph(buildKnnGraph(*pts, k, 0.0375f, 0.2f), bruteForceKnnGraph(*pts, k),
                         std::string(toString(simd)) + " k " + std::to_string(k));
       }
     }
@@ -161,8 +172,9 @@ TEST(Neighbours, GridKnnEqualsBruteForceWithPointsOnAndBesideCellFaces) {
     }
   }
   for (Simd simd : simdChoices()) {
+    const ScopedSimd use(simd);
     for (int k : {8, 30, 60}) {
-      expectSameGraph(buildKnnGraph(pts, k, cell, 0.2f, simd), bruteForceKnnGraph(pts, k),
+      expectSameGraph(buildKnnGraph(pts, k, cell, 0.2f), bruteForceKnnGraph(pts, k),
                       std::string(toString(simd)) + " k " + std::to_string(k));
     }
   }
@@ -171,7 +183,8 @@ TEST(Neighbours, GridKnnEqualsBruteForceWithPointsOnAndBesideCellFaces) {
 TEST(Neighbours, MaxRadiusDropsFarNeighbours) {
   std::vector<Eigen::Vector3f> pts = {{0, 0, 0}, {0.01f, 0, 0}, {1, 0, 0}};
   for (Simd simd : simdChoices()) {
-    const KnnGraph g = buildKnnGraph(pts, 2, 0.05f, 0.1f, simd);
+    const ScopedSimd use(simd);
+    const KnnGraph g = buildKnnGraph(pts, 2, 0.05f, 0.1f);
     EXPECT_EQ(g.count[0], 1) << toString(simd);
     EXPECT_EQ(g.indices[0], 1) << toString(simd);
     EXPECT_EQ(g.count[2], 0) << toString(simd);
@@ -189,9 +202,10 @@ TEST(Neighbours, RestrictedGraphEqualsBruteForceOnTheKeptPoints) {
     if (keep[i]) kept.push_back(pts[i]);
   }
   for (Simd simd : simdChoices()) {
+    const ScopedSimd use(simd);
     for (int k : {16, 30}) {
       std::size_t recomputed = 0;
-      const KnnGraph fast = restrictKnnGraph(all, pts, keep, k, 0.02f, 10.f, &recomputed, simd);
+      const KnnGraph fast = restrictKnnGraph(all, pts, keep, k, 0.02f, 10.f, &recomputed);
       const KnnGraph reference = bruteForceKnnGraph(kept, k);
       expectSameGraph(fast, reference, std::string(toString(simd)) + " k " + std::to_string(k));
       EXPECT_GT(recomputed, 0u) << "k " << k;  // the test exercises the search-again path
@@ -199,7 +213,7 @@ TEST(Neighbours, RestrictedGraphEqualsBruteForceOnTheKeptPoints) {
       // The same graph built over the original in its own buffers (what the pipeline does).
       KnnGraph in_place = all;
       std::size_t recomputed_in_place = 0;
-      restrictKnnGraphInPlace(in_place, pts, keep, k, 0.02f, 10.f, &recomputed_in_place, simd);
+      restrictKnnGraphInPlace(in_place, pts, keep, k, 0.02f, 10.f, &recomputed_in_place);
       expectSameGraph(in_place, reference, std::string("in place ") + toString(simd) + " k " + std::to_string(k));
       EXPECT_EQ(in_place.indices.size(), kept.size() * static_cast<std::size_t>(k));
       EXPECT_EQ(recomputed_in_place, recomputed);
@@ -222,18 +236,19 @@ TEST(Neighbours, GraphsBuiltIntoReusedBuffersEqualFreshOnes) {
   std::vector<bool> keep(pts.size());
   for (std::size_t i = 0; i < pts.size(); ++i) keep[i] = i % 5 != 0;
   for (Simd simd : simdChoices()) {
-    KnnGraph reused = buildKnnGraph(randomCloud(4000, 10), 40, 0.02f, 10.f, simd);
+    const ScopedSimd use(simd);
+    KnnGraph reused = buildKnnGraph(randomCloud(4000, 10), 40, 0.02f, 10.f);
     KnnGraph restricted_reused = reused;
-    buildKnnGraph(pts, 30, 0.02f, 0.5f, reused, simd);
-    const KnnGraph fresh = buildKnnGraph(pts, 30, 0.02f, 0.5f, simd);
+    buildKnnGraph(pts, 30, 0.02f, 0.5f, reused);
+    const KnnGraph fresh = buildKnnGraph(pts, 30, 0.02f, 0.5f);
     expectSameGraph(reused, fresh, toString(simd));
     EXPECT_EQ(fresh.count[pts.size() - 2], 1);
     EXPECT_EQ(fresh.indices[(pts.size() - 2) * 30 + 1], -1);
     EXPECT_EQ(fresh.sq_dist[(pts.size() - 2) * 30 + 1], 0.f);
-    restrictKnnGraph(fresh, pts, keep, 20, 0.02f, 0.5f, restricted_reused, nullptr, simd);
-    expectSameGraph(restricted_reused, restrictKnnGraph(fresh, pts, keep, 20, 0.02f, 0.5f, nullptr, simd),
+    restrictKnnGraph(fresh, pts, keep, 20, 0.02f, 0.5f, restricted_reused, nullptr);
+    expectSameGraph(restricted_reused, restrictKnnGraph(fresh, pts, keep, 20, 0.02f, 0.5f, nullptr),
                     toString(simd));
-    EXPECT_THROW(restrictKnnGraph(reused, pts, keep, 20, 0.02f, 0.5f, reused, nullptr, simd), std::invalid_argument);
+    EXPECT_THROW(restrictKnnGraph(reused, pts, keep, 20, 0.02f, 0.5f, reused, nullptr), std::invalid_argument);
   }
 }
 
@@ -346,9 +361,10 @@ TEST(VoxelReduce, ImageOrderedRunsGiveTheCentroidsOfOnePointAtATime) {
   // Each choice twice: the second call finds the table the first one filled (kept by
   // the thread), which must start empty again.
   for (Simd simd : simdChoices()) {
+    const ScopedSimd use(simd);
     for (int call = 0; call < 2; ++call) {
       std::vector<int> voxel_of;
-      const auto vox = voxelReduce(pts, size, &voxel_of, simd);
+      const auto vox = voxelReduce(pts, size, &voxel_of);
       EXPECT_EQ(voxel_of, ref_of) << toString(simd) << " call " << call;
       ASSERT_EQ(vox.size(), sums.size()) << toString(simd) << " call " << call;
       for (std::size_t v = 0; v < vox.size(); ++v) {
@@ -540,15 +556,19 @@ TEST(Normals, InverseIterationHoldsFromSubMillimetreToHundredMetreNeighbourhoods
     const Eigen::Vector3f viewpoint(0, 0, 5 * scale);
     std::vector<Eigen::Vector3f> exact, proj;
     std::vector<float> curv;
-    estimateNormals(pts, g, viewpoint, exact, curv, &proj, nullptr, Simd::kPortable);
+    {
+      const ScopedSimd portable(Simd::kPortable);
+      estimateNormals(pts, g, viewpoint, exact, curv, &proj, nullptr);
+    }
     std::vector<Eigen::Vector3f> near(pts.size());
     for (std::size_t i = 0; i < pts.size(); ++i) {
       near[i] = Eigen::AngleAxisf(static_cast<float>(10 * kDeg), exact[i].unitOrthogonal()) * exact[i];
     }
     for (Simd simd : simdChoices()) {
+      const ScopedSimd use(simd);
       std::vector<Eigen::Vector3f> fast, fast_proj;
       std::vector<float> fast_curv;
-      estimateNormals(pts, g, viewpoint, fast, fast_curv, &fast_proj, &near, simd);
+      estimateNormals(pts, g, viewpoint, fast, fast_curv, &fast_proj, &near);
       double worst_angle = 0, worst_shift = 0, worst_curv = 0;
       for (std::size_t i = 0; i < pts.size(); ++i) {
         worst_angle = std::max(worst_angle, std::acos(std::min(1.0, static_cast<double>(exact[i].dot(fast[i])))) / kDeg);
@@ -582,7 +602,10 @@ TEST(Normals, EveryInstructionSetGivesThePortableBits) {
     const KnnGraph g = buildKnnGraph(pts, 12, 0.03f, 0.5f);
     std::vector<Eigen::Vector3f> ref_n, ref_p;
     std::vector<float> ref_c;
-    estimateNormals(pts, g, Eigen::Vector3f(0, 0, 5), ref_n, ref_c, &ref_p, nullptr, Simd::kPortable);
+    {
+      const ScopedSimd portable(Simd::kPortable);
+      estimateNormals(pts, g, Eigen::Vector3f(0, 0, 5), ref_n, ref_c, &ref_p, nullptr);
+    }
     // Starts: the normals themselves, 20 degrees off, orthogonal to them, zero.
     std::vector<Eigen::Vector3f> near(pts.size());
     for (std::size_t i = 0; i < pts.size(); ++i) {
@@ -596,20 +619,24 @@ TEST(Normals, EveryInstructionSetGivesThePortableBits) {
     }
     std::vector<Eigen::Vector3f> ref_nn, ref_np;
     std::vector<float> ref_nc;
-    estimateNormals(pts, g, Eigen::Vector3f(0, 0, 5), ref_nn, ref_nc, &ref_np, &near, Simd::kPortable);
+    {
+      const ScopedSimd portable(Simd::kPortable);
+      estimateNormals(pts, g, Eigen::Vector3f(0, 0, 5), ref_nn, ref_nc, &ref_np, &near);
+    }
     for (Simd simd : simdChoices()) {
+      const ScopedSimd use(simd);
       std::vector<Eigen::Vector3f> n, p;
       std::vector<float> curv;
-      estimateNormals(pts, g, Eigen::Vector3f(0, 0, 5), n, curv, &p, nullptr, simd);
+      estimateNormals(pts, g, Eigen::Vector3f(0, 0, 5), n, curv, &p, nullptr);
       EXPECT_EQ(n, ref_n) << "cloud " << c << " " << toString(simd);
       EXPECT_EQ(curv, ref_c) << "cloud " << c << " " << toString(simd);
       EXPECT_EQ(p, ref_p) << "cloud " << c << " " << toString(simd);
-      estimateNormals(pts, g, Eigen::Vector3f(0, 0, 5), n, curv, &p, &near, simd);
+      estimateNormals(pts, g, Eigen::Vector3f(0, 0, 5), n, curv, &p, &near);
       EXPECT_EQ(n, ref_nn) << "cloud " << c << " " << toString(simd) << " with starts";
       EXPECT_EQ(curv, ref_nc) << "cloud " << c << " " << toString(simd) << " with starts";
       EXPECT_EQ(p, ref_np) << "cloud " << c << " " << toString(simd) << " with starts";
       std::vector<float> no_projection_curv;
-      estimateNormals(pts, g, Eigen::Vector3f(0, 0, 5), n, no_projection_curv, nullptr, &near, simd);
+      estimateNormals(pts, g, Eigen::Vector3f(0, 0, 5), n, no_projection_curv, nullptr, &near);
       EXPECT_EQ(no_projection_curv, ref_nc) << "cloud " << c << " " << toString(simd) << " without projection";
     }
     // The lone point and the line's points have no plane; the lattice is exactly planar.
@@ -792,12 +819,14 @@ TEST(Ransac, InliersAreExactlyThePointsThePlainRuleAccepts) {
         o.point_normals = &normals;
         o.normal_tolerance_deg = tolerance_deg;
       }
-      o.simd = Simd::kPortable;
       std::mt19937 r(3);
-      const auto fit = ransacPlane(pts, all, o, r);
+      const auto fit = [&] {
+        const ScopedSimd portable(Simd::kPortable);
+        return ransacPlane(pts, all, o, r);
+      }();
       ASSERT_TRUE(fit);
       for (const Simd simd : simdChoices()) {
-        o.simd = simd;
+        const ScopedSimd use(simd);
         std::mt19937 r_simd(3);
         const auto same = ransacPlane(pts, all, o, r_simd);
         ASSERT_TRUE(same) << toString(simd);

@@ -1,7 +1,7 @@
 #include "mobmap/perception/neighbours.hpp"
 
-#include "simd_kernels.hpp"
-#include "spatial_hash.hpp"
+#include "kernels/kernels.hpp"
+#include "kernels/spatial_hash.hpp"
 
 #include <algorithm>
 #include <array>
@@ -168,7 +168,7 @@ struct PortableKernels {
 };
 
 #if MOBMAP_X86_KERNELS
-// The vector kernels SortedCellSearch runs on (simd_kernels.hpp).
+// The vector kernels SortedCellSearch runs on (kernels/kernels.hpp).
 struct Avx512Kernels {
   static constexpr Simd kSimd = Simd::kAvx512;
   static constexpr bool kRanks = true;
@@ -402,7 +402,8 @@ class SortedCellSearch {
 // Runs `search.run(g, want, row_of)` with the search the chosen instruction set uses.
 template <typename Want, typename RowOf>
 void searchInto(KnnGraph& g, const std::vector<Eigen::Vector3f>& points, int k, float cell_m, float max_radius_m,
-                Simd simd, Want want, RowOf row_of) {
+                Want want, RowOf row_of) {
+  const Simd simd = activeSimd();
 #if MOBMAP_X86_KERNELS
   if (simd == Simd::kAvx512) {
     SortedCellSearch<Avx512Kernels> search(points, k, cell_m, max_radius_m);
@@ -422,28 +423,25 @@ void searchInto(KnnGraph& g, const std::vector<Eigen::Vector3f>& points, int k, 
 
 }  // namespace
 
-KnnGraph buildKnnGraph(const std::vector<Eigen::Vector3f>& points, int k, float cell_m, float max_radius_m,
-                       Simd simd) {
+KnnGraph buildKnnGraph(const std::vector<Eigen::Vector3f>& points, int k, float cell_m, float max_radius_m) {
   KnnGraph g;
-  buildKnnGraph(points, k, cell_m, max_radius_m, g, simd);
+  buildKnnGraph(points, k, cell_m, max_radius_m, g);
   return g;
 }
 
-void buildKnnGraph(const std::vector<Eigen::Vector3f>& points, int k, float cell_m, float max_radius_m, KnnGraph& g,
-                   Simd simd) {
+void buildKnnGraph(const std::vector<Eigen::Vector3f>& points, int k, float cell_m, float max_radius_m, KnnGraph& g) {
   checkArguments(k, cell_m, max_radius_m);
-  simd = resolveSimd(simd, "buildKnnGraph");
   allocate(g, points.size(), k);
   if (!points.empty()) {
-    searchInto(g, points, k, cell_m, max_radius_m, simd, [](int) { return true; }, [](int i) { return i; });
+    searchInto(g, points, k, cell_m, max_radius_m, [](int) { return true; }, [](int i) { return i; });
   }
   padTails(g);
 }
 
 KnnGraph restrictKnnGraph(const KnnGraph& g, const std::vector<Eigen::Vector3f>& points, const std::vector<bool>& keep,
-                          int k, float cell_m, float max_radius_m, std::size_t* recomputed, Simd simd) {
+                          int k, float cell_m, float max_radius_m, std::size_t* recomputed) {
   KnnGraph out;
-  restrictKnnGraph(g, points, keep, k, cell_m, max_radius_m, out, recomputed, simd);
+  restrictKnnGraph(g, points, keep, k, cell_m, max_radius_m, out, recomputed);
   return out;
 }
 
@@ -505,14 +503,14 @@ std::vector<int> keptNumbering(const KnnGraph& g, const std::vector<Eigen::Vecto
 // Searches the rows marked in `redo` again among the kept points, and pads the rows.
 void researchRows(KnnGraph& out, const std::vector<Eigen::Vector3f>& points, const std::vector<bool>& keep,
                   int n_kept, const std::vector<bool>& redo, std::size_t n_redo, int k, float cell_m,
-                  float max_radius_m, Simd simd) {
+                  float max_radius_m) {
   if (n_redo > 0) {  // only then is the kept cloud needed as a cloud of its own
     std::vector<Eigen::Vector3f> kept;
     kept.reserve(static_cast<std::size_t>(n_kept));
     for (std::size_t i = 0; i < points.size(); ++i) {
       if (keep[i]) kept.push_back(points[i]);
     }
-    searchInto(out, kept, k, cell_m, max_radius_m, simd,
+    searchInto(out, kept, k, cell_m, max_radius_m,
                [&](int i) { return static_cast<bool>(redo[static_cast<std::size_t>(i)]); }, [](int i) { return i; });
   }
   padTails(out);
@@ -521,25 +519,23 @@ void researchRows(KnnGraph& out, const std::vector<Eigen::Vector3f>& points, con
 }  // namespace
 
 void restrictKnnGraph(const KnnGraph& g, const std::vector<Eigen::Vector3f>& points, const std::vector<bool>& keep,
-                      int k, float cell_m, float max_radius_m, KnnGraph& out, std::size_t* recomputed, Simd simd) {
+                      int k, float cell_m, float max_radius_m, KnnGraph& out, std::size_t* recomputed) {
   if (&out == &g) throw std::invalid_argument("restrictKnnGraph: the output graph is the input graph");
   int n_kept = 0;
   const std::vector<int> new_index = keptNumbering(g, points, keep, k, cell_m, max_radius_m, n_kept);
-  simd = resolveSimd(simd, "restrictKnnGraph");
   allocate(out, static_cast<std::size_t>(n_kept), k);
   std::vector<bool> redo(static_cast<std::size_t>(n_kept), false);
   const std::size_t n_redo = compactRows(g.indices.data(), g.sq_dist.data(), g.count.data(), g.k, out.indices.data(),
                                          out.sq_dist.data(), out.count.data(), k, new_index,
                                          max_radius_m * max_radius_m, redo);
   if (recomputed) *recomputed = n_redo;
-  researchRows(out, points, keep, n_kept, redo, n_redo, k, cell_m, max_radius_m, simd);
+  researchRows(out, points, keep, n_kept, redo, n_redo, k, cell_m, max_radius_m);
 }
 
 void restrictKnnGraphInPlace(KnnGraph& g, const std::vector<Eigen::Vector3f>& points, const std::vector<bool>& keep,
-                             int k, float cell_m, float max_radius_m, std::size_t* recomputed, Simd simd) {
+                             int k, float cell_m, float max_radius_m, std::size_t* recomputed) {
   int n_kept = 0;
   const std::vector<int> new_index = keptNumbering(g, points, keep, k, cell_m, max_radius_m, n_kept);
-  simd = resolveSimd(simd, "restrictKnnGraph");
   std::vector<bool> redo(static_cast<std::size_t>(n_kept), false);
   const std::size_t n_redo = compactRows(g.indices.data(), g.sq_dist.data(), g.count.data(), g.k, g.indices.data(),
                                          g.sq_dist.data(), g.count.data(), k, new_index,
@@ -550,7 +546,7 @@ void restrictKnnGraphInPlace(KnnGraph& g, const std::vector<Eigen::Vector3f>& po
   g.sq_dist.resize(static_cast<std::size_t>(n_kept) * static_cast<std::size_t>(k));
   g.count.resize(static_cast<std::size_t>(n_kept));
   if (recomputed) *recomputed = n_redo;
-  researchRows(g, points, keep, n_kept, redo, n_redo, k, cell_m, max_radius_m, simd);
+  researchRows(g, points, keep, n_kept, redo, n_redo, k, cell_m, max_radius_m);
 }
 
 KnnGraph bruteForceKnnGraph(const std::vector<Eigen::Vector3f>& points, int k) {

@@ -1,8 +1,8 @@
 #include "mobmap/perception/stages.hpp"
 
-#include "local_plane.hpp"
-#include "simd_kernels.hpp"
-#include "spatial_hash.hpp"
+#include "kernels/local_plane.hpp"
+#include "kernels/kernels.hpp"
+#include "kernels/spatial_hash.hpp"
 
 #include <Eigen/Eigenvalues>
 
@@ -66,9 +66,9 @@ struct OuterSum {
 }  // namespace
 
 std::vector<Eigen::Vector3f> voxelReduce(const std::vector<Eigen::Vector3f>& points, float voxel_m,
-                                         std::vector<int>* voxel_of_point, Simd simd) {
+                                         std::vector<int>* voxel_of_point) {
   if (!(voxel_m > 0.f)) throw std::invalid_argument("voxelReduce: voxel size must be > 0");
-  simd = resolveSimd(simd, "voxelReduce");
+  const Simd simd = activeSimd();
   const float inv = 1.f / voxel_m;
   const std::size_t n = points.size();
   // The table lives on in this thread from frame to frame (~4 MB for a VGA frame), so
@@ -189,11 +189,11 @@ detail::OffsetSums rowOffsets(const std::vector<Eigen::Vector3f>& points, const 
 
 void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph& g, const Eigen::Vector3f& viewpoint,
                      std::vector<Eigen::Vector3f>& normals, std::vector<float>& curvature,
-                     std::vector<Eigen::Vector3f>* projected, const std::vector<Eigen::Vector3f>* near, Simd simd) {
+                     std::vector<Eigen::Vector3f>* projected, const std::vector<Eigen::Vector3f>* near) {
   const std::size_t n = points.size();
   if (near && near->size() != n) throw std::invalid_argument("estimateNormals: `near` size differs from points");
   if (g.count.size() != n) throw std::invalid_argument("estimateNormals: graph and points sizes differ");
-  simd = resolveSimd(simd, "estimateNormals");
+  const Simd simd = activeSimd();
   normals.assign(n, Eigen::Vector3f::Zero());
   curvature.assign(n, 1.f);
   if (projected) *projected = points;
@@ -394,7 +394,7 @@ class InlierTest {
 
  private:
 #if MOBMAP_X86_KERNELS
-  // The same rule in the vector kernels (simd_kernels.hpp).
+  // The same rule in the vector kernels (kernels/kernels.hpp).
   std::size_t vectorInliers(const Eigen::Vector4f& pl, std::uint64_t* bits) const {
     const float plane[4] = {pl(0), pl(1), pl(2), pl(3)};
     const float* nx = normals_ ? nx_.data() : nullptr;
@@ -422,7 +422,7 @@ class InlierTest {
 
 std::optional<PlaneFit> ransacPlane(const std::vector<Eigen::Vector3f>& points, const std::vector<int>& cand,
                                     const RansacOptions& o, std::mt19937& rng) {
-  const Simd simd = resolveSimd(o.simd, "ransacPlane");
+  const Simd simd = activeSimd();
   if (cand.size() < 3) return std::nullopt;
   const double cos_tilt = std::cos(o.max_tilt_deg * M_PI / 180.0);
   const double cos_normal = std::cos(o.normal_tolerance_deg * M_PI / 180.0);

@@ -22,6 +22,7 @@
 
 #include "mobmap/perception/pipeline.hpp"
 #include "mobmap/perception/stages.hpp"
+#include "kernels/simd.hpp"  // private: names the instruction set the kernels run on
 
 #include <pcl/features/normal_3d.h>
 #include <pcl/filters/extract_indices.h>

@@ -2,8 +2,6 @@
 /// @file neighbours.hpp
 /// Exact k-nearest-neighbour search over a point cloud with a hashed uniform grid.
 
-#include "mobmap/perception/simd.hpp"
-
 #include <Eigen/Core>
 
 #include <cstdint>
@@ -28,16 +26,14 @@ struct KnnGraph {
 /// long as the k-th distance is at most `cell_m`; otherwise the search widens ring by
 /// ring (each ring adds a guaranteed cell_m of radius) up to `max_radius_m`.
 /// Cost is linear in the number of points for surface-like clouds. Points must be
-/// finite. `simd` chooses the instruction set (the graph is the same with each).
-/// Throws std::invalid_argument for k < 1, non-positive sizes or a `simd` this
-/// machine cannot run.
+/// finite. Throws std::invalid_argument for k < 1 or non-positive sizes.
 KnnGraph buildKnnGraph(const std::vector<Eigen::Vector3f>& points, int k, float cell_m,
-                       float max_radius_m, Simd simd = Simd::kAuto);
+                       float max_radius_m);
 
 /// The same graph into `out`, reusing its buffers: a caller that keeps one graph
 /// from frame to frame neither allocates nor clears tens of MB per frame.
 void buildKnnGraph(const std::vector<Eigen::Vector3f>& points, int k, float cell_m, float max_radius_m,
-                   KnnGraph& out, Simd simd = Simd::kAuto);
+                   KnnGraph& out);
 
 /// The exact k-NN graph (k <= graph.k) of the points with keep[i], renumbered in
 /// their original order, derived from `graph` (the k-NN graph of all `points` built
@@ -46,18 +42,18 @@ void buildKnnGraph(const std::vector<Eigen::Vector3f>& points, int k, float cell
 /// (their number goes to `recomputed`). Equal to buildKnnGraph on the kept points.
 KnnGraph restrictKnnGraph(const KnnGraph& graph, const std::vector<Eigen::Vector3f>& points,
                           const std::vector<bool>& keep, int k, float cell_m, float max_radius_m,
-                          std::size_t* recomputed = nullptr, Simd simd = Simd::kAuto);
+                          std::size_t* recomputed = nullptr);
 
 /// The same graph into `out` (not `graph` itself), reusing its buffers.
 void restrictKnnGraph(const KnnGraph& graph, const std::vector<Eigen::Vector3f>& points,
                       const std::vector<bool>& keep, int k, float cell_m, float max_radius_m, KnnGraph& out,
-                      std::size_t* recomputed = nullptr, Simd simd = Simd::kAuto);
+                      std::size_t* recomputed = nullptr);
 
 /// The same graph built in `graph` itself, which it replaces (no second buffer of
 /// tens of MB for a VGA frame).
 void restrictKnnGraphInPlace(KnnGraph& graph, const std::vector<Eigen::Vector3f>& points,
                              const std::vector<bool>& keep, int k, float cell_m, float max_radius_m,
-                             std::size_t* recomputed = nullptr, Simd simd = Simd::kAuto);
+                             std::size_t* recomputed = nullptr);
 
 /// Reference: the same graph by brute force, O(n^2). For tests.
 KnnGraph bruteForceKnnGraph(const std::vector<Eigen::Vector3f>& points, int k);

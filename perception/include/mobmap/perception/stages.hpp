@@ -20,9 +20,8 @@ namespace mobmap::perception {
 /// `voxel_m` (grid aligned to the origin), in order of first occurrence.
 /// `voxel_of_point` (optional) receives the output index of each input point.
 /// A centroid is the mean of its points summed in input order in double precision.
-/// `simd` picks the kernel of the voxel keys (the same result from each).
 std::vector<Eigen::Vector3f> voxelReduce(const std::vector<Eigen::Vector3f>& points, float voxel_m,
-                                         std::vector<int>* voxel_of_point = nullptr, Simd simd = Simd::kAuto);
+                                         std::vector<int>* voxel_of_point = nullptr);
 
 /// Statistical outlier removal (paper eq. 1): mean distance d_i to the k nearest
 /// neighbours; keep points with |d_i - mu| <= alpha sigma over the cloud. Returns the
@@ -42,12 +41,11 @@ std::vector<bool> statisticalOutlierMask(const KnnGraph& graph, double alpha, in
 /// surface) until a step moves it by under 1e-5 rad, instead of the closed-form
 /// eigen-decomposition; tests bound the difference. Points whose
 /// `near` is zero, whose iteration does not converge in 8 steps, or whose smallest
-/// eigenvalue exceeds a quarter of the sum (no plane) use the exact solver. `simd`
-/// chooses the instruction set (the results are the same to the last bit with each).
+/// eigenvalue exceeds a quarter of the sum (no plane) use the exact solver.
 void estimateNormals(const std::vector<Eigen::Vector3f>& points, const KnnGraph& graph,
                      const Eigen::Vector3f& viewpoint, std::vector<Eigen::Vector3f>& normals,
                      std::vector<float>& curvature, std::vector<Eigen::Vector3f>* projected = nullptr,
-                     const std::vector<Eigen::Vector3f>* near = nullptr, Simd simd = Simd::kAuto);
+                     const std::vector<Eigen::Vector3f>* near = nullptr);
 
 /// For the points listed in `which` only: `projected[i]` = point i moved onto the
 /// least-squares plane of itself and its first `max_neighbours` graph neighbours (the
@@ -89,15 +87,12 @@ struct RansacOptions {
   /// and w in eq. 6 is the inlier ratio on that subset; the winning plane's inliers
   /// are then counted on all candidates. 4096 points estimate a ratio to about 1%.
   std::size_t score_sample = 4096;
-  /// The instruction set of the inlier tests (the same planes and inliers from each).
-  Simd simd = Simd::kAuto;
 };
 
 /// RANSAC plane among `candidates` (indices into points) with the adaptive number of
 /// iterations of paper eq. 6: N = log(1-p) / log(1-w^3), w the best inlier ratio so
-/// far (estimated on `score_sample` points). The returned plane is refitted by least squares to its inliers. nullopt if no
-/// qualifying plane has 3 or more inliers. Throws std::invalid_argument if `o.simd`
-/// cannot run on this machine.
+/// far (estimated on `score_sample` points). The returned plane is refitted by least
+/// squares to its inliers. nullopt if no qualifying plane has 3 or more inliers.
 std::optional<PlaneFit> ransacPlane(const std::vector<Eigen::Vector3f>& points, const std::vector<int>& candidates,
                                     const RansacOptions& options, std::mt19937& rng);
 

@@ -1,10 +1,10 @@
 // AVX2 versions of the hot loops, for the x86-64 CPUs without AVX-512 (most desktop and
-// laptop parts, and AMD before Zen 4). Like simd_avx512.cpp: compiled for every x86-64
+// laptop parts, and AMD before Zen 4). Like kernels/avx512.cpp: compiled for every x86-64
 // build, each function with its own target attribute, and only called after
 // simdSupported(Simd::kAvx2) said yes. Every result equals the portable loops' to the
 // last bit (same operations in the same order; the library is built with
 // -ffp-contract=off).
-#include "simd_kernels.hpp"
+#include "kernels/kernels.hpp"
 
 #if MOBMAP_X86_KERNELS
 

@@ -1,7 +1,7 @@
 // AVX-512 versions of the hot loops. Compiled for every x86-64 build and only called
 // after simdSupported(Simd::kAvx512) said yes: each function carries its own target
 // attribute, so the rest of the library stays baseline x86-64.
-#include "simd_kernels.hpp"
+#include "kernels/kernels.hpp"
 
 #if MOBMAP_X86_KERNELS
 

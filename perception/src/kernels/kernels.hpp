@@ -19,7 +19,7 @@ namespace mobmap::perception::detail {
 /// floats) above the point index, so keys order by (distance, index) and are distinct.
 inline constexpr std::size_t kRankMaxKeys = 64;
 
-/// The inverse iteration's convergence test (local_plane.hpp), a step of under 1e-5:
+/// The inverse iteration's convergence test (kernels/local_plane.hpp), a step of under 1e-5:
 /// the largest double s with sqrt(s) < 1e-5, two units in the last place below the
 /// rounded 1e-5 * 1e-5. Square roots are correctly rounded and monotone, so for s >= 0
 /// "s <= this" is exactly "sqrt(s) < 1e-5", without the square root the next step
@@ -111,7 +111,7 @@ std::size_t planeInliers(const float* x, const float* y, const float* z, const f
 
 }  // namespace avx512
 
-/// The same functions, with the same contracts and results, in AVX2 (simd_avx2.cpp):
+/// The same functions, with the same contracts and results, in AVX2 (kernels/avx2.cpp):
 /// eight floats or four 64-bit keys per vector, masks as vectors. rankSmallest ranks
 /// the keys' distance bits as signed 32-bit integers, eight per vector, and the whole
 /// keys as signed 64-bit ones, four per vector, when two distances are equal (both

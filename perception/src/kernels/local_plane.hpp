@@ -1,13 +1,13 @@
 #pragma once
 // Local least-squares planes (internal): the PCA plane of a point and its first c
 // graph neighbours (paper eqs. 2-4). Every sum is written out in a fixed order, so the
-// vector kernels (simd_avx512.cpp) can repeat the arithmetic to the last bit. The
+// vector kernels (kernels/avx512.cpp) can repeat the arithmetic to the last bit. The
 // orders are those Eigen 3.4 evaluated for the expressions this code replaced (dot
 // products and norms left to right, a trace right to left, a matrix-vector product
 // left to right in its first two rows and right to left in its third; checked on two
 // million random inputs), so the pipeline's results did not change either.
 
-#include "simd_kernels.hpp"
+#include "kernels/kernels.hpp"
 
 #include <Eigen/Core>
 

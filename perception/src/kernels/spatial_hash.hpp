@@ -1,8 +1,8 @@
 #pragma once
 // Open-addressing hash from packed integer cell coordinates to a value (internal).
 
-#include "mobmap/perception/simd.hpp"
-#include "simd_kernels.hpp"
+#include "kernels/simd.hpp"
+#include "kernels/kernels.hpp"
 
 #include <Eigen/Core>
 

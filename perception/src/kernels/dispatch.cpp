@@ -1,6 +1,6 @@
-#include "mobmap/perception/simd.hpp"
+#include "kernels/simd.hpp"
 
-#include "simd_kernels.hpp"
+#include "kernels/kernels.hpp"
 
 #include <stdexcept>
 #include <string>
@@ -37,13 +37,21 @@ Simd bestSimd() {
   return best;
 }
 
-Simd resolveSimd(Simd simd, const char* caller) {
-  if (simd == Simd::kAuto) return bestSimd();
+namespace {
+// kAuto: no ScopedSimd alive on this thread.
+thread_local Simd pinned = Simd::kAuto;
+}  // namespace
+
+Simd activeSimd() { return pinned == Simd::kAuto ? bestSimd() : pinned; }
+
+ScopedSimd::ScopedSimd(Simd simd) : previous_(pinned) {
   if (!simdSupported(simd)) {
-    throw std::invalid_argument(std::string(caller) + ": " + toString(simd) + " is not available on this machine");
+    throw std::invalid_argument(std::string("ScopedSimd: ") + toString(simd) + " is not available on this machine");
   }
-  return simd;
+  pinned = simd;
 }
+
+ScopedSimd::~ScopedSimd() { pinned = previous_; }
 
 const char* toString(Simd simd) {
   switch (simd) {
