@@ -127,7 +127,7 @@ inline bool smallestEigenvectorNear(const LocalMoments& c, const double start[3]
 }
 
 /// The closed-form eigen-decomposition (Eigen's computeDirect): smallest eigenvector,
-/// and curvature = lambda_min / sum (0 when the sum is not positive). In stages.cpp.
+/// and curvature = lambda_min / sum (0 when the sum is not positive). In normals.cpp.
 void smallestEigenvectorExact(const LocalMoments& c, double normal[3], float& curvature);
 
 /// The unit normal turned towards `viewpoint` (paper eq. 4), in single precision.

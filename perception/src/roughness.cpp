@@ -1,6 +1,7 @@
+// Paper step 7: Delaunay roughness (eqs. 8-10).
 // CGAL lives here and in planar_delaunay.cpp only: its headers are heavy and no public
 // header needs them.
-#include "mobmap/perception/stages.hpp"
+#include "mobmap/perception/roughness.hpp"
 #include "planar_delaunay.hpp"
 
 #include <CGAL/Delaunay_triangulation_2.h>
