@@ -53,11 +53,11 @@ for target in "${targets[@]}"; do
   case $target in
     map_reader) link map_reader tests/fuzz/fuzz_map_reader.cpp "${mapping[@]}" "${perception[@]}" "${gp[@]}" \
                   -- -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;
-    config) link config tests/fuzz/fuzz_config.cpp apps/src/config.cpp apps/src/files.cpp "${gp[@]}" "${perception[@]}" \
+    config) link config tests/fuzz/fuzz_config.cpp apps/src/io/config.cpp apps/src/io/files.cpp "${gp[@]}" "${perception[@]}" \
               mapping/src/mobility_map.cpp mapping/src/mobility_octree.cpp mapping/src/gravity.cpp \
               -- -lyaml-cpp -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;
-    poses) link poses tests/fuzz/fuzz_poses.cpp apps/src/trajectory_files.cpp apps/src/dataset.cpp apps/src/files.cpp \
-             apps/src/png_io.cpp perception/src/camera.cpp mapping/src/gravity.cpp -- -lpng -lyaml-cpp "${mrpt[@]}" ;;
+    poses) link poses tests/fuzz/fuzz_poses.cpp apps/src/io/trajectory_files.cpp apps/src/io/dataset.cpp apps/src/io/files.cpp \
+             apps/src/io/png_io.cpp perception/src/camera.cpp mapping/src/gravity.cpp -- -lpng -lyaml-cpp "${mrpt[@]}" ;;
     pipeline) link pipeline tests/fuzz/fuzz_pipeline.cpp "${gp[@]}" "${perception[@]}" -- -lgmp -lmpfr ;;
     *) echo "fuzz.sh: unknown target $target" >&2; exit 2 ;;
   esac

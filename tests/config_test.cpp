@@ -1,7 +1,7 @@
 // The YAML configuration: the shipped default equals the structs' defaults; bad files
 // are rejected with the file and key named.
-#include "config.hpp"
-#include "io_error.hpp"
+#include "io/config.hpp"
+#include "io/io_error.hpp"
 
 #include <gtest/gtest.h>
 

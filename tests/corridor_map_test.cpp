@@ -1,7 +1,7 @@
 // End to end on the synthetic corridor with Kinect noise: render, perceive, fuse,
 // and compare the map with the exact ground truth.
-#include "ground_truth.hpp"
-#include "simulation_writer.hpp"
+#include "io/ground_truth.hpp"
+#include "io/simulation_writer.hpp"
 
 #include "mobmap/mapping/mobility_map.hpp"
 #include "mobmap/mapping/footstep_planner.hpp"

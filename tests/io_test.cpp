@@ -1,14 +1,14 @@
 // Readers and writers of the apps layer: round trips, hostile files, real data.
-#include "dataset.hpp"
-#include "ground_truth.hpp"
-#include "files.hpp"
-#include "frame_source.hpp"
-#include "io_error.hpp"
-#include "map_files.hpp"
-#include "canvas.hpp"
-#include "png_io.hpp"
-#include "simulation_writer.hpp"
-#include "top_view.hpp"
+#include "io/dataset.hpp"
+#include "io/ground_truth.hpp"
+#include "io/files.hpp"
+#include "io/frame_source.hpp"
+#include "io/io_error.hpp"
+#include "io/map_files.hpp"
+#include "pictures/canvas.hpp"
+#include "io/png_io.hpp"
+#include "io/simulation_writer.hpp"
+#include "pictures/top_view.hpp"
 
 #include <Eigen/SVD>
 #include <gtest/gtest.h>

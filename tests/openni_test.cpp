@@ -3,8 +3,8 @@
 // (sim/openni) that serves the synthetic corridor as a live sensor, whose
 // recordings OpenNI2's player plays back. The driver is loaded from a private folder
 // (build/openni-sim) by pointing LD_LIBRARY_PATH at it.
-#include "map_files.hpp"
-#include "png_io.hpp"
+#include "io/map_files.hpp"
+#include "io/png_io.hpp"
 
 #include "mobmap/perception/camera.hpp"
 #include "mobmap/sim/corridor_scene.hpp"

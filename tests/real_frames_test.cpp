@@ -1,7 +1,7 @@
 // The per-frame pipeline on real Kinect frames from ../shared/data (skipped when the
 // folder is absent). Asserts geometric facts of the scenes, not segment counts.
-#include "dataset.hpp"
-#include "frame_source.hpp"
+#include "io/dataset.hpp"
+#include "io/frame_source.hpp"
 
 #include "mobmap/mapping/gravity.hpp"
 #include "mobmap/mapping/mobility_map.hpp"

@@ -1,10 +1,10 @@
 // Real recordings, right answers: the input mistakes labs make with their own cameras
 // (a range that cuts away the floor, depth in another unit), reproduced on the
 // simulated corridor, whose geometry is exact, and caught.
-#include "dataset.hpp"
-#include "depth_checks.hpp"
-#include "frame_source.hpp"
-#include "io_error.hpp"
+#include "io/dataset.hpp"
+#include "io/depth_checks.hpp"
+#include "io/frame_source.hpp"
+#include "io/io_error.hpp"
 
 #include "mobmap/perception/pipeline.hpp"
 #include "mobmap/sim/corridor_scene.hpp"

@@ -1,14 +1,14 @@
 // Posed sequences other than 7-Scenes: TUM RGB-D (timestamp association with MRPT pose
 // interpolation, the 5000-per-metre depth scale, skipped frames) and .pcd frames with a
 // --poses trajectory (in order or by time stamps in the file names), built into maps.
-#include "canvas.hpp"
-#include "dataset.hpp"
-#include "frame_source.hpp"
-#include "io_error.hpp"
-#include "png_io.hpp"
-#include "map_files.hpp"
-#include "sequence.hpp"
-#include "trajectory_files.hpp"
+#include "pictures/canvas.hpp"
+#include "io/dataset.hpp"
+#include "io/frame_source.hpp"
+#include "io/io_error.hpp"
+#include "io/png_io.hpp"
+#include "io/map_files.hpp"
+#include "io/sequence.hpp"
+#include "io/trajectory_files.hpp"
 
 #include "mobmap/mapping/trajectory.hpp"
 #include "mobmap/sim/corridor_scene.hpp"

@@ -1,6 +1,6 @@
 // mobmap: RGB-D depth frames -> 3D mobility maps for legged robots.
-#include "commands.hpp"
-#include "io_error.hpp"
+#include "commands/commands.hpp"
+#include "io/io_error.hpp"
 
 #include <cstdio>
 #include <exception>

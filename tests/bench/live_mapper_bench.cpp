@@ -7,7 +7,7 @@
 // Without a directory it renders the synthetic corridor (Kinect noise). Depth images are
 // read before the clock starts. The reader is a planner at 100 Hz: every 10 ms it takes
 // a snapshot and asks 100 points and 10 soles around the newest camera position.
-#include "dataset.hpp"
+#include "io/dataset.hpp"
 
 #include "mobmap/mapping/gravity.hpp"
 #include "mobmap/mapping/live_mapper.hpp"

@@ -4,7 +4,7 @@
 //   mapping_bench [SEVEN_SCENES_DIR] [FRAMES]
 //
 // Without a directory it renders the synthetic corridor (Kinect noise).
-#include "dataset.hpp"
+#include "io/dataset.hpp"
 
 #include "mobmap/mapping/gravity.hpp"
 #include "mobmap/mapping/mobility_map.hpp"

@@ -16,9 +16,9 @@
 //
 // Without --all, every 50th frame of 7scenes-redkitchen is used (the reference takes
 // seconds per frame); all other VGA frames of the data folder are always used.
-#include "dataset.hpp"
-#include "config.hpp"
-#include "frame_source.hpp"
+#include "io/dataset.hpp"
+#include "io/config.hpp"
+#include "io/frame_source.hpp"
 
 #include "mobmap/perception/pipeline.hpp"
 #include "mobmap/perception/stages.hpp"

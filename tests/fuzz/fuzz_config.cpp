@@ -1,7 +1,7 @@
 // libFuzzer target: arbitrary text as a YAML configuration and as a rule-table CSV must
 // parse or be rejected with an exception, never crash.
-#include "config.hpp"
-#include "io_error.hpp"
+#include "io/config.hpp"
+#include "io/io_error.hpp"
 
 #include "mobmap/gp/rule_table.hpp"
 

@@ -2,10 +2,10 @@
 // (TUM trajectory, 7-Scenes 4x4 pose, gravity direction, 3x3 intrinsics) and as a frame
 // file name with a time stamp. Each must parse into sound values or be rejected with
 // IoError; never crash, hang or return a non-rigid pose.
-#include "dataset.hpp"
-#include "io_error.hpp"
+#include "io/dataset.hpp"
+#include "io/io_error.hpp"
 #include "scratch_file.hpp"
-#include "trajectory_files.hpp"
+#include "io/trajectory_files.hpp"
 
 #include <cmath>
 #include <cstdint>

@@ -1,0 +1,171 @@
+// `mobmap plan`: footsteps from a start to a goal over a map (mapping::planFootsteps).
+#include "commands/commands.hpp"
+#include "io/files.hpp"
+#include "io/io_error.hpp"
+#include "io/map_files.hpp"
+#include "commands/reach_options.hpp"
+#include "pictures/top_view.hpp"
+
+#include "mobmap/mapping/footstep_planner.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+
+namespace mobmap::app {
+namespace {
+
+constexpr Rgb kLeftSole{30, 60, 220};
+constexpr Rgb kRightSole{230, 120, 0};
+
+/// Exit code of a run that found no plan (the answer is still printed).
+constexpr int kNoPlan = 3;
+
+}  // namespace
+
+Command addPlanCommand(CLI::App& app) {
+  auto* cmd = app.add_subcommand("plan", "Footsteps from a start to a goal: alternating left and right soles a planner can trust");
+  struct Options {
+    std::string map, frame = "map", png;
+    std::vector<double> from, to;
+    mapping::PlanParams params;
+    int max_pixels = 1400;
+    bool json = false;
+  };
+  auto o = std::make_shared<Options>();
+  cmd->add_option("MAP", o->map, "A .ot map written by `mobmap build`")->required();
+  cmd->add_option("--from", o->from, "X Y Z: where the robot stands (metres, on or above its footing)")->expected(3)->required();
+  cmd->add_option("--to", o->to, "X Y Z: the goal (metres, on or above the surface to stand on)")->expected(3)->required();
+  cmd->add_option("--input-frame", o->frame,
+                  "Frame of --from and --to, and of the footsteps printed: map (gravity aligned) or world (the data's own)")
+      ->check(CLI::IsMember({"map", "world"}))
+      ->capture_default_str();
+  addRobotOptions(*cmd, o->params.robot);
+  cmd->add_option("--goal-tolerance", o->params.goal_tolerance_m,
+                  "A footstep whose centre lies this close to the goal (horizontally) ends the plan, metres")
+      ->capture_default_str();
+  cmd->add_option("--step-cost", o->params.step_cost_m, "Cost of each footstep, in metres of walking")->capture_default_str();
+  cmd->add_option("--mobility-weight", o->params.mobility_weight_m,
+                  "Cost of a footstep per unit of (1 - the lowest mobility under it), metres")
+      ->capture_default_str();
+  cmd->add_option("--weight", o->params.heuristic_weight,
+                  "Heuristic weight of the A* search: 1 finds the cheapest plan; w > 1 a plan at most w times as costly, "
+                  "much faster")
+      ->capture_default_str();
+  cmd->add_option("--time-limit", o->params.time_limit_s, "Give up after this many seconds of search")->capture_default_str();
+  cmd->add_flag("--json", o->json, "One JSON object instead of the text");
+  cmd->add_option("--png", o->png, "Top view with the footsteps (left blue, right orange) over the mobility map");
+  cmd->add_option("--max-pixels", o->max_pixels, "Longest side of the picture's map area")
+      ->check(CLI::Range(64, 16384))
+      ->capture_default_str();
+  return [o]() {
+    try {
+      mapping::validate(o->params);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
+    const Eigen::Vector3d from_in(o->from[0], o->from[1], o->from[2]), to_in(o->to[0], o->to[1], o->to[2]);
+    if (!from_in.allFinite()) throw UsageError("--from: values must be finite");
+    if (!to_in.allFinite()) throw UsageError("--to: values must be finite");
+    refuseToOverwriteInputs({{"--png", o->png}}, mapFilesAsInputs(o->map));
+    const OpenedMap opened = openMapFiles(o->map);
+    const mapping::MobilityMap& map = opened.map;
+    const bool world = o->frame == "world";
+    const Eigen::Vector3d from = world ? map.worldToMap(from_in) : from_in;
+    const Eigen::Vector3d to = world ? map.worldToMap(to_in) : to_in;
+    mapping::Plan plan;
+    try {
+      plan = mapping::planFootsteps(map.tree(), from, to, o->params);
+    } catch (const mapping::PlanInputError& e) {
+      throw IoError(o->map, e.what());
+    } catch (const std::invalid_argument& e) {  // a step under two voxels of this map
+      throw UsageError(e.what());
+    }
+    // Footsteps in the frame the points were given in.
+    const Eigen::Matrix3d R = world ? Eigen::Matrix3d(map.rotationMapWorld().transpose()) : Eigen::Matrix3d(Eigen::Matrix3d::Identity());
+    const auto out = [&](const mapping::Footstep& f, double& yaw) {
+      const Eigen::Vector3d p = world ? map.mapToWorld(Eigen::Vector3d(f.x, f.y, f.z)) : Eigen::Vector3d(f.x, f.y, f.z);
+      const Eigen::Vector3d h = R * Eigen::Vector3d(std::cos(f.yaw), std::sin(f.yaw), 0);
+      yaw = world ? std::atan2(h.y(), h.x()) : f.yaw;
+      return p;
+    };
+    if (o->json) {
+      nlohmann::json j{{"found", plan.found}, {"frame", o->frame}};
+      if (!plan.found) j["reason"] = plan.reason;
+      j["footsteps"] = nlohmann::json::array();
+      for (const auto& f : plan.footsteps) {
+        double yaw = 0;
+        const Eigen::Vector3d p = out(f, yaw);
+        j["footsteps"].push_back({{"foot", mapping::toString(f.side)},
+                                  {"x", p.x()},
+                                  {"y", p.y()},
+                                  {"z", p.z()},
+                                  {"yaw", yaw},
+                                  {"min_mobility", f.min_mobility},
+                                  {"tilt_deg", f.tilt_deg}});
+      }
+      j["steps"] = plan.footsteps.size() >= 2 ? plan.footsteps.size() - 2 : 0;
+      j["cost"] = plan.cost;
+      j["length_m"] = plan.length_m;
+      j["max_step_height_m"] = plan.max_step_height_m;
+      j["expansions"] = plan.expansions;
+      j["cost_bound"] = o->params.heuristic_weight;  // the plan costs at most this times the cheapest
+      j["planning_time_s"] = plan.planning_time_s;
+      const auto& r = o->params.robot;
+      j["robot"] = {{"sole_length_m", r.sole_length_m},     {"sole_width_m", r.sole_width_m},
+                    {"max_step_m", r.max_step_m},           {"min_mobility", r.min_mobility},
+                    {"max_stride_m", r.max_stride_m},       {"max_tilt_deg", r.max_tilt_deg},
+                    {"swing_clearance_m", r.swing_clearance_m}, {"stance_width_m", r.stance_width_m}};
+      std::cout << j.dump() << "\n";
+    } else if (plan.found) {
+      std::printf("plan: %zu footsteps after the start stance, %.2f m walked, highest step %.2f m, cost %.2f (%zu states "
+                  "expanded in %.3f s); %s frame:\n",
+                  plan.footsteps.size() - 2, plan.length_m, plan.max_step_height_m, plan.cost, plan.expansions,
+                  plan.planning_time_s, o->frame.c_str());
+      for (std::size_t i = 0; i < plan.footsteps.size(); ++i) {
+        const auto& f = plan.footsteps[i];
+        double yaw = 0;
+        const Eigen::Vector3d p = out(f, yaw);
+        std::printf("  %2zu %-5s x %7.3f  y %7.3f  z %6.3f  yaw %6.1f deg  mobility >= %.2f  tilt %4.1f deg%s\n", i,
+                    mapping::toString(f.side), p.x(), p.y(), p.z(), yaw * 180 / M_PI, f.min_mobility, f.tilt_deg,
+                    i < 2 ? "  (start)" : "");
+      }
+    } else {
+      std::printf("no plan: %s\n", plan.reason.c_str());
+    }
+    if (!o->png.empty()) {
+      TopView view;
+      std::vector<Eigen::Vector2d> cover{from.head<2>(), to.head<2>()};
+      try {
+        view = computeTopView(map.tree(), cover, o->max_pixels);
+      } catch (const std::invalid_argument& e) {
+        throw IoError(o->map, std::string("cannot draw a top view: ") + e.what());
+      }
+      TopViewPicture picture;
+      picture.title = plan.found ? "FOOTSTEP PLAN" : "NO PLAN: " + plan.reason.substr(0, 120);
+      const double l = o->params.robot.sole_length_m / 2, w = o->params.robot.sole_width_m / 2;
+      for (const auto& f : plan.footsteps) {
+        TopViewPicture::Outline sole;
+        const double c = std::cos(f.yaw), s = std::sin(f.yaw);
+        for (const auto& [a, b] : {std::pair{l, w}, std::pair{-l, w}, std::pair{-l, -w}, std::pair{l, -w}}) {
+          sole.corners.emplace_back(f.x + c * a - s * b, f.y + s * a + c * b);
+        }
+        sole.colour = f.side == mapping::Side::kLeft ? kLeftSole : kRightSole;
+        sole.label = f.side == mapping::Side::kLeft ? "LEFT FOOT" : "RIGHT FOOT";
+        picture.outlines.push_back(std::move(sole));
+      }
+      picture.mark = to.head<2>();
+      picture.mark_label = "GOAL";
+      const Canvas canvas = drawTopView(view, picture, o->max_pixels);
+      canvas.save(o->png);
+      if (!o->json) std::printf("wrote %s (%s)\n", o->png.c_str(), describeTopView(view, canvas, o->max_pixels).c_str());
+    }
+    return plan.found ? 0 : kNoPlan;
+  };
+}
+
+}  // namespace mobmap::app

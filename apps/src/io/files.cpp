@@ -1,0 +1,187 @@
+#include "io/files.hpp"
+
+#include "io/io_error.hpp"
+
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace mobmap::app {
+
+std::string readTextFile(const std::string& path, std::size_t max_bytes) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw IoError(path, "no such file");
+  if (std::filesystem::is_directory(path, ec)) throw IoError(path, "is a directory, expected a file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw IoError(path, std::string("cannot open: ") + std::strerror(errno));
+  const auto size = std::filesystem::file_size(path, ec);
+  if (!ec && size > max_bytes) {
+    throw IoError(path, "file is " + std::to_string(size) + " bytes, more than the " +
+                            std::to_string(max_bytes) + " expected");
+  }
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// The path as the file it names: absolute, links and "." / ".." resolved as far as the
+// file system has them.
+fs::path resolved(const std::string& path) {
+  std::error_code ec;
+  fs::path p = fs::weakly_canonical(fs::absolute(path, ec), ec);
+  return ec ? fs::absolute(path, ec).lexically_normal() : p;
+}
+
+bool sameFile(const std::string& a, const std::string& b) {
+  std::error_code ec;
+  if (fs::exists(a, ec) && fs::exists(b, ec)) return fs::equivalent(a, b, ec) && !ec;
+  return resolved(a) == resolved(b);
+}
+
+}  // namespace
+
+void refuseToOverwriteInputs(const std::vector<NamedPath>& outputs, const std::vector<NamedPath>& inputs) {
+  for (std::size_t i = 0; i < outputs.size(); ++i) {
+    const NamedPath& out = outputs[i];
+    if (out.path.empty()) continue;
+    for (const NamedPath& in : inputs) {
+      if (in.path.empty()) continue;
+      if (sameFile(out.path, in.path)) {
+        throw UsageError(out.name + " " + out.path + " is " + in.name + " " + in.path +
+                         ", which this command reads; choose another path");
+      }
+    }
+    for (std::size_t k = 0; k < i; ++k) {
+      if (!outputs[k].path.empty() && sameFile(out.path, outputs[k].path)) {
+        throw UsageError(out.name + " " + out.path + " and " + outputs[k].name + " " + outputs[k].path +
+                         " are the same file; give each output its own path");
+      }
+    }
+  }
+}
+
+namespace {
+
+// Creates the directory a file will go in; IoError naming the file if it cannot.
+void createParentDirectory(const std::string& path) {
+  const std::filesystem::path target(path);
+  if (!target.has_parent_path()) return;
+  std::error_code ec;
+  std::filesystem::create_directories(target.parent_path(), ec);
+  if (ec) throw IoError(path, "cannot create directory " + target.parent_path().string() + ": " + ec.message());
+}
+
+}  // namespace
+
+namespace {
+
+// Writes each file to path + suffix + PID, then renames them all into place in order;
+// on a failed write every temporary is removed and the error names the file itself.
+void replaceFiles(const std::vector<PendingFile>& files, const std::string& suffix) {
+  std::error_code ec;
+  std::vector<std::string> temporaries;
+  const auto discard = [&](std::size_t from) {
+    for (std::size_t i = from; i < temporaries.size(); ++i) std::filesystem::remove(temporaries[i], ec);
+  };
+  for (const PendingFile& f : files) {
+    createParentDirectory(f.path);
+    temporaries.push_back(f.path + suffix + std::to_string(::getpid()));
+    const std::string& tmp = temporaries.back();
+    try {
+      f.write(tmp);
+    } catch (const std::exception& e) {
+      discard(0);
+      // The user knows the file by its own name, not by the temporary's a writer may give.
+      std::string reason;
+      if (const auto* io = dynamic_cast<const IoError*>(&e)) {
+        reason = io->reason();
+      } else {
+        const std::string what = e.what();
+        reason = what.rfind(tmp + ": ", 0) == 0 ? what.substr(tmp.size() + 2) : what;
+      }
+      throw IoError(f.path, reason + (files.size() > 1 ? "; no file of the set was changed" : ""));
+    } catch (...) {
+      discard(0);
+      throw;
+    }
+  }
+  for (std::size_t i = 0; i < files.size(); ++i) {
+    if (std::rename(temporaries[i].c_str(), files[i].path.c_str()) != 0) {
+      const std::string reason = std::strerror(errno);
+      discard(i);
+      throw IoError(files[i].path, "cannot rename the temporary file into place: " + reason +
+                                       (i > 0 ? " (the files before it in the set were replaced)" : ""));
+    }
+  }
+}
+
+}  // namespace
+
+void writeAtomically(const std::string& path, const std::function<void(const std::string&)>& write) {
+  replaceFiles({{path, write}}, ".tmp.");
+}
+
+void writeFilesTogether(const std::vector<PendingFile>& files) {
+  // Not ".tmp.PID", which the writers' own atomic saves use inside: a temporary left
+  // behind by a killed run then says which of the two left it.
+  replaceFiles(files, ".new.");
+}
+
+void checkWritable(const std::string& path) {
+  const std::filesystem::path target(path);
+  std::error_code ec;
+  createParentDirectory(path);
+  if (std::filesystem::is_directory(target, ec)) throw IoError(path, "is a directory");
+  const std::string probe = path + ".probe." + std::to_string(::getpid());
+  {
+    std::ofstream out(probe, std::ios::binary);
+    if (!out) throw IoError(path, std::string("cannot write there: ") + std::strerror(errno));
+  }
+  std::filesystem::remove(probe, ec);
+}
+
+std::optional<double> parseFiniteNumber(const std::string& token) {
+  std::size_t used = 0;
+  double v = 0.0;
+  try {
+    v = std::stod(token, &used);
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+  if (used == 0 || used != token.size() || !std::isfinite(v)) return std::nullopt;
+  return v;
+}
+
+std::vector<double> splitNumbers(const std::string& spec) {
+  std::vector<double> out;
+  std::stringstream in(spec);
+  std::string cell;
+  while (std::getline(in, cell, ',')) {
+    const auto v = parseFiniteNumber(cell);
+    if (!v) return {};
+    out.push_back(*v);
+  }
+  return out;
+}
+
+void writeTextFileAtomically(const std::string& path, const std::string& text) {
+  writeAtomically(path, [&](const std::string& tmp) {
+    std::ofstream out(tmp, std::ios::binary);
+    if (!out) throw IoError(path, std::string("cannot write: ") + std::strerror(errno));
+    out << text;
+    out.flush();
+    if (!out) throw IoError(path, "write failed (disk full?)");
+  });
+}
+
+}  // namespace mobmap::app

@@ -1,0 +1,81 @@
+#pragma once
+// Posed depth sequences for `mobmap build`: the 7-Scenes / 3DMatch layout and TUM RGB-D.
+
+#include "io/depth_checks.hpp"
+#include "io/png_io.hpp"
+
+#include "mobmap/perception/camera.hpp"
+
+#include <Eigen/Geometry>
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace mobmap::app {
+
+struct SequenceFrame {
+  int number = 0;
+  /// A depth image for the sequence's intrinsics, or (when depth is empty) a cloud in
+  /// the camera frame, organized when width * height == cloud.size() and height > 1.
+  perception::DepthImage depth;
+  std::vector<Eigen::Vector3f> cloud;
+  int width = 0;
+  int height = 0;
+  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
+  /// False when a stream's frame has no pose within the tolerance: not to be fused.
+  bool has_pose = true;
+};
+
+/// A sequence of depth frames with camera-to-world poses. load() may run on several
+/// threads at once.
+class Sequence {
+ public:
+  virtual ~Sequence() = default;
+  [[nodiscard]] virtual std::string describe() const = 0;
+  /// The depth camera; meaningless when hasDepth() is false.
+  [[nodiscard]] virtual const perception::PinholeIntrinsics& intrinsics() const = 0;
+  /// Whether frames come as depth images (free space can then be projected).
+  [[nodiscard]] virtual bool hasDepth() const { return true; }
+  [[nodiscard]] virtual std::optional<Eigen::Vector3d> gravityDown() const = 0;
+  /// Numbers of the frames that have a pose, ascending.
+  [[nodiscard]] virtual const std::vector<int>& frames() const = 0;
+  /// Checks cheaply (before a long run) that frame `n` can be loaded; IoError if not.
+  virtual void check(int n) const = 0;
+  [[nodiscard]] virtual SequenceFrame load(int n) const = 0;
+  /// Frame `n`'s camera-to-world pose without its depth (the one load() gives), for
+  /// sequences that know their poses before the run; nullopt for streams (OpenNI2),
+  /// whose poses arrive with their frames.
+  [[nodiscard]] virtual std::optional<Eigen::Isometry3d> pose(int /*n*/) const { return std::nullopt; }
+  /// Frame `n`'s colour image, pixel for pixel with its depth, when the input has one:
+  /// a 7-Scenes / 3DMatch `.color.png` of the depth's size, the TUM `rgb.txt` image
+  /// within 0.02 s of the depth (TUM registers colour to depth), an organized .pcd's
+  /// rgb. For pictures; load() does not read it. IoError if the file is unreadable.
+  [[nodiscard]] virtual std::optional<ImageRgb> colour(int /*n*/) const { return std::nullopt; }
+  /// The files frame `n` is read from (its depth image or cloud, its pose file), so a
+  /// command that writes files can refuse to write over them.
+  [[nodiscard]] virtual std::vector<std::string> files(int /*n*/) const { return {}; }
+  /// Frames left out and why ("12 depth frames without a pose within 0.05 s"), or "".
+  [[nodiscard]] virtual std::string skipped() const { return {}; }
+  /// The unit load() gives depth in, as the input is read: a depth image's values per
+  /// metre (1000 for 7-Scenes and OpenNI2, 5000 for TUM), 1 for clouds in metres.
+  [[nodiscard]] virtual DepthUnit depthUnit() const { return {}; }
+};
+
+/// `seq` with its depth read at `units_per_m` instead of its own unit (depth and cloud
+/// coordinates multiplied by own / units_per_m; poses unchanged). `seq` itself when the
+/// two agree.
+std::unique_ptr<Sequence> withDepthScale(std::unique_ptr<Sequence> seq, double units_per_m);
+
+/// Opens INPUT: a TUM RGB-D directory (it has depth.txt), a directory of .pcd frames
+/// or a single .pcd (these need `poses_path`), else a 7-Scenes layout directory.
+/// `intrinsics_spec` (fx,fy,cx,cy or a file) overrides the sequence's own; TUM has
+/// none in its files and defaults to 525, 525, 319.5, 239.5 (its documented default);
+/// organized .pcd frames get intrinsics fitted to their first frame.
+/// `max_pose_gap_s`: frames whose neighbouring timestamped poses are farther apart in
+/// time are skipped.
+std::unique_ptr<Sequence> openSequence(const std::string& input, const std::string& intrinsics_spec,
+                                       double max_pose_gap_s, const std::string& poses_path = "");
+
+}  // namespace mobmap::app
