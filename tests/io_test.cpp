@@ -3,6 +3,7 @@
 #include "io/ground_truth.hpp"
 #include "io/files.hpp"
 #include "io/frame_source.hpp"
+#include "io/pcd.hpp"
 #include "io/io_error.hpp"
 #include "io/map_files.hpp"
 #include "pictures/canvas.hpp"
@@ -220,7 +221,7 @@ TEST(Pcd, EightByteCoordinatesAreReadAsWritten) {
   writeBytes(dir.file("ascii.pcd"), ascii);
   writeBytes(dir.file("binary.pcd"), binary);
   for (const std::string name : {"ascii.pcd", "binary.pcd"}) {
-    const LoadedFrame f = loadPcd(dir.file(name));
+    const Frame f = loadPcd(dir.file(name));
     ASSERT_EQ(f.points.size(), points.size()) << name;
     for (std::size_t i = 0; i < points.size(); ++i) {
       EXPECT_EQ(f.points[i], points[i].cast<float>()) << name << " point " << i;

@@ -2,6 +2,7 @@
 // folder is absent). Asserts geometric facts of the scenes, not segment counts.
 #include "io/dataset.hpp"
 #include "io/frame_source.hpp"
+#include "io/pcd.hpp"
 
 #include "mobmap/mapping/gravity.hpp"
 #include "mobmap/mapping/mobility_map.hpp"
@@ -63,7 +64,7 @@ struct PixelPatch {
   std::vector<Eigen::Vector3d> points;
 };
 
-PixelPatch patch(const app::LoadedFrame& f, int u0, int u1, int v0, int v1, float max_z = 3.f) {
+PixelPatch patch(const app::Frame& f, int u0, int u1, int v0, int v1, float max_z = 3.f) {
   PixelPatch out;
   const int width = f.depth ? f.depth->width : f.width;
   for (int v = v0; v < v1; ++v)
@@ -136,7 +137,7 @@ std::vector<Obstacle> standingObstacles(const perception::FrameResult& r, float 
 TEST(RealFrames, FivePeopleFloorIsAbout1_2MetresBelowAndPeopleAreNotTraversable) {
   const std::string path = dataFile("pcl-kinect/five_people.pcd");
   SKIP_WITHOUT(path);
-  const app::LoadedFrame f = app::loadPcd(path);
+  const app::Frame f = app::loadPcd(path);
   perception::PerceptionParams p;
   p.max_range_m = 4.0;  // the corridor floor between the people is 2-4 m away
   // No pose in a PCD: the camera is held level, so gravity is roughly +y (OpenCV axes);
@@ -165,7 +166,7 @@ TEST(RealFrames, FivePeopleFloorIsAbout1_2MetresBelowAndPeopleAreNotTraversable)
 TEST(RealFrames, FivePeopleWithoutGravityFindsTheFloorNotTheEndWall) {
   const std::string path = dataFile("pcl-kinect/five_people.pcd");
   SKIP_WITHOUT(path);
-  const app::LoadedFrame f = app::loadPcd(path);
+  const app::Frame f = app::loadPcd(path);
   const auto r = perception::FramePipeline().processOrganized(f.points, f.width, f.height);
   ASSERT_TRUE(r.ground_plane);
   EXPECT_EQ(r.ground_rule, perception::GroundRule::kUprightPrior);
@@ -186,7 +187,7 @@ TEST(RealFrames, OwnDelaunayTrianglesAreCgalsOnEverySegment) {
   for (const char* name : {"pcl-kinect/five_people.pcd", "pcl-kinect/milk_cartoon_all_small_clorox.pcd"}) {
     const std::string path = dataFile(name);
     SKIP_WITHOUT(path);
-    const app::LoadedFrame f = app::loadPcd(path);
+    const app::Frame f = app::loadPcd(path);
     perception::PerceptionParams own, cgal;
     cgal.triangulator = perception::Triangulator::kCgal;
     const auto a = perception::FramePipeline(own).processOrganized(f.points, f.width, f.height);
@@ -245,7 +246,7 @@ TEST(RealFrames, OwnDelaunayTrianglesAreCgalsOnEverySegment) {
 TEST(RealFrames, MilkCartonCarpetIsAbout0_46MetresAwayAndBottlesAreSeparateObstacles) {
   const std::string path = dataFile("pcl-kinect/milk_cartoon_all_small_clorox.pcd");
   SKIP_WITHOUT(path);
-  const app::LoadedFrame f = app::loadPcd(path);
+  const app::Frame f = app::loadPcd(path);
   const auto r = perception::FramePipeline().processOrganized(f.points, f.width, f.height);
   ASSERT_TRUE(r.ground_plane);
   EXPECT_NEAR((*r.ground_plane)(3), 0.46, 0.05);
@@ -330,7 +331,7 @@ TEST(RealFrames, RealSensePersonStandsOnAWalkableFloorAndIsNotTraversable) {
     SCOPED_TRACE(name);
     const std::string path = dataFile(std::string("realsense-person/") + name);
     SKIP_WITHOUT(path);
-    const app::LoadedFrame f =
+    const app::Frame f =
         app::loadSingleFrame(path, -1, dataFile("realsense-person/camera-intrinsics.txt"));
     ASSERT_TRUE(f.depth);
     const perception::PinholeIntrinsics& k = f.intrinsics;
@@ -408,7 +409,7 @@ TEST(RealFrames, GrabberTableIsTheGroundBoxTopIsARaisedFlatAndTheLaptopLidIsNotW
   ASSERT_EQ(frames.size(), 3u);
   for (const std::string& path : frames) {
     SCOPED_TRACE(path);
-    const app::LoadedFrame f = app::loadPcd(path);
+    const app::Frame f = app::loadPcd(path);
     ASSERT_EQ(f.width, 640);
     const PixelPatch table = patch(f, 30, 600, 400, 470), box = patch(f, 400, 450, 210, 260),
                      lid = patch(f, 200, 320, 190, 290);
@@ -472,7 +473,7 @@ TEST(RealFrames, GrabberTableIsTheGroundBoxTopIsARaisedFlatAndTheLaptopLidIsNotW
 TEST(RealFrames, StereoMugTableIsTheGroundAndNothingOnTheMugIsWalkable) {
   const std::string path = dataFile("pcl-kinect/table_scene_mug_stereo_textured.pcd");
   SKIP_WITHOUT(path);
-  const app::LoadedFrame f = app::loadPcd(path);
+  const app::Frame f = app::loadPcd(path);
   ASSERT_EQ(f.width, 640);
   const PixelPatch table = patch(f, 160, 600, 400, 470);
   ASSERT_GT(table.pixels.size(), 20000u);

@@ -4,6 +4,7 @@
 #include "io/dataset.hpp"
 #include "io/depth_checks.hpp"
 #include "io/frame_source.hpp"
+#include "io/pcd.hpp"
 #include "io/io_error.hpp"
 
 #include "mobmap/perception/pipeline.hpp"
@@ -164,7 +165,7 @@ TEST(DepthUnit, DepthInAnotherUnitIsCaughtAndTheSuggestedScaleReadsIt) {
   // Pitched 60 degrees down: every depth within 6.5 m fits the 16-bit PNG at 10000 per metre.
   const sim::RenderedFrame f = corridorFrame(60.0);
   const std::string png = writeDepthIn(dir, f, 10000.0);
-  LoadedFrame frame = loadSingleFrame(png, -1, "");
+  Frame frame = loadSingleFrame(png, -1, "");
   EXPECT_EQ(frame.depth_unit.units_per_m, 1000.0);
   const perception::FramePipeline pipeline(perception::PerceptionParams{}, gp::MobilityModel{});
   const perception::FrameResult wrong = perceiveFrame(pipeline, frame, gravityInCamera(f));
@@ -181,7 +182,7 @@ TEST(DepthUnit, DepthInAnotherUnitIsCaughtAndTheSuggestedScaleReadsIt) {
   ASSERT_TRUE(right.ground_plane.has_value());
   EXPECT_NEAR((*right.ground_plane)(3), sim::CorridorParams{}.camera_height_m, 0.02);
   // Read 10 times too near (a millimetre PNG taken for tenths): caught from the other side.
-  LoadedFrame near = loadSingleFrame(writeDepthIn(dir, f, 1000.0), -1, "");
+  Frame near = loadSingleFrame(writeDepthIn(dir, f, 1000.0), -1, "");
   rescaleDepth(near, 10000.0);
   const perception::FrameResult too_near = perceiveFrame(pipeline, near, gravityInCamera(f));
   EXPECT_LT(too_near.range.median_range_m, kPlausibleMedianMin);
@@ -189,6 +190,37 @@ TEST(DepthUnit, DepthInAnotherUnitIsCaughtAndTheSuggestedScaleReadsIt) {
   ASSERT_TRUE(other.has_value());
   EXPECT_NE(other->find("--depth-scale 1000 (millimetres)"), std::string::npos) << *other;
   EXPECT_THROW(rescaleDepth(near, 0.0), UsageError);
+}
+
+// A single depth PNG is a sequence of one frame without a pose: the same interface as a
+// directory, and the frame it gives is the file's depth at its camera.
+TEST(FrameSource, ASingleFileIsASequenceOfOneFrame) {
+  const TempDir dir;
+  const sim::RenderedFrame f = corridorFrame(30.0);
+  const std::string png = writeDepthIn(dir, f, 1000.0);
+  const auto seq = openSequence(png, "", 0.05);
+  EXPECT_EQ(seq->frames(), std::vector<int>{0});
+  EXPECT_FALSE(seq->posed());
+  EXPECT_TRUE(seq->hasDepth());
+  EXPECT_EQ(seq->intrinsics().fx, sim::CorridorParams{}.intrinsics.fx);
+  const Frame one = seq->load(0);
+  EXPECT_FALSE(one.T_world_camera.has_value());
+  ASSERT_TRUE(one.depth.has_value());
+  const perception::DepthImage file = readDepthPng(png);
+  EXPECT_EQ(one.depth->depth_m, file.depth_m);
+  for (std::size_t i = 0; i < file.depth_m.size(); i += 101) {
+    if (f.depth.depth_m[i] > 0.f && f.depth.depth_m[i] < 60.f) EXPECT_NEAR(file.depth_m[i], f.depth.depth_m[i], 5e-4f);
+  }
+  // analyze's loader goes through the same sequence; a frame number other than 0 is refused.
+  const Frame loaded = loadSingleFrame(png, -1, "");
+  EXPECT_EQ(loaded.depth->depth_m, one.depth->depth_m);
+  EXPECT_NE(loaded.note.find("camera-intrinsics.txt"), std::string::npos) << loaded.note;
+  try {
+    (void)loadSingleFrame(png, 3, "");
+    ADD_FAILURE() << "frame 3 of a single file was loaded";
+  } catch (const IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("is a single frame"), std::string::npos) << e.what();
+  }
 }
 
 // Camera files as labs have them: ROS 1 and ROS 2 camera_info dumps, a ROS calibration
@@ -361,10 +393,10 @@ TEST(OrganizedCamera, ACloudInATurnedFrameScoresAsInItsCameraFrame) {
   const std::string plain = writeFramePcd(dir, "camera.pcd", f, Eigen::Isometry3d::Identity());
   const std::string turned = writeFramePcd(dir, "turned.pcd", f, quarter);
   const perception::FramePipeline pipeline(perception::PerceptionParams{}, gp::MobilityModel{});
-  LoadedFrame a = loadPcd(plain);
+  Frame a = loadPcd(plain);
   EXPECT_FALSE(a.T_cloud_camera.has_value());
   EXPECT_EQ(a.note, "");
-  LoadedFrame b = loadPcd(turned);
+  Frame b = loadPcd(turned);
   ASSERT_TRUE(b.T_cloud_camera.has_value());
   EXPECT_LT((b.T_cloud_camera->linear() - quarter.linear()).norm(), 1e-5);
   EXPECT_NE(b.note.find("turned 90.0 degrees"), std::string::npos) << b.note;
@@ -392,7 +424,7 @@ TEST(OrganizedCamera, ACloudInATurnedFrameScoresAsInItsCameraFrame) {
   std::vector<Eigen::Vector3f> shuffled = organizedCloud(f, quarter);
   std::reverse(shuffled.begin(), shuffled.begin() + static_cast<std::ptrdiff_t>(shuffled.size() / 2));
   const perception::PinholeIntrinsics k = sim::CorridorParams{}.intrinsics;
-  const LoadedFrame c = loadPcd(writeOrganizedPcd(dir, "shuffled.pcd", shuffled, k.width, k.height));
+  const Frame c = loadPcd(writeOrganizedPcd(dir, "shuffled.pcd", shuffled, k.width, k.height));
   EXPECT_FALSE(c.T_cloud_camera.has_value());
   EXPECT_NE(c.note.find("its frame cannot be recovered"), std::string::npos) << c.note;
 }

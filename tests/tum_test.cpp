@@ -7,6 +7,7 @@
 #include "io/io_error.hpp"
 #include "io/png_io.hpp"
 #include "io/map_files.hpp"
+#include "io/pcd.hpp"
 #include "io/sequence.hpp"
 #include "io/trajectory_files.hpp"
 
@@ -141,16 +142,16 @@ TEST(TumSequence, AssociatesDepthWithInterpolatedPosesAndSkipsFramesInAGap) {
   for (int n : seq->frames()) {
     const auto f = seq->load(n);
     ASSERT_TRUE(seq->pose(n));  // known before the run (build --keyframes), the same as load()'s
-    EXPECT_EQ(seq->pose(n)->matrix(), f.T_world_camera.matrix());
+    EXPECT_EQ(seq->pose(n)->matrix(), f.T_world_camera->matrix());
     const int frame = n < 5 ? n : n + 1;  // sequence indices skip the gap frame
     const Eigen::Isometry3d truth = scene.cameraPose(frame);
     // Linear + slerp over 10 ms of a smooth walk: sub-millimetre.
-    EXPECT_LT((f.T_world_camera.translation() - truth.translation()).norm(), 1e-3) << frame;
-    EXPECT_LT(Eigen::AngleAxisd(f.T_world_camera.linear().transpose() * truth.linear()).angle(), 1e-3) << frame;
+    EXPECT_LT((f.T_world_camera->translation() - truth.translation()).norm(), 1e-3) << frame;
+    EXPECT_LT(Eigen::AngleAxisd(f.T_world_camera->linear().transpose() * truth.linear()).angle(), 1e-3) << frame;
     const auto r = scene.render(frame);
     for (std::size_t i = 0; i < r.exact_depth.depth_m.size(); i += 97) {
       if (r.exact_depth.depth_m[i] > 0) {
-        ASSERT_NEAR(f.depth.depth_m[i], r.exact_depth.depth_m[i], 1.0 / 10000 + 1e-6);
+        ASSERT_NEAR(f.depth->depth_m[i], r.exact_depth.depth_m[i], 1.0 / 10000 + 1e-6);
       }
     }
   }
@@ -520,13 +521,13 @@ TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
     for (int n : seq->frames()) {
       const auto f = seq->load(n);
       ASSERT_TRUE(seq->pose(n));
-      EXPECT_EQ(seq->pose(n)->matrix(), f.T_world_camera.matrix());
+      EXPECT_EQ(seq->pose(n)->matrix(), f.T_world_camera->matrix());
       const Eigen::Isometry3d truth = scene.cameraPose(frames[n]);
-      EXPECT_LT((f.T_world_camera.translation() - truth.translation()).norm(), 1e-5) << poses << " " << n;
-      EXPECT_LT(Eigen::AngleAxisd(f.T_world_camera.linear().transpose() * truth.linear()).angle(), 1e-5);
+      EXPECT_LT((f.T_world_camera->translation() - truth.translation()).norm(), 1e-5) << poses << " " << n;
+      EXPECT_LT(Eigen::AngleAxisd(f.T_world_camera->linear().transpose() * truth.linear()).angle(), 1e-5);
       const auto r = scene.render(frames[n]);
       for (std::size_t i = 0; i < r.exact_depth.depth_m.size(); i += 101) {
-        ASSERT_NEAR(f.depth.depth_m[i], r.exact_depth.depth_m[i], 1e-6) << i;
+        ASSERT_NEAR(f.depth->depth_m[i], r.exact_depth.depth_m[i], 1e-6) << i;
       }
       // The cloud's rgb is the frame's colour image (for overlay).
       const auto colour = seq->colour(n);

@@ -19,6 +19,7 @@
 #include "io/dataset.hpp"
 #include "io/config.hpp"
 #include "io/frame_source.hpp"
+#include "io/pcd.hpp"
 
 #include "mobmap/perception/pipeline.hpp"
 #include "mobmap/perception/stages.hpp"

@@ -93,7 +93,7 @@ void writeSegmentsPcd(const std::string& path, const perception::FrameResult& r)
   writeTextFileAtomically(path, text);
 }
 
-Canvas overlay(const LoadedFrame& f, const perception::FrameResult& r, int width, int height, bool colour) {
+Canvas overlay(const Frame& f, const perception::FrameResult& r, int width, int height, bool colour) {
   // Depth for the shaded background: the depth image, or an organized cloud's z.
   std::vector<float> cloud_z;
   if (!f.depth) {
@@ -160,7 +160,7 @@ Command addAnalyzeCommand(CLI::App& app) {
       if (o->intrinsics.empty() && std::filesystem::is_regular_file(beside, ec)) inputs.push_back({"the intrinsics", beside.string()});
       refuseToOverwriteInputs({{"--segments", o->segments}, {"--overlay", o->overlay}}, inputs);
     }
-    LoadedFrame f = loadSingleFrame(o->input, o->frame, o->intrinsics);
+    Frame f = loadSingleFrame(o->input, o->frame, o->intrinsics);
     {
       std::vector<NamedPath> inputs;  // a directory's frame: its depth image and pose file
       for (const std::string& file : f.sources) inputs.push_back({"the frame's file", file});

@@ -72,13 +72,13 @@ FrameRange parseRange(const std::string& spec) {
 }
 
 
-perception::FrameResult perceive(const perception::FramePipeline& pipeline, const Sequence& dir, const SequenceFrame& f,
+perception::FrameResult perceive(const perception::FramePipeline& pipeline, const Sequence& dir, const Frame& f,
                                  const std::optional<Eigen::Vector3f>& gravity_down_camera) {
-  if (dir.hasDepth()) return pipeline.process(f.depth, dir.intrinsics(), gravity_down_camera);
-  if (f.height > 1 && f.cloud.size() == static_cast<std::size_t>(f.width) * static_cast<std::size_t>(f.height)) {
-    return pipeline.processOrganized(f.cloud, f.width, f.height, gravity_down_camera);
+  if (dir.hasDepth()) return pipeline.process(*f.depth, dir.intrinsics(), gravity_down_camera);
+  if (f.height > 1 && f.points.size() == static_cast<std::size_t>(f.width) * static_cast<std::size_t>(f.height)) {
+    return pipeline.processOrganized(f.points, f.width, f.height, gravity_down_camera);
   }
-  return pipeline.process(f.cloud, gravity_down_camera);
+  return pipeline.process(f.points, gravity_down_camera);
 }
 
 // A frame's floor as a vote for "down" in the world frame: its ground plane's normal
@@ -104,15 +104,15 @@ FloorSample sampleFloors(const Sequence& dir, const std::vector<int>& frames, co
   const std::size_t samples = std::min<std::size_t>(8, frames.size());
   for (std::size_t i = 0; i < samples; ++i) {
     const std::size_t at = samples == 1 ? 0 : i * (frames.size() - 1) / (samples - 1);
-    SequenceFrame f;
+    Frame f;
     try {
       f = dir.load(frames[at]);
     } catch (const IoError& e) {
       if (!skip_unreadable) throw withSkipHint(e);
       continue;
     }
-    if (!f.has_pose) continue;
-    const Eigen::Matrix3d r_wc = f.T_world_camera.linear();
+    if (!f.T_world_camera) continue;
+    const Eigen::Matrix3d r_wc = f.T_world_camera->linear();
     sample.rotations.push_back(r_wc);
     if (auto vote = floorVote(perceive(finder, dir, f, down_in_camera(r_wc)), r_wc)) sample.floors.push_back(*vote);
   }
@@ -170,7 +170,7 @@ struct FloorCheck {
   std::size_t sampled = 0;
 };
 std::optional<FloorCheck> floorNear(const Eigen::Vector3d& given_down, const Sequence* dir, const std::vector<int>& frames,
-                                    const LoadedFrame* single, const perception::PerceptionParams& pp,
+                                    const Frame* single, const perception::PerceptionParams& pp,
                                     const gp::MobilityModel& model, bool skip_unreadable) {
   perception::PerceptionParams p = pp;
   p.ground_max_tilt_deg = kGravityRefineConeDeg;
@@ -407,7 +407,7 @@ Command addBuildCommand(CLI::App& app) {
     std::vector<int> frames;
     int keyframes_considered = 0;  // frames selected before --keyframes (0: not used)
     std::optional<Eigen::Vector3d> gravity_world;
-    LoadedFrame single;
+    Frame single;
     const bool live = device->count() > 0;
     const bool oni = !live && fs::path(o->input).extension() == ".oni";
     if (live == !o->input.empty()) throw UsageError("give either INPUT or --device");
@@ -856,7 +856,7 @@ Command addBuildCommand(CLI::App& app) {
         mapper->push(std::move(f));
         continue;
       }
-      SequenceFrame f;
+      Frame f;
       try {
         f = dir->load(number);
       } catch (const StreamInterrupted&) {  // Ctrl-C while a live sensor was silent
@@ -870,7 +870,7 @@ Command addBuildCommand(CLI::App& app) {
         showProgress(map_nodes);
         continue;
       }
-      if (!f.has_pose) {
+      if (!f.T_world_camera) {
         const std::lock_guard<std::mutex> lock(state);
         ++no_pose;
         showProgress(map_nodes);
@@ -879,13 +879,13 @@ Command addBuildCommand(CLI::App& app) {
       {
         const std::lock_guard<std::mutex> lock(state);
         read_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-        pushed.push_back({number, f.T_world_camera});
+        pushed.push_back({number, *f.T_world_camera});
       }
       try {
         if (dir->hasDepth()) {
-          mapper->push(mapping::DepthFrame{std::move(f.depth), dir->intrinsics(), f.T_world_camera, 0.0});
+          mapper->push(mapping::DepthFrame{std::move(*f.depth), dir->intrinsics(), *f.T_world_camera, 0.0});
         } else {
-          mapper->push(mapping::CloudFrame{std::move(f.cloud), f.width, f.height, f.T_world_camera, 0.0});
+          mapper->push(mapping::CloudFrame{std::move(f.points), f.width, f.height, *f.T_world_camera, 0.0});
         }
       } catch (const std::invalid_argument& e) {  // a frame LiveMapper cannot take (image and camera disagree)
         throw IoError(o->input, "frame " + std::to_string(number) + ": " + e.what());

@@ -211,7 +211,7 @@ Command addOverlayCommand(CLI::App& app) {
     if (!seq->hasDepth()) {
       throw IoError(input, "its frames are unorganized clouds, not images: there is no picture to draw the map into");
     }
-    const LoadedFrame f = loadSequenceFrame(*seq, input, n);
+    const Frame f = loadSequenceFrame(*seq, input, n);
     {
       std::vector<NamedPath> frame_files;
       for (const std::string& file : f.sources) frame_files.push_back({"the frame's file", file});

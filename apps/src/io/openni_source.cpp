@@ -193,7 +193,7 @@ class OpenNiSequence : public Sequence {
     return s.str();
   }
 
-  SequenceFrame load(int n) const override {
+  Frame load(int n) const override {
     std::unique_lock<std::mutex> lock(mutex_);
     turn_.wait(lock, [&] { return failed_ || (cursor_ < frames_.size() && frames_[cursor_] == n); });
     if (failed_) throw IoError(name_, "reading stopped at an earlier frame");
@@ -205,7 +205,7 @@ class OpenNiSequence : public Sequence {
         last_index_ = f.getFrameIndex();
         ++read_;
       }
-      SequenceFrame out = convert(f, n);
+      Frame out = convert(f, n);
       ++cursor_;
       turn_.notify_all();
       return out;
@@ -260,7 +260,7 @@ class OpenNiSequence : public Sequence {
     }
   }
 
-  SequenceFrame convert(const openni::VideoFrameRef& f, int n) const {
+  Frame convert(const openni::VideoFrameRef& f, int n) const {
     if (f.getWidth() != k_.width || f.getHeight() != k_.height) {
       throw IoError(name_, "frame " + std::to_string(n) + " is " + std::to_string(f.getWidth()) + "x" +
                                std::to_string(f.getHeight()) + ", the stream is " + std::to_string(k_.width) + "x" +
@@ -270,21 +270,19 @@ class OpenNiSequence : public Sequence {
     if (stride < k_.width * 2 || f.getDataSize() < stride * (k_.height - 1) + k_.width * 2) {
       throw IoError(name_, "frame " + std::to_string(n) + " holds fewer bytes than its size needs");
     }
-    SequenceFrame out;
+    Frame out;
     out.number = n;
     out.depth = perception::DepthImage(k_.width, k_.height);
     const auto* bytes = static_cast<const unsigned char*>(f.getData());
     for (int v = 0; v < k_.height; ++v) {
       const auto* row = reinterpret_cast<const openni::DepthPixel*>(bytes + static_cast<std::ptrdiff_t>(v) * stride);
-      for (int u = 0; u < k_.width; ++u) out.depth.at(u, v) = static_cast<float>(row[u]) * scale_;
+      for (int u = 0; u < k_.width; ++u) out.depth->at(u, v) = static_cast<float>(row[u]) * scale_;
     }
     if (trajectory_.size() > 0) {
       const double t = static_cast<double>(f.getTimestamp()) * 1e-6;
-      if (auto T = trajectory_.at(t, o_.max_pose_gap_s)) {
-        out.T_world_camera = *T;
-      } else {
-        out.has_pose = false;
-      }
+      out.T_world_camera = trajectory_.at(t, o_.max_pose_gap_s);  // unset: no pose within the gap
+    } else {
+      out.T_world_camera = Eigen::Isometry3d::Identity();  // a static camera
     }
     return out;
   }

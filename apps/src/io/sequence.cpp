@@ -2,8 +2,8 @@
 
 #include "io/dataset.hpp"
 #include "io/files.hpp"
-#include "io/frame_source.hpp"
 #include "io/io_error.hpp"
+#include "io/pcd.hpp"
 #include "io/png_io.hpp"
 #include "io/trajectory_files.hpp"
 
@@ -34,8 +34,8 @@ class SevenScenesSequence : public Sequence {
     (void)dir_.readPose(n);  // parsed and found rigid now, not when the run reaches frame n
     checkPngComplete(dir_.depthPath(n));
   }
-  SequenceFrame load(int n) const override {
-    SequenceFrame f;
+  Frame load(int n) const override {
+    Frame f;
     f.number = n;
     f.depth = dir_.readDepth(n);
     f.T_world_camera = *pose(n);
@@ -122,7 +122,7 @@ class PcdSequence : public Sequence {
     }
     // Organized frames that are a pinhole image become depth images, so free space
     // can be projected like for any depth camera.
-    const LoadedFrame first = loadPcd(entries_.front().path, false);
+    const Frame first = loadPcd(entries_.front().path, false);
     if (!intrinsics_spec.empty() && first.height > 1) {
       k_ = parseIntrinsics(intrinsics_spec, first.width, first.height);
       depth_ = true;
@@ -163,10 +163,10 @@ class PcdSequence : public Sequence {
     if (!fs::exists(path, ec)) throw IoError(path, "missing");
     checkPcdComplete(path);
   }
-  SequenceFrame load(int n) const override {
+  Frame load(int n) const override {
     const Entry& e = entries_.at(static_cast<std::size_t>(n));
-    LoadedFrame lf = loadPcd(e.path, false);
-    SequenceFrame f;
+    Frame lf = loadPcd(e.path, false);
+    Frame f;
     f.number = n;
     f.T_world_camera = e.pose;
     if (T_cloud_camera_) {
@@ -174,7 +174,7 @@ class PcdSequence : public Sequence {
       f.T_world_camera = e.pose * *T_cloud_camera_;
     }
     if (!depth_) {
-      f.cloud = std::move(lf.points);
+      f.points = std::move(lf.points);
       f.width = lf.width;
       f.height = lf.height;
       return f;
@@ -188,7 +188,7 @@ class PcdSequence : public Sequence {
     for (std::size_t i = 0; i < lf.points.size(); ++i) {
       const Eigen::Vector3f& p = lf.points[i];
       const bool valid = p.allFinite() && p.z() > 0.f;
-      f.depth.depth_m[i] = valid ? p.z() : 0.f;
+      f.depth->depth_m[i] = valid ? p.z() : 0.f;
       if (valid && i % 97 == 0) {  // a sample: is this frame still the first one's pinhole image?
         const auto uv = perception::project(k_, p.cast<double>());
         const double u = static_cast<double>(i % static_cast<std::size_t>(lf.width));
@@ -204,7 +204,7 @@ class PcdSequence : public Sequence {
   }
   std::optional<ImageRgb> colour(int n) const override {
     if (!depth_) return std::nullopt;  // unorganized: no image to colour
-    LoadedFrame lf = loadPcd(entries_.at(static_cast<std::size_t>(n)).path, false);
+    Frame lf = loadPcd(entries_.at(static_cast<std::size_t>(n)).path, false);
     if (!lf.colour || lf.colour->width != k_.width || lf.colour->height != k_.height) return std::nullopt;
     return std::move(lf.colour);
   }
@@ -274,17 +274,17 @@ class TumSequence : public Sequence {
     if (!fs::exists(path, ec)) throw IoError(path, "missing");
     checkPngComplete(path);
   }
-  SequenceFrame load(int n) const override {
+  Frame load(int n) const override {
     const Entry& e = entries_.at(static_cast<std::size_t>(n));
     const Image16 img = readPng16(e.path);
     if (img.width != k_.width || img.height != k_.height) {
       throw IoError(e.path, "depth image is " + std::to_string(img.width) + "x" + std::to_string(img.height) +
                                 " but the sequence's images are " + std::to_string(k_.width) + "x" + std::to_string(k_.height));
     }
-    SequenceFrame f;
+    Frame f;
     f.number = n;
     f.depth = perception::DepthImage(img.width, img.height);
-    for (std::size_t i = 0; i < img.pixels.size(); ++i) f.depth.depth_m[i] = static_cast<float>(img.pixels[i]) / 5000.f;  // TUM: 5000 per metre
+    for (std::size_t i = 0; i < img.pixels.size(); ++i) f.depth->depth_m[i] = static_cast<float>(img.pixels[i]) / 5000.f;  // TUM: 5000 per metre
     f.T_world_camera = e.pose;
     return f;
   }
@@ -324,6 +324,52 @@ class TumSequence : public Sequence {
 
 namespace {
 
+// A single .png or .pcd: a sequence of one frame (number 0) without a pose, loaded when
+// it is opened.
+class SingleFileSequence : public Sequence {
+ public:
+  SingleFileSequence(const std::string& input, const std::string& intrinsics_spec) {
+    if (fs::path(input).extension() == ".pcd") {
+      frame_ = loadPcd(input);
+      return;
+    }
+    // Without --intrinsics, a camera-intrinsics.txt beside the PNG (as in a 7-Scenes
+    // directory or the RealSense data) describes its camera.
+    std::string spec = intrinsics_spec;
+    if (spec.empty()) {
+      std::error_code ec;
+      const fs::path beside = fs::path(input).parent_path() / "camera-intrinsics.txt";
+      if (!fs::is_regular_file(beside, ec)) {
+        throw UsageError("a depth PNG needs --intrinsics fx,fy,cx,cy or FILE (or a camera-intrinsics.txt beside it)");
+      }
+      spec = beside.string();
+      frame_.note = "intrinsics from " + spec + ", beside the PNG (--intrinsics gives others)";
+    }
+    frame_.description = input;
+    frame_.depth = readDepthPng(input);
+    frame_.intrinsics = parseIntrinsics(spec, frame_.depth->width, frame_.depth->height);
+  }
+  std::string describe() const override { return frame_.description; }
+  const perception::PinholeIntrinsics& intrinsics() const override { return frame_.intrinsics; }
+  bool hasDepth() const override { return frame_.depth.has_value(); }
+  std::optional<Eigen::Vector3d> gravityDown() const override { return std::nullopt; }
+  bool posed() const override { return false; }
+  const std::vector<int>& frames() const override { return frames_; }
+  void check(int /*n*/) const override {}
+  Frame load(int /*n*/) const override { return frame_; }
+  std::optional<ImageRgb> colour(int /*n*/) const override { return frame_.colour; }
+  std::vector<std::string> files(int /*n*/) const override { return frame_.sources; }
+  DepthUnit depthUnit() const override { return frame_.depth_unit; }
+
+ private:
+  Frame frame_;
+  std::vector<int> frames_{0};
+};
+
+}  // namespace
+
+namespace {
+
 // A sequence read in another depth unit (`--depth-scale`).
 class ScaledSequence : public Sequence {
  public:
@@ -333,11 +379,15 @@ class ScaledSequence : public Sequence {
   [[nodiscard]] const perception::PinholeIntrinsics& intrinsics() const override { return inner_->intrinsics(); }
   [[nodiscard]] bool hasDepth() const override { return inner_->hasDepth(); }
   [[nodiscard]] std::optional<Eigen::Vector3d> gravityDown() const override { return inner_->gravityDown(); }
+  [[nodiscard]] bool posed() const override { return inner_->posed(); }
   [[nodiscard]] const std::vector<int>& frames() const override { return inner_->frames(); }
   void check(int n) const override { inner_->check(n); }
-  [[nodiscard]] SequenceFrame load(int n) const override {
-    SequenceFrame f = inner_->load(n);
-    scaleDepth(f.depth.depth_m, f.cloud, factor_);
+  [[nodiscard]] Frame load(int n) const override {
+    Frame f = inner_->load(n);
+    std::vector<float> no_depth;
+    scaleDepth(f.depth ? f.depth->depth_m : no_depth, f.points, factor_);
+    if (f.T_cloud_camera) f.T_cloud_camera->translation() *= static_cast<double>(factor_);
+    f.depth_unit = unit_;
     return f;
   }
   [[nodiscard]] std::optional<Eigen::Isometry3d> pose(int n) const override { return inner_->pose(n); }
@@ -364,7 +414,15 @@ std::unique_ptr<Sequence> openSequence(const std::string& input, const std::stri
                                        const std::string& poses_path) {
   std::error_code ec;
   if (!fs::is_directory(input, ec)) {
-    if (fs::path(input).extension() == ".pcd") return std::make_unique<PcdSequence>(input, intrinsics_spec, max_pose_gap_s, poses_path);
+    const fs::path ext = fs::path(input).extension();
+    if (ext == ".pcd" && !poses_path.empty()) {
+      return std::make_unique<PcdSequence>(input, intrinsics_spec, max_pose_gap_s, poses_path);
+    }
+    if (ext == ".pcd" || ext == ".png") {
+      if (!poses_path.empty()) throw IoError(poses_path, "--poses is for .pcd frames; a depth .png is mapped on its own");
+      return std::make_unique<SingleFileSequence>(input, intrinsics_spec);
+    }
+    if (!fs::exists(input, ec)) throw IoError(input, "no such file or directory");
     throw IoError(input, "not a directory");
   }
   if (fs::exists(fs::path(input) / "depth.txt", ec)) {

@@ -1,7 +1,10 @@
 #pragma once
-// Posed depth sequences for `mobmap build`: the 7-Scenes / 3DMatch layout and TUM RGB-D.
+// The one interface to depth inputs: a sequence of frames (7-Scenes / 3DMatch layout,
+// TUM RGB-D, .pcd frames with poses, OpenNI2 in openni_source.hpp), where a single .png
+// or .pcd file is a sequence of one frame without a pose.
 
 #include "io/depth_checks.hpp"
+#include "io/frame.hpp"
 #include "io/png_io.hpp"
 
 #include "mobmap/perception/camera.hpp"
@@ -15,21 +18,8 @@
 
 namespace mobmap::app {
 
-struct SequenceFrame {
-  int number = 0;
-  /// A depth image for the sequence's intrinsics, or (when depth is empty) a cloud in
-  /// the camera frame, organized when width * height == cloud.size() and height > 1.
-  perception::DepthImage depth;
-  std::vector<Eigen::Vector3f> cloud;
-  int width = 0;
-  int height = 0;
-  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
-  /// False when a stream's frame has no pose within the tolerance: not to be fused.
-  bool has_pose = true;
-};
-
-/// A sequence of depth frames with camera-to-world poses. load() may run on several
-/// threads at once.
+/// A sequence of depth frames with camera-to-world poses (none for a single file).
+/// load() may run on several threads at once.
 class Sequence {
  public:
   virtual ~Sequence() = default;
@@ -39,11 +29,15 @@ class Sequence {
   /// Whether frames come as depth images (free space can then be projected).
   [[nodiscard]] virtual bool hasDepth() const { return true; }
   [[nodiscard]] virtual std::optional<Eigen::Vector3d> gravityDown() const = 0;
+  /// Whether its frames come with poses (false for a single file).
+  [[nodiscard]] virtual bool posed() const { return true; }
   /// Numbers of the frames that have a pose, ascending.
   [[nodiscard]] virtual const std::vector<int>& frames() const = 0;
   /// Checks cheaply (before a long run) that frame `n` can be loaded; IoError if not.
   virtual void check(int n) const = 0;
-  [[nodiscard]] virtual SequenceFrame load(int n) const = 0;
+  /// Frame `n`: its number, depth image (or cloud) and pose; a single file's frame
+  /// comes with everything Frame holds.
+  [[nodiscard]] virtual Frame load(int n) const = 0;
   /// Frame `n`'s camera-to-world pose without its depth (the one load() gives), for
   /// sequences that know their poses before the run; nullopt for streams (OpenNI2),
   /// whose poses arrive with their frames.
@@ -69,7 +63,10 @@ class Sequence {
 std::unique_ptr<Sequence> withDepthScale(std::unique_ptr<Sequence> seq, double units_per_m);
 
 /// Opens INPUT: a TUM RGB-D directory (it has depth.txt), a directory of .pcd frames
-/// or a single .pcd (these need `poses_path`), else a 7-Scenes layout directory.
+/// (these need `poses_path`), a 7-Scenes layout directory, a single .pcd (a posed
+/// sequence of one with `poses_path`, else a lone frame whose organized cloud's camera
+/// is recovered, see recoverCameraFrame) or a single 16-bit depth .png in millimetres
+/// (its intrinsics from `intrinsics_spec` or a camera-intrinsics.txt beside it).
 /// `intrinsics_spec` (fx,fy,cx,cy or a file) overrides the sequence's own; TUM has
 /// none in its files and defaults to 525, 525, 319.5, 239.5 (its documented default);
 /// organized .pcd frames get intrinsics fitted to their first frame.
