@@ -1,0 +1,156 @@
+#pragma once
+// The parts of `mobmap build` that are not the run itself (internal to the commands):
+// frame selection, "down" from the floor, and opening a map to extend.
+
+#include "io/frame.hpp"
+#include "io/io_error.hpp"
+#include "io/sequence.hpp"
+
+#include "mobmap/gp/mobility_model.hpp"
+#include "mobmap/mapping/gravity.hpp"
+#include "mobmap/mapping/map_metadata.hpp"
+#include "mobmap/mapping/mobility_octree.hpp"
+#include "mobmap/perception/pipeline.hpp"
+
+#include <Eigen/Core>
+
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace CLI {
+class App;
+class Option;
+}  // namespace CLI
+
+namespace mobmap::app::build {
+
+/// The options of `mobmap build` (build --help describes them).
+struct BuildOptions {
+  std::string input;
+  std::string out;
+  std::string frames;
+  double max_range = 3.0;
+  double depth_scale = 0;
+  double resolution = 0.02;
+  double voxel = 0;
+  std::string gravity;
+  std::string gravity_refine = "on";
+  std::vector<double> origin;
+  bool force = false;
+  bool extend = false;
+  int checkpoint = 0;
+  std::vector<double> keyframes;  // metres, degrees
+  bool quiet = false;
+  bool no_free_space = false;
+  bool skip_bad_frames = false;
+  std::string config;
+  std::string intrinsics;
+  double fov = 0;
+  double max_pose_gap = 0.05;
+  std::string poses;
+  std::string device;
+  /// The options whose presence (not only value) matters, as CLI11 registered them.
+  struct Given {
+    CLI::Option* max_range = nullptr;
+    CLI::Option* resolution = nullptr;
+    CLI::Option* device = nullptr;
+    CLI::Option* voxel = nullptr;
+    CLI::Option* keyframes = nullptr;
+    CLI::Option* origin = nullptr;
+    CLI::Option* depth_scale = nullptr;
+    CLI::Option* fov = nullptr;
+  } given;
+};
+
+/// Registers `build` and its options on `app`; the options are filled when it parses.
+std::shared_ptr<BuildOptions> addBuildOptions(CLI::App& app);
+
+
+// The error of a frame that cannot be read, when the run stops for it: it says how not to.
+IoError withSkipHint(const IoError& e);
+
+struct FrameRange {
+  int first = 0, last = -1, step = 1;
+};
+
+FrameRange parseRange(const std::string& spec);
+
+perception::FrameResult perceive(const perception::FramePipeline& pipeline, const Sequence& dir, const Frame& f,
+                                 const std::optional<Eigen::Vector3f>& gravity_down_camera);
+
+// A frame's floor as a vote for "down" in the world frame: its ground plane's normal
+// turned by the camera's rotation r_wc, weighted by the plane's points. None without one.
+std::optional<mapping::DownObservation> floorVote(const perception::FrameResult& r, const Eigen::Matrix3d& r_wc);
+
+// Up to 8 posed frames spread over the selection, each perceived by `finder` with the
+// camera-frame gravity `down_in_camera(r_wc)` gives: their floors' votes, and the
+// rotations of the posed frames sampled. An unreadable frame is skipped with
+// --skip-bad-frames (the run skips it too, and says so), else its error stops the run.
+struct FloorSample {
+  std::vector<mapping::DownObservation> floors;
+  std::vector<Eigen::Matrix3d> rotations;
+};
+FloorSample sampleFloors(const Sequence& dir, const std::vector<int>& frames, const perception::FramePipeline& finder,
+                         const std::function<Eigen::Vector3f(const Eigen::Matrix3d&)>& down_in_camera, bool skip_unreadable);
+
+struct GravityGuess {
+  Eigen::Vector3d down;
+  std::string how;  // for the note and MAP.json
+};
+
+// "Down" for a posed sequence that does not give it (no gravity-direction.txt, no
+// --gravity). World frames differ: 7-Scenes and 3DMatch keep the first camera's axes
+// (y down), a motion-capture frame has z up. The floor says which: up to 8 frames
+// spread over the selection look for a ground plane within 45 degrees of the image's
+// up axis (a camera held upright, tilted at most that much), and the floor normals,
+// taken to the world frame, vote. Without a floor in view, the cameras' mean +y axis.
+GravityGuess estimateGravity(const Sequence& dir, const std::vector<int>& frames, const perception::PerceptionParams& pp,
+                             const gp::MobilityModel& model, bool skip_unreadable);
+
+// Gravity is refined to the floor within this cone of the given direction, when the
+// two differ by more than kGravityAgreesDeg: closer, the given one is kept (on exact
+// synthetic floors the vote of 8 frames lies ~0.15 degrees from the truth; on the real
+// kitchen floor normals spread over ~0.5 degrees).
+constexpr double kGravityRefineConeDeg = 10.0;
+constexpr double kGravityAgreesDeg = 1.0;
+
+// The floor near a given "down": up to 8 frames spread over the selection (or the lone
+// frame) look for a ground plane within kGravityRefineConeDeg of it; the floor normals,
+// in the world frame, vote as in estimateGravity. Nullopt when no floor agreed on.
+struct FloorCheck {
+  mapping::DownConsensus vote;
+  std::size_t sampled = 0;
+};
+std::optional<FloorCheck> floorNear(const Eigen::Vector3d& given_down, const Sequence* dir, const std::vector<int>& frames,
+                                    const Frame* single, const perception::PerceptionParams& pp,
+                                    const gp::MobilityModel& model, bool skip_unreadable);
+
+// The map that --extend adds frames to: its tree, its metadata, and the frame it was
+// built in (gravity in the input's world frame and the rotation to the map frame).
+struct ExistingMap {
+  std::unique_ptr<mapping::MobilityOcTree> tree;
+  mapping::MapMetadata meta;
+  Eigen::Vector3d down_world;
+  Eigen::Matrix3d R_map_world;
+  Eigen::Vector3d origin_world;
+};
+
+ExistingMap openForExtension(const std::string& ot_path);
+
+double angleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
+
+std::string formatVector(const Eigen::Vector3d& v);
+
+// The runs of an extended map that fused frames from the same input in the range
+// selected now: (run number from 1, first and last frame it fused). Fusing a frame
+// again counts it twice.
+struct RunRange {
+  std::size_t run = 0;
+  long long first = 0, last = 0;
+};
+std::vector<RunRange> overlappingRuns(const mapping::MapMetadata& earlier, const std::string& input, int first, int last);
+
+}  // namespace mobmap::app::build
