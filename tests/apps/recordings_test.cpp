@@ -209,7 +209,9 @@ TEST(FrameSource, ASingleFileIsASequenceOfOneFrame) {
   const perception::DepthImage file = readDepthPng(png);
   EXPECT_EQ(one.depth->depth_m, file.depth_m);
   for (std::size_t i = 0; i < file.depth_m.size(); i += 101) {
-    if (f.depth.depth_m[i] > 0.f && f.depth.depth_m[i] < 60.f) EXPECT_NEAR(file.depth_m[i], f.depth.depth_m[i], 5e-4f);
+    if (f.depth.depth_m[i] > 0.f && f.depth.depth_m[i] < 60.f) {
+      EXPECT_NEAR(file.depth_m[i], f.depth.depth_m[i], 5e-4f);
+    }
   }
   // analyze's loader goes through the same sequence; a frame number other than 0 is refused.
   const Frame loaded = loadSingleFrame(png, -1, "");

@@ -1,0 +1,103 @@
+// The `mobmap` executable as a user runs it: score, simulate, help.
+#include "cli_support.hpp"
+
+namespace mobmap::cli_test {
+namespace {
+
+TEST(Cli, ScoreWithTheRuleTablePrintsTheTableValueAsJson) {
+  const Result r = run("score --slope 15 --roughness 1.3 --model rule --json");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_DOUBLE_EQ(j["mobility"].get<double>(), 0.5);
+  EXPECT_GT(j["variance"].get<double>(), 0.0);
+}
+
+TEST(Cli, ScoreWithTheGpIsCloseToTheTableAtACellCentre) {
+  const Result r = run("score --slope 25 --roughness 1.1 --json");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NEAR(nlohmann::json::parse(r.out)["mobility"].get<double>(), 0.5, 0.1);
+}
+
+TEST(Cli, ScoreUsesAUserTable) {
+  const std::string dir = tempDir("table");
+  fs::create_directories(dir);
+  std::ofstream(dir + "/q.csv") << "roughness\\slope,0,30\n1.0,0.9,0.4\n";
+  const Result r = run("score --slope 35 --roughness 1.0 --model rule --table " + dir + "/q.csv --json");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_DOUBLE_EQ(nlohmann::json::parse(r.out)["mobility"].get<double>(), 0.4);
+  std::ofstream(dir + "/bad.csv") << "roughness\\slope,0,30\n1.0,0.9\n";
+  const Result bad = run("score --slope 35 --roughness 1.0 --table " + dir + "/bad.csv");
+  EXPECT_EQ(bad.code, 1);
+  EXPECT_NE(bad.out.find("bad.csv: line 2"), std::string::npos) << bad.out;
+  fs::remove_all(dir);
+}
+
+TEST(Cli, ScoreErrorsAreClearWithUsageExitCodes) {
+  const Result missing = run("score --slope 5 --roughness 1.0 --table /nonexistent/t.csv");
+  EXPECT_EQ(missing.code, 1);
+  EXPECT_NE(missing.out.find("/nonexistent/t.csv: no such file"), std::string::npos) << missing.out;
+  const Result negative = run("score --slope -5 --roughness 1.0");
+  EXPECT_EQ(negative.code, 2);
+  EXPECT_NE(negative.out.find("--slope must be in [0, 180] degrees, got -5"), std::string::npos) << negative.out;
+  const Result overhang = run("score --slope 500 --roughness 1.0");
+  EXPECT_EQ(overhang.code, 2);
+  EXPECT_NE(overhang.out.find("got 500"), std::string::npos) << overhang.out;
+  // A surface is never smaller than its projection: A/A' < 1 cannot be measured.
+  const Result smooth = run("score --slope 5 --roughness 0.5 --json");
+  EXPECT_EQ(smooth.code, 2);
+  EXPECT_NE(smooth.out.find("--roughness is the ratio A/A'"), std::string::npos) << smooth.out;
+  EXPECT_NE(smooth.out.find("so >= 1; got 0.5"), std::string::npos) << smooth.out;
+  EXPECT_EQ(run("score --slope 180 --roughness 1.0").code, 0);  // the bounds themselves are fine
+  const Result nothing = run("score");
+  EXPECT_EQ(nothing.code, 2);
+  const Result unknown = run("frobnicate");
+  EXPECT_EQ(unknown.code, 2);
+}
+
+TEST(Cli, ScorePlotWritesAPng) {
+  const std::string dir = tempDir("plot");
+  const Result r = run("score --plot " + dir + "/surface.png");
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream in(dir + "/surface.png", std::ios::binary);
+  char sig[8] = {0};
+  in.read(sig, 8);
+  EXPECT_EQ(std::string(sig + 1, 3), "PNG");
+  fs::remove_all(dir);
+}
+
+TEST(Cli, ScoreFitReportsHyperparameters) {
+  const Result r = run("score --slope 10 --roughness 1.2 --fit --json");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_GT(j["fit"]["length_scale"].get<double>(), 0.0);
+  EXPECT_TRUE(j["fit"]["log_marginal_likelihood"].is_number());
+}
+
+TEST(Cli, SimulateWritesTheSevenScenesLayoutAndRefusesToOverwrite) {
+  const std::string dir = tempDir("sim");
+  const Result r = run("simulate --scene corridor --out " + dir + " --frames 3 --noise none --seed 4 --quiet");
+  ASSERT_EQ(r.code, 0) << r.out;
+  for (const char* f : {"camera-intrinsics.txt", "gravity-direction.txt", "ground_truth.json",
+                        "frame-000002.depth.png", "frame-000002.color.png", "frame-000002.labels.png",
+                        "frame-000002.pose.txt"}) {
+    EXPECT_TRUE(fs::exists(fs::path(dir) / f)) << f;
+  }
+  const Result again = run("simulate --out " + dir + " --frames 3 --quiet");
+  EXPECT_EQ(again.code, 2);
+  EXPECT_NE(again.out.find("--force"), std::string::npos);
+  EXPECT_EQ(run("simulate --out " + dir + " --frames 3 --quiet --force").code, 0);
+  const Result bad = run("simulate --out " + dir + " --noise loud");
+  EXPECT_EQ(bad.code, 2);
+  fs::remove_all(dir);
+}
+
+TEST(Cli, HelpListsTheSubcommands) {
+  const Result r = run("--help");
+  EXPECT_EQ(r.code, 0);
+  for (const char* c : {"simulate", "score", "demo", "analyze", "build", "query", "info", "evaluate", "export", "overlay", "config"}) {
+    EXPECT_NE(r.out.find(c), std::string::npos) << c;
+  }
+}
+
+}  // namespace
+}  // namespace mobmap::cli_test
