@@ -219,4 +219,10 @@ std::optional<PlaneFit> ransacPlane(const std::vector<Eigen::Vector3f>& points, 
   return fit;
 }
 
+double imageUpTiltDeg(const Eigen::Vector4f& plane) {
+  const double towards_camera = plane(3) < 0 ? -1.0 : 1.0;
+  const double c = -towards_camera * plane(1) / std::max(static_cast<double>(plane.head<3>().norm()), 1e-12);
+  return std::acos(std::clamp(c, -1.0, 1.0)) * 180.0 / M_PI;
+}
+
 }  // namespace mobmap::perception

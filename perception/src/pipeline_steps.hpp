@@ -4,7 +4,7 @@
 
 #include "mobmap/perception/frame_result.hpp"
 #include "mobmap/perception/neighbours.hpp"
-#include "mobmap/perception/pipeline.hpp"
+#include "mobmap/perception/params.hpp"
 
 #include <Eigen/Core>
 

@@ -50,4 +50,9 @@ std::optional<PlaneFit> ransacPlane(const std::vector<Eigen::Vector3f>& points, 
 Eigen::Vector4f leastSquaresPlane(const std::vector<Eigen::Vector3f>& points, const std::vector<int>& indices,
                                   double* rms = nullptr);
 
+/// Angle in degrees between the image's up axis (-y, OpenCV camera axes) and a camera-
+/// frame plane's normal turned towards the camera (the origin): near 0 for a floor below
+/// the camera, near 90 for a wall, near 180 for a ceiling above it.
+[[nodiscard]] double imageUpTiltDeg(const Eigen::Vector4f& plane);
+
 }  // namespace mobmap::perception
