@@ -52,10 +52,10 @@ struct PerceptionParams {
   /// Points colour growing left out (noise breaks a plane into a region and specks)
   /// join the neighbouring region whose plane is within adopt_max_distance_m of them
   /// if their normal is within this angle of that plane's; 0 turns it off (the
-  /// paper's segmentation). See adoptUnsegmentedPoints in stages.hpp.
+  /// paper's segmentation). See adoptUnsegmentedPoints in departures.hpp.
   double adopt_max_angle_deg = 40.0;
   double adopt_max_distance_m = 0.02;
-  /// Rough surfaces (see mergeFragments in stages.hpp): regions smaller than this are
+  /// Rough surfaces (see mergeFragments in departures.hpp): regions smaller than this are
   /// fragments, and connected groups of them are joined into one segment; 0 turns it off.
   int rough_fragment_max_points = 150;
   double rough_fragment_max_width_m = 0.08;  ///< narrower regions are fragments too
