@@ -9,6 +9,7 @@ packages=(
   libeigen3-dev liboctomap-dev libpcl-dev libopenni2-dev libmrpt-poses-dev libcgal-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev libpng-dev nlohmann-json3-dev libyaml-cpp-dev
+  pybind11-dev python3-dev python3-numpy python3-pytest
 )
 # `setup.sh fuzz`: also clang and its libFuzzer / sanitizer runtimes (scripts/fuzz.sh).
 if [ "${1:-}" = fuzz ]; then

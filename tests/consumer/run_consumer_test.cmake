@@ -31,3 +31,12 @@ execute_process(COMMAND ${WORK_DIR}/build/consumer ${WORK_DIR}/map.ot RESULT_VAR
 if(NOT rc EQUAL 0)
   message(FATAL_ERROR "the consumer ran but gave a wrong answer (${rc})")
 endif()
+# The Python package, when it was built: importable from the installed prefix alone.
+if(PYTHON)
+  execute_process(COMMAND ${CMAKE_COMMAND} -E env PYTHONPATH=${WORK_DIR}/prefix/lib/python3/dist-packages
+    ${PYTHON} -c "import mobmap, sys; m = mobmap.open_map(sys.argv[1]); r = m.query([[1.0, 0.0, 0.01]]); sys.exit(0 if r['state'][0] == mobmap.SURFACE else 3)"
+    ${WORK_DIR}/map.ot RESULT_VARIABLE rc)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "import mobmap from the installed prefix failed or answered wrongly (${rc})")
+  endif()
+endif()

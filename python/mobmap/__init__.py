@@ -1,0 +1,19 @@
+"""Mobility maps for legged robots (Genesio et al.): open a map `mobmap build` wrote, ask it
+about points and soles in numpy, plan footsteps, or map while you query (LiveMapper)."""
+
+from ._mobmap import (  # noqa: F401
+    FREE,
+    SURFACE,
+    UNKNOWN,
+    LiveMapper,
+    Map,
+    MapIoError,
+    PlanInputError,
+    analyze,
+    open_map,
+    plan,
+    reachable,
+)
+
+__all__ = ["open_map", "Map", "plan", "reachable", "LiveMapper", "analyze", "MapIoError", "PlanInputError",
+           "UNKNOWN", "FREE", "SURFACE"]

@@ -1,0 +1,234 @@
+// mobmap.open_map and mobmap.Map: point and sole queries in numpy, save, info.
+
+#include "convert.hpp"
+#include "map_handle.hpp"
+
+#include "mobmap/mapping/foot.hpp"
+
+#include <pybind11/eigen.h>
+#include <pybind11/stl.h>
+
+#include <cmath>
+#include <filesystem>
+#include <limits>
+
+namespace mobmap::python {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+Eigen::Vector3d toMap(const mapping::MobilityMap& map, const Eigen::Vector3d& p, Frame frame) {
+  return frame == Frame::kWorld ? map.worldToMap(p) : p;
+}
+
+Eigen::Vector3d fromMap(const mapping::MobilityMap& map, const Eigen::Vector3d& p, Frame frame) {
+  return frame == Frame::kWorld ? map.mapToWorld(p) : p;
+}
+
+// A heading in the world frame's horizontal plane turned into the map frame.
+double yawToMap(const mapping::MobilityMap& map, double yaw, Frame frame) {
+  if (frame == Frame::kMap) return yaw;
+  const Eigen::Vector3d d = map.rotationMapWorld() * Eigen::Vector3d(std::cos(yaw), std::sin(yaw), 0.0);
+  return std::atan2(d.y(), d.x());
+}
+
+py::dict query(const MapHandle& h, const py::object& points, const std::string& frame_name, std::optional<double> snap) {
+  const Frame frame = parseFrame(frame_name);
+  const auto p = rows(points, 3, "points");
+  if (snap && !(*snap >= 0.0 && std::isfinite(*snap))) throw py::value_error("snap must be a distance >= 0 in metres");
+  const py::ssize_t n = p.shape(0);
+  py::array_t<std::uint8_t> state(n);
+  py::array_t<double> mobility(n), variance(n);
+  py::array_t<std::int32_t> count(n);
+  py::array_t<double> centre({n, py::ssize_t{3}});
+  {
+    auto s = state.mutable_unchecked<1>();
+    auto mob = mobility.mutable_unchecked<1>();
+    auto var = variance.mutable_unchecked<1>();
+    auto cnt = count.mutable_unchecked<1>();
+    auto c = centre.mutable_unchecked<2>();
+    const auto in = p.unchecked<2>();
+    const mapping::MobilityMap& map = *h.map;
+    py::gil_scoped_release unlocked;
+    for (py::ssize_t i = 0; i < n; ++i) {
+      const Eigen::Vector3d q = toMap(map, Eigen::Vector3d(in(i, 0), in(i, 1), in(i, 2)), frame);
+      std::optional<mapping::PointQuery> r;
+      if (!q.allFinite()) {
+        r.reset();
+      } else if (snap) {
+        r = map.snapDown(q, *snap);
+      } else {
+        r = map.query(q);
+      }
+      if (!r) {
+        s(i) = static_cast<std::uint8_t>(mapping::VoxelState::kUnknown);
+        mob(i) = kNaN;
+        var(i) = std::numeric_limits<double>::infinity();
+        cnt(i) = 0;
+        for (int a = 0; a < 3; ++a) c(i, a) = kNaN;
+        continue;
+      }
+      s(i) = static_cast<std::uint8_t>(r->state);
+      mob(i) = r->has_mobility ? r->mobility : kNaN;
+      var(i) = r->has_mobility ? r->variance : std::numeric_limits<double>::infinity();
+      cnt(i) = r->count;
+      const Eigen::Vector3d centre_out = fromMap(map, r->centre, frame);
+      for (int a = 0; a < 3; ++a) c(i, a) = centre_out(a);
+    }
+  }
+  py::dict out;
+  out["state"] = state;
+  out["mobility"] = mobility;
+  out["variance"] = variance;
+  out["count"] = count;
+  out["voxel_centre"] = centre;
+  return out;
+}
+
+py::dict footprint(const MapHandle& h, const py::object& soles, const std::string& frame_name) {
+  const Frame frame = parseFrame(frame_name);
+  const auto s = rows(soles, 6, "soles");
+  const py::ssize_t n = s.shape(0);
+  auto min_mob = newArray(n), mean_mob = newArray(n), known = newArray(n), height_diff = newArray(n),
+       support = newArray(n), tilt = newArray(n);
+  {
+    auto a = min_mob.mutable_unchecked<1>();
+    auto b = mean_mob.mutable_unchecked<1>();
+    auto k = known.mutable_unchecked<1>();
+    auto d = height_diff.mutable_unchecked<1>();
+    auto z = support.mutable_unchecked<1>();
+    auto t = tilt.mutable_unchecked<1>();
+    const auto in = s.unchecked<2>();
+    const mapping::MobilityMap& map = *h.map;
+    py::gil_scoped_release unlocked;
+    for (py::ssize_t i = 0; i < n; ++i) {
+      const Eigen::Vector3d c = toMap(map, Eigen::Vector3d(in(i, 0), in(i, 1), in(i, 2)), frame);
+      const mapping::Foot foot{c.x(), c.y(), c.z(), yawToMap(map, in(i, 3), frame), in(i, 4), in(i, 5)};
+      if (!c.allFinite() || !std::isfinite(foot.yaw) || !(foot.length > 0) || !(foot.width > 0) ||
+          foot.length > 10.0 || foot.width > 10.0) {
+        a(i) = b(i) = d(i) = z(i) = t(i) = kNaN;
+        k(i) = 0.0;
+        continue;
+      }
+      const mapping::FootprintQuery f = map.footprint(foot);
+      a(i) = f.min_mobility;
+      b(i) = f.mean_mobility;
+      k(i) = f.known_fraction;
+      d(i) = f.max_height_difference_m;
+      z(i) = f.has_support_plane ? f.support_height_m : kNaN;
+      t(i) = f.has_support_plane ? f.support_tilt_deg : kNaN;
+    }
+  }
+  py::dict out;
+  out["min_mobility"] = min_mob;
+  out["mean_mobility"] = mean_mob;
+  out["known_fraction"] = known;
+  out["max_height_difference"] = height_diff;
+  out["support_height"] = support;
+  out["support_tilt_deg"] = tilt;
+  return out;
+}
+
+void save(const MapHandle& h, const std::string& path) {
+  if (std::filesystem::path(path).extension() != ".ot") throw py::value_error("save: the path must end in .ot, got " + path);
+  mapping::MapMetadata meta = h.metadata.value_or(mapping::MapMetadata{});
+  mapping::MapRun& run = meta.latest;
+  if (!run.format) run.format = "mobmap-map-metadata";
+  if (!run.tool) run.tool = "mobmap python";
+  run.resolution_m = h.map->tree().getResolution();
+  run.R_map_world = h.map->rotationMapWorld();
+  run.origin_world = h.map->originWorld();
+  if (h.gravity_down_world) run.gravity_down_world = *h.gravity_down_world;
+  if (!h.metadata) meta.frames = h.map->framesIntegrated();
+  py::gil_scoped_release unlocked;
+  mapping::saveMobilityMap(h.map->tree(), path);
+  mapping::saveMapMetadata(meta, mapping::mapFileStem(path) + ".json");
+}
+
+py::dict info(const MapHandle& h) {
+  const mapping::MobilityMap& map = *h.map;
+  const mapping::MobilityOcTree& tree = map.tree();
+  py::dict out;
+  out["resolution_m"] = tree.getResolution();
+  out["nodes"] = tree.size();
+  out["leaves"] = tree.getNumLeafNodes();
+  out["memory_bytes"] = tree.memoryUsage();
+  double x0 = 0, y0 = 0, z0 = 0, x1 = 0, y1 = 0, z1 = 0;
+  if (tree.size() > 0) {
+    tree.getMetricMin(x0, y0, z0);
+    tree.getMetricMax(x1, y1, z1);
+  }
+  out["bounds_min"] = Eigen::Vector3d(x0, y0, z0);
+  out["bounds_max"] = Eigen::Vector3d(x1, y1, z1);
+  out["R_map_world"] = map.rotationMapWorld();
+  out["origin_world"] = map.originWorld();
+  out["frames"] = h.metadata ? h.metadata->frames : map.framesIntegrated();
+  if (h.metadata) out["path"] = h.metadata->path;
+  if (h.gravity_down_world) out["gravity_down_world"] = *h.gravity_down_world;
+  return out;
+}
+
+}  // namespace
+
+void bindMap(py::module_& m) {
+  m.attr("UNKNOWN") = static_cast<int>(mapping::VoxelState::kUnknown);
+  m.attr("FREE") = static_cast<int>(mapping::VoxelState::kFree);
+  m.attr("SURFACE") = static_cast<int>(mapping::VoxelState::kSurface);
+
+  py::class_<MapHandle, std::shared_ptr<MapHandle>>(m, "Map",
+      "A mobility map that does not change while it is read (opened from a file, or a "
+      "LiveMapper snapshot). Queries may run from several Python threads at once; the GIL "
+      "is released while they run.")
+      .def("query", &query, py::arg("points"), py::arg("frame") = "map", py::arg("snap") = py::none(),
+           "Points (N, 3) -> dict of arrays: state (mobmap.UNKNOWN, FREE, SURFACE), mobility (NaN where "
+           "unknown), variance (inf where unknown), count (observations), voxel_centre (N, 3, in `frame`). "
+           "snap=D: the surface found within D metres below each point instead of the point's own voxel.")
+      .def("footprint", &footprint, py::arg("soles"), py::arg("frame") = "map",
+           "Soles (N, 6): x y z yaw length width (metres, radians; z: where to look for the surface, 0.1 m "
+           "up or down) -> dict of arrays: min_mobility, mean_mobility, known_fraction, "
+           "max_height_difference, support_height and support_tilt_deg (NaN without a support plane; "
+           "heights in the map frame, z up).")
+      .def("save", &save, py::arg("path"),
+           "Writes the map to PATH.ot (and its frame to PATH.json beside it) atomically; `mobmap info`, "
+           "`query` and open_map read it.")
+      .def("info", &info, "Resolution, nodes, leaves, memory, bounds (map frame), the map frame and frames fused.")
+      .def("world_to_map", [](const MapHandle& h, const py::object& p) {
+             const auto a = rows(p, 3, "points");
+             auto out = newArray(a.shape(0), 3);
+             auto o = out.mutable_unchecked<2>();
+             const auto in = a.unchecked<2>();
+             for (py::ssize_t i = 0; i < a.shape(0); ++i) {
+               const Eigen::Vector3d q = h.map->worldToMap(Eigen::Vector3d(in(i, 0), in(i, 1), in(i, 2)));
+               for (int k = 0; k < 3; ++k) o(i, k) = q(k);
+             }
+             return out;
+           }, py::arg("points"), "Points (N, 3) of the poses' world frame in the map frame.")
+      .def("map_to_world", [](const MapHandle& h, const py::object& p) {
+             const auto a = rows(p, 3, "points");
+             auto out = newArray(a.shape(0), 3);
+             auto o = out.mutable_unchecked<2>();
+             const auto in = a.unchecked<2>();
+             for (py::ssize_t i = 0; i < a.shape(0); ++i) {
+               const Eigen::Vector3d q = h.map->mapToWorld(Eigen::Vector3d(in(i, 0), in(i, 1), in(i, 2)));
+               for (int k = 0; k < 3; ++k) o(i, k) = q(k);
+             }
+             return out;
+           }, py::arg("points"), "Points (N, 3) of the map frame in the poses' world frame.")
+      .def_property_readonly("resolution", [](const MapHandle& h) { return h.map->tree().getResolution(); });
+
+  m.def("open_map", [](const std::string& path) {
+          auto h = std::make_shared<MapHandle>();
+          {
+            py::gil_scoped_release unlocked;
+            h->map = std::make_shared<const mapping::MobilityMap>(mapping::openMap(path));
+            mapping::MapMetadata meta = mapping::readMapMetadata(path);
+            if (meta.found) {
+              h->gravity_down_world = meta.gravityDownWorld();
+              h->metadata = std::move(meta);
+            }
+          }
+          return h;
+        }, py::arg("path"), "Opens a map `mobmap build` (or Map.save) wrote: PATH.ot with PATH.json beside it.");
+}
+
+}  // namespace mobmap::python

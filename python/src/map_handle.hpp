@@ -1,0 +1,28 @@
+#pragma once
+// The Python Map: a map that never changes under its reader, opened from a file or a
+// LiveMapper's snapshot (internal to the Python module).
+
+#include "mobmap/mapping/map_metadata.hpp"
+#include "mobmap/mapping/mobility_map.hpp"
+
+#include <pybind11/pybind11.h>
+
+#include <memory>
+#include <optional>
+#include <string>
+
+namespace mobmap::python {
+
+struct MapHandle {
+  std::shared_ptr<const mapping::MobilityMap> map;
+  /// MAP.json as read, for a map opened from a file.
+  std::optional<mapping::MapMetadata> metadata;
+  /// Gravity (down) in the world frame, when known (for MAP.json on save).
+  std::optional<Eigen::Vector3d> gravity_down_world;
+};
+
+void bindMap(pybind11::module_& m);
+void bindPlanning(pybind11::module_& m);
+void bindLive(pybind11::module_& m);
+
+}  // namespace mobmap::python

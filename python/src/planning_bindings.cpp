@@ -1,0 +1,158 @@
+// mobmap.plan and mobmap.reachable: footsteps and reachability with the robot's limits
+// as keyword arguments (the names of RobotParams and PlanParams).
+
+#include "convert.hpp"
+#include "map_handle.hpp"
+
+#include "mobmap/mapping/footstep_planner.hpp"
+#include "mobmap/mapping/reachability.hpp"
+
+#include <pybind11/stl.h>
+
+#include <cmath>
+#include <functional>
+#include <map>
+
+namespace mobmap::python {
+namespace {
+
+using Setters = std::map<std::string, std::function<void(double)>>;
+
+Setters robotSetters(mapping::RobotParams& r) {
+  return {
+      {"sole_length_m", [&](double v) { r.sole_length_m = v; }},
+      {"sole_width_m", [&](double v) { r.sole_width_m = v; }},
+      {"min_mobility", [&](double v) { r.min_mobility = v; }},
+      {"max_poor_fraction", [&](double v) { r.max_poor_fraction = v; }},
+      {"min_support_fraction", [&](double v) { r.min_support_fraction = v; }},
+      {"max_tilt_deg", [&](double v) { r.max_tilt_deg = v; }},
+      {"max_unevenness_m", [&](double v) { r.max_unevenness_m = v; }},
+      {"clearance_m", [&](double v) { r.clearance_m = v; }},
+      {"max_step_m", [&](double v) { r.max_step_m = v; }},
+      {"max_stride_m", [&](double v) { r.max_stride_m = v; }},
+      {"swing_clearance_m", [&](double v) { r.swing_clearance_m = v; }},
+      {"max_gap_m", [&](double v) { r.max_gap_m = v; }},
+      {"stance_width_m", [&](double v) { r.stance_width_m = v; }},
+      {"lattice_m", [&](double v) { r.lattice_m = v; }},
+  };
+}
+
+// Applies the keyword arguments; TypeError for a name that is none of `setters`.
+void apply(const py::kwargs& kwargs, const Setters& setters, const char* function) {
+  for (const auto& [key, value] : kwargs) {
+    const std::string name = py::str(key);
+    const auto it = setters.find(name);
+    if (it == setters.end()) {
+      std::string known;
+      for (const auto& [k, unused] : setters) known += (known.empty() ? "" : ", ") + k;
+      throw py::type_error(std::string(function) + "() got an unexpected keyword argument '" + name + "' (known: " +
+                           known + ")");
+    }
+    it->second(py::cast<double>(value));
+  }
+}
+
+Eigen::Vector3d pointToMap(const MapHandle& h, const py::handle& p, const char* what, Frame frame) {
+  const Eigen::Vector3d v = vector3(p, what);
+  return frame == Frame::kWorld ? h.map->worldToMap(v) : v;
+}
+
+py::dict plan(const MapHandle& h, const py::handle& start, const py::handle& goal, const std::string& frame_name,
+              const py::kwargs& robot) {
+  const Frame frame = parseFrame(frame_name);
+  mapping::PlanParams params;
+  Setters setters = robotSetters(params.robot);
+  setters["goal_tolerance_m"] = [&](double v) { params.goal_tolerance_m = v; };
+  setters["step_cost_m"] = [&](double v) { params.step_cost_m = v; };
+  setters["mobility_weight_m"] = [&](double v) { params.mobility_weight_m = v; };
+  setters["variance_weight_m"] = [&](double v) { params.variance_weight_m = v; };
+  setters["start_radius_m"] = [&](double v) { params.start_radius_m = v; };
+  setters["heuristic_weight"] = [&](double v) { params.heuristic_weight = v; };
+  setters["time_limit_s"] = [&](double v) { params.time_limit_s = v; };
+  setters["max_expansions"] = [&](double v) {
+    if (!(v >= 1 && v <= 1e12)) throw py::value_error("max_expansions must be a count >= 1");
+    params.max_expansions = static_cast<std::size_t>(v);
+  };
+  apply(robot, setters, "plan");
+  const Eigen::Vector3d s = pointToMap(h, start, "start", frame), g = pointToMap(h, goal, "goal", frame);
+  mapping::Plan p;
+  {
+    py::gil_scoped_release unlocked;
+    p = mapping::planFootsteps(h.map->tree(), s, g, params);
+  }
+  const auto n = static_cast<py::ssize_t>(p.footsteps.size());
+  auto xyz = newArray(n, 3), yaw = newArray(n), min_mobility = newArray(n), tilt = newArray(n);
+  py::array_t<std::uint8_t> side(n);
+  auto o = xyz.mutable_unchecked<2>();
+  for (py::ssize_t i = 0; i < n; ++i) {
+    const mapping::Footstep& f = p.footsteps[static_cast<std::size_t>(i)];
+    Eigen::Vector3d c(f.x, f.y, f.z);
+    double heading = f.yaw;
+    if (frame == Frame::kWorld) {
+      c = h.map->mapToWorld(c);
+      const Eigen::Vector3d d = h.map->rotationMapWorld().transpose() * Eigen::Vector3d(std::cos(f.yaw), std::sin(f.yaw), 0);
+      heading = std::atan2(d.y(), d.x());
+    }
+    for (int k = 0; k < 3; ++k) o(i, k) = c(k);
+    yaw.mutable_at(i) = heading;
+    min_mobility.mutable_at(i) = f.min_mobility;
+    tilt.mutable_at(i) = f.tilt_deg;
+    side.mutable_at(i) = f.side == mapping::Side::kLeft ? 0 : 1;
+  }
+  py::dict out;
+  out["found"] = p.found;
+  out["reason"] = p.reason;
+  out["xyz"] = xyz;
+  out["yaw"] = yaw;
+  out["side"] = side;
+  out["min_mobility"] = min_mobility;
+  out["tilt_deg"] = tilt;
+  out["cost"] = p.cost;
+  out["length_m"] = p.length_m;
+  out["max_step_height_m"] = p.max_step_height_m;
+  out["expansions"] = p.expansions;
+  out["planning_time_s"] = p.planning_time_s;
+  return out;
+}
+
+py::array_t<bool> reachable(const MapHandle& h, const py::handle& start, const py::object& points,
+                            const std::string& frame_name, double max_drop, const py::kwargs& robot) {
+  const Frame frame = parseFrame(frame_name);
+  if (!(max_drop >= 0 && std::isfinite(max_drop))) throw py::value_error("max_drop must be a distance >= 0 in metres");
+  mapping::ReachParams params;
+  Setters setters = robotSetters(params.robot);
+  setters["start_radius_m"] = [&](double v) { params.start_radius_m = v; };
+  apply(robot, setters, "reachable");
+  const Eigen::Vector3d s = pointToMap(h, start, "start", frame);
+  const auto p = rows(points, 3, "points");
+  py::array_t<bool> out(p.shape(0));
+  auto o = out.mutable_unchecked<1>();
+  const auto in = p.unchecked<2>();
+  py::gil_scoped_release unlocked;
+  const mapping::Reachability reach = mapping::computeReachability(h.map->tree(), s, params);
+  for (py::ssize_t i = 0; i < p.shape(0); ++i) {
+    Eigen::Vector3d q(in(i, 0), in(i, 1), in(i, 2));
+    if (frame == Frame::kWorld) q = h.map->worldToMap(q);
+    const mapping::Place* place = q.allFinite() ? reach.placeBelow(q, max_drop) : nullptr;
+    o(i) = place != nullptr && place->reachable;
+  }
+  return out;
+}
+
+}  // namespace
+
+void bindPlanning(py::module_& m) {
+  m.def("plan", &plan, py::arg("map"), py::arg("start"), py::arg("goal"), py::arg("frame") = "map",
+        "Footsteps from START to GOAL (points on or above the surfaces, in `frame`). Keyword arguments "
+        "set the robot (sole_length_m, max_step_m, min_mobility, ...: RobotParams) and the search "
+        "(heuristic_weight, time_limit_s, ...: PlanParams). Returns a dict: found, reason (why not, in "
+        "words), xyz (N, 3) and yaw of the footsteps (the start stance first), side (0 left, 1 right), "
+        "min_mobility, tilt_deg, cost, length_m, max_step_height_m, expansions, planning_time_s.");
+  m.def("reachable", &reachable, py::arg("map"), py::arg("start"), py::arg("points"), py::arg("frame") = "map",
+        py::arg("max_drop") = 0.5,
+        "For each point (N, 3): whether the surface found within MAX_DROP metres below it is one the robot "
+        "can walk to from START, by whole soles and steps within its limits (the keyword arguments of "
+        "plan()'s robot). A bool array.");
+}
+
+}  // namespace mobmap::python
