@@ -1,0 +1,121 @@
+"""Map queries from Python against the C++ API's answers (through `mobmap query`), and
+the checks of what numpy hands in."""
+
+import json
+
+import numpy as np
+import pytest
+
+import mobmap
+from conftest import run
+
+
+def cli_points(map_path, points, *options):
+    lines = "".join(f"{x!r} {y!r} {z!r}\n" for x, y, z in points)
+    return [json.loads(line) for line in run("query", map_path, "--json", *options, stdin=lines).splitlines()]
+
+
+def corridor_points(n, seed):
+    """Half at the floor's voxel centres (z = 0.01), half anywhere in the corridor's box."""
+    rng = np.random.default_rng(seed)
+    z = np.where(np.arange(n) % 2 == 0, 0.01, rng.uniform(-0.1, 0.7, n))
+    return np.column_stack([rng.uniform(0.5, 4.0, n), rng.uniform(-1.6, 1.6, n), z])
+
+
+def test_point_queries_equal_the_cli(corridor):
+    m = mobmap.open_map(str(corridor["map"]))
+    pts = corridor_points(400, 1)
+    got = m.query(pts)
+    want = cli_points(corridor["map"], pts)
+    names = {"unknown": mobmap.UNKNOWN, "free": mobmap.FREE, "surface": mobmap.SURFACE}
+    assert sum(w["state"] == "surface" for w in want) > 20  # the sample hits surfaces
+    for i, w in enumerate(want):
+        assert got["state"][i] == names[w["state"]]
+        assert got["count"][i] == w["count"]
+        if w["mobility"] is None:
+            assert np.isnan(got["mobility"][i]) and np.isinf(got["variance"][i])
+        else:
+            assert got["mobility"][i] == w["mobility"]
+            assert got["variance"][i] == w["variance"]
+        np.testing.assert_array_equal(got["voxel_centre"][i], w["voxel_centre"])
+
+
+def test_snapped_queries_equal_the_cli(corridor):
+    m = mobmap.open_map(str(corridor["map"]))
+    pts = corridor_points(200, 2)
+    got = m.query(pts, snap=0.5)
+    want = cli_points(corridor["map"], pts, "--snap", 0.5)
+    for i, w in enumerate(want):
+        found = w.get("state", "unknown") == "surface"
+        assert (got["state"][i] == mobmap.SURFACE) == found, w
+        if found:
+            assert got["mobility"][i] == w["mobility"]
+            np.testing.assert_array_equal(got["voxel_centre"][i], w["voxel_centre"])
+
+
+def test_footprints_equal_the_cli(corridor):
+    m = mobmap.open_map(str(corridor["map"]))
+    rng = np.random.default_rng(3)
+    n = 60
+    soles = np.column_stack([rng.uniform(0.8, 3.5, n), rng.uniform(-1.2, 1.2, n), np.full(n, 0.02),
+                             rng.uniform(-3, 3, n), np.full(n, 0.25), np.full(n, 0.12)])
+    got = m.footprint(soles)
+    lines = "".join(" ".join(repr(v) for v in s) + "\n" for s in soles)
+    want = [json.loads(line) for line in run("query", corridor["map"], "--feet", "--json", stdin=lines).splitlines()]
+    for i, w in enumerate(want):
+        assert got["min_mobility"][i] == w["min_mobility"]
+        assert got["mean_mobility"][i] == w["mean_mobility"]
+        assert got["known_fraction"][i] == w["known_fraction"]
+        assert got["max_height_difference"][i] == w["max_height_difference_m"]
+        if w.get("support_plane"):
+            assert got["support_height"][i] == pytest.approx(w["support_plane"]["point"][2], abs=1e-12)
+        else:
+            assert np.isnan(got["support_height"][i])
+
+
+def test_world_frame_queries_go_through_the_map_frame(corridor):
+    m = mobmap.open_map(str(corridor["map"]))
+    pts = corridor_points(50, 4)
+    world = m.map_to_world(pts)
+    np.testing.assert_allclose(m.world_to_map(world), pts, atol=1e-12)
+    a, b = m.query(pts), m.query(world, frame="world")
+    np.testing.assert_array_equal(a["state"], b["state"])
+    np.testing.assert_array_equal(a["count"], b["count"])
+    np.testing.assert_allclose(m.world_to_map(b["voxel_centre"]), a["voxel_centre"], atol=1e-9)
+
+
+def test_a_saved_map_reads_back_the_same(corridor, tmp_path):
+    m = mobmap.open_map(str(corridor["map"]))
+    out = tmp_path / "copy.ot"
+    m.save(str(out))
+    assert out.read_bytes() == corridor["map"].read_bytes()
+    again = mobmap.open_map(str(out))
+    pts = corridor_points(100, 5)
+    for key in ("state", "count", "voxel_centre"):
+        np.testing.assert_array_equal(again.query(pts)[key], m.query(pts)[key])
+    info = again.info()
+    assert info["resolution_m"] == 0.02 and info["nodes"] == m.info()["nodes"]
+    json.loads((tmp_path / "copy.json").read_text())  # MAP.json beside it
+    with pytest.raises(ValueError, match="must end in .ot"):
+        m.save(str(tmp_path / "copy.bt"))
+
+
+@pytest.mark.parametrize("bad, message", [
+    (np.zeros((5, 2)), r"shape \(N, 3\), got \(5, 2\)"),
+    (np.zeros(3), r"shape \(N, 3\), got \(3,\)"),
+    (np.array([["a", "b", "c"]]), "numeric array"),
+    (np.zeros((2, 3), dtype=complex), "numeric array"),
+])
+def test_arrays_of_the_wrong_shape_or_dtype_are_value_errors(corridor, bad, message):
+    m = mobmap.open_map(str(corridor["map"]))
+    with pytest.raises(ValueError, match=message):
+        m.query(bad)
+    with pytest.raises(ValueError):
+        m.footprint(np.zeros((3, 5)))
+    with pytest.raises(ValueError, match='frame must be "map" or "world"'):
+        m.query(np.zeros((1, 3)), frame="camera")
+
+
+def test_a_missing_map_is_an_os_error_naming_the_file(tmp_path):
+    with pytest.raises(OSError, match="nothing.ot"):
+        mobmap.open_map(str(tmp_path / "nothing.ot"))
