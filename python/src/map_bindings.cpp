@@ -32,6 +32,20 @@ double yawToMap(const mapping::MobilityMap& map, double yaw, Frame frame) {
   return std::atan2(d.y(), d.x());
 }
 
+// Points (N, 3) given in `from` taken to the other frame.
+py::array_t<double> transformed(const MapHandle& h, const py::object& points, Frame from) {
+  const auto a = rows(points, 3, "points");
+  auto out = newArray(a.shape(0), 3);
+  auto o = out.mutable_unchecked<2>();
+  const auto in = a.unchecked<2>();
+  for (py::ssize_t i = 0; i < a.shape(0); ++i) {
+    const Eigen::Vector3d p(in(i, 0), in(i, 1), in(i, 2));
+    const Eigen::Vector3d q = from == Frame::kWorld ? h.map->worldToMap(p) : h.map->mapToWorld(p);
+    for (int k = 0; k < 3; ++k) o(i, k) = q(k);
+  }
+  return out;
+}
+
 py::dict query(const MapHandle& h, const py::object& points, const std::string& frame_name, std::optional<double> snap) {
   const Frame frame = parseFrame(frame_name);
   const auto p = rows(points, 3, "points");
@@ -192,28 +206,10 @@ void bindMap(py::module_& m) {
            "Writes the map to PATH.ot (and its frame to PATH.json beside it) atomically; `mobmap info`, "
            "`query` and open_map read it.")
       .def("info", &info, "Resolution, nodes, leaves, memory, bounds (map frame), the map frame and frames fused.")
-      .def("world_to_map", [](const MapHandle& h, const py::object& p) {
-             const auto a = rows(p, 3, "points");
-             auto out = newArray(a.shape(0), 3);
-             auto o = out.mutable_unchecked<2>();
-             const auto in = a.unchecked<2>();
-             for (py::ssize_t i = 0; i < a.shape(0); ++i) {
-               const Eigen::Vector3d q = h.map->worldToMap(Eigen::Vector3d(in(i, 0), in(i, 1), in(i, 2)));
-               for (int k = 0; k < 3; ++k) o(i, k) = q(k);
-             }
-             return out;
-           }, py::arg("points"), "Points (N, 3) of the poses' world frame in the map frame.")
-      .def("map_to_world", [](const MapHandle& h, const py::object& p) {
-             const auto a = rows(p, 3, "points");
-             auto out = newArray(a.shape(0), 3);
-             auto o = out.mutable_unchecked<2>();
-             const auto in = a.unchecked<2>();
-             for (py::ssize_t i = 0; i < a.shape(0); ++i) {
-               const Eigen::Vector3d q = h.map->mapToWorld(Eigen::Vector3d(in(i, 0), in(i, 1), in(i, 2)));
-               for (int k = 0; k < 3; ++k) o(i, k) = q(k);
-             }
-             return out;
-           }, py::arg("points"), "Points (N, 3) of the map frame in the poses' world frame.")
+      .def("world_to_map", [](const MapHandle& h, const py::object& p) { return transformed(h, p, Frame::kWorld); },
+           py::arg("points"), "Points (N, 3) of the poses' world frame in the map frame.")
+      .def("map_to_world", [](const MapHandle& h, const py::object& p) { return transformed(h, p, Frame::kMap); },
+           py::arg("points"), "Points (N, 3) of the map frame in the poses' world frame.")
       .def_property_readonly("resolution", [](const MapHandle& h) { return h.map->tree().getResolution(); });
 
   m.def("open_map", [](const std::string& path) {
