@@ -48,7 +48,13 @@ void apply(const py::kwargs& kwargs, const Setters& setters, const char* functio
       throw py::type_error(std::string(function) + "() got an unexpected keyword argument '" + name + "' (known: " +
                            known + ")");
     }
-    it->second(py::cast<double>(value));
+    double number = 0;
+    try {
+      number = py::cast<double>(value);
+    } catch (const py::cast_error&) {
+      throw py::type_error(std::string(function) + "(): " + name + " must be a number");
+    }
+    it->second(number);
   }
 }
 
@@ -128,13 +134,15 @@ py::array_t<bool> reachable(const MapHandle& h, const py::handle& start, const p
   py::array_t<bool> out(p.shape(0));
   auto o = out.mutable_unchecked<1>();
   const auto in = p.unchecked<2>();
-  py::gil_scoped_release unlocked;
-  const mapping::Reachability reach = mapping::computeReachability(h.map->tree(), s, params);
-  for (py::ssize_t i = 0; i < p.shape(0); ++i) {
-    Eigen::Vector3d q(in(i, 0), in(i, 1), in(i, 2));
-    if (frame == Frame::kWorld) q = h.map->worldToMap(q);
-    const mapping::Place* place = q.allFinite() ? reach.placeBelow(q, max_drop) : nullptr;
-    o(i) = place != nullptr && place->reachable;
+  {
+    py::gil_scoped_release unlocked;
+    const mapping::Reachability reach = mapping::computeReachability(h.map->tree(), s, params);
+    for (py::ssize_t i = 0; i < p.shape(0); ++i) {
+      Eigen::Vector3d q(in(i, 0), in(i, 1), in(i, 2));
+      if (frame == Frame::kWorld) q = h.map->worldToMap(q);
+      const mapping::Place* place = q.allFinite() ? reach.placeBelow(q, max_drop) : nullptr;
+      o(i) = place != nullptr && place->reachable;
+    }
   }
   return out;
 }

@@ -33,6 +33,8 @@ def test_no_plan_comes_with_the_reason_and_limits_are_keyword_arguments(corridor
     assert tiny["xyz"].shape[1] == 3
     with pytest.raises(TypeError, match="unexpected keyword argument 'max_steps'"):
         mobmap.plan(m, (1.0, 0.0, 0.1), (3.0, 0.5, 0.1), max_steps=0.2)
+    with pytest.raises(TypeError, match="max_step_m must be a number"):
+        mobmap.plan(m, (1.0, 0.0, 0.1), (3.0, 0.5, 0.1), max_step_m="high")
     with pytest.raises(ValueError, match="max_step_m"):
         mobmap.plan(m, (1.0, 0.0, 0.1), (3.0, 0.5, 0.1), max_step_m=-1)
     with pytest.raises(ValueError, match="start"):
