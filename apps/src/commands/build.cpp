@@ -49,22 +49,15 @@ extern "C" void onSigint(int) { g_interrupted.store(true); }
 Command addBuildCommand(CLI::App& app) {
   const std::shared_ptr<BuildOptions> o = addBuildOptions(app);
   return [o]() {
-    CLI::Option* const max_range = o->given.max_range;
-    CLI::Option* const resolution = o->given.resolution;
-    CLI::Option* const device = o->given.device;
-    CLI::Option* const voxel = o->given.voxel;
-    CLI::Option* const keyframes = o->given.keyframes;
-    CLI::Option* const origin = o->given.origin;
-    CLI::Option* const depth_scale = o->given.depth_scale;
-    CLI::Option* const fov = o->given.fov;
-    if (fov->count() > 0) o->intrinsics = fovSpec(o->fov);
+    const BuildOptions::Given& given = o->given;  // which options were given
+    if (given.fov->count() > 0) o->intrinsics = fovSpec(o->fov);
     namespace fs = std::filesystem;
     std::error_code ec;
     if (fs::path(o->out).extension() != ".ot") throw UsageError("--out must end in .ot, got '" + o->out + "'");
     // One writer per map for the whole run: a second build to the same --out (fresh or
     // --extend) fails here at once instead of replacing the first one's frames.
     const mapping::MapLock map_lock(o->out);
-    if (origin->count() > 0 && !Eigen::Vector3d(o->origin[0], o->origin[1], o->origin[2]).allFinite()) {
+    if (given.origin->count() > 0 && !Eigen::Vector3d(o->origin[0], o->origin[1], o->origin[2]).allFinite()) {
       throw UsageError("--origin: values must be finite");
     }
     if (o->extend && !fs::exists(o->out, ec)) throw UsageError("--extend: " + o->out + " does not exist (build it without --extend first)");
@@ -86,12 +79,12 @@ Command addBuildCommand(CLI::App& app) {
     Config config = o->config.empty() ? Config{} : loadConfig(o->config);
     perception::PerceptionParams& pp = config.perception;
     mapping::MapParams& mp = config.mapping;
-    if (o->config.empty() || max_range->count() > 0) pp.max_range_m = o->max_range;
-    if (o->config.empty() || resolution->count() > 0) mp.resolution_m = o->resolution;
-    if (!config.mapping_max_range_set || max_range->count() > 0) mp.max_range_m = pp.max_range_m;
+    if (o->config.empty() || given.max_range->count() > 0) pp.max_range_m = o->max_range;
+    if (o->config.empty() || given.resolution->count() > 0) mp.resolution_m = o->resolution;
+    if (!config.mapping_max_range_set || given.max_range->count() > 0) mp.max_range_m = pp.max_range_m;
     if (o->no_free_space) mp.free_space_ray_stride_px = 0;
     try {
-      if (voxel->count() > 0) pp = perception::scaledToVoxel(pp, o->voxel);
+      if (given.voxel->count() > 0) pp = perception::scaledToVoxel(pp, o->voxel);
       perception::validate(pp);
       mapping::validate(mp);
     } catch (const std::invalid_argument& e) {
@@ -101,7 +94,7 @@ Command addBuildCommand(CLI::App& app) {
     if (o->extend) {
       existing = openForExtension(o->out);
       const double res = existing->tree->getResolution();
-      if (resolution->count() > 0 && std::abs(o->resolution - res) > 1e-9) {
+      if (given.resolution->count() > 0 && std::abs(o->resolution - res) > 1e-9) {
         std::ostringstream msg;
         msg << "--resolution " << o->resolution << " differs from the resolution of " << o->out << " (" << res
             << "); an extended map keeps its own";
@@ -119,7 +112,7 @@ Command addBuildCommand(CLI::App& app) {
     int keyframes_considered = 0;  // frames selected before --keyframes (0: not used)
     std::optional<Eigen::Vector3d> gravity_world;
     Frame single;
-    const bool live = device->count() > 0;
+    const bool live = given.device->count() > 0;
     const bool oni = !live && fs::path(o->input).extension() == ".oni";
     if (live == !o->input.empty()) throw UsageError("give either INPUT or --device");
     const bool is_dir = live || oni || fs::is_directory(o->input, ec) || !o->poses.empty();
@@ -153,7 +146,7 @@ Command addBuildCommand(CLI::App& app) {
     }
     if (is_dir) {
       if (!dir) dir = openSequence(o->input, o->intrinsics, o->max_pose_gap, o->poses);
-      if (depth_scale->count() > 0) dir = withDepthScale(std::move(dir), o->depth_scale);
+      if (given.depth_scale->count() > 0) dir = withDepthScale(std::move(dir), o->depth_scale);
       const FrameRange range = parseRange(o->frames);
       for (int f : dir->frames()) {
         if (f >= range.first && (range.last < 0 || f <= range.last) && (f - range.first) % range.step == 0) frames.push_back(f);
@@ -178,7 +171,7 @@ Command addBuildCommand(CLI::App& app) {
       }
       frames = std::move(readable);
       unreadable_before_run = unreadable.size();
-      if (keyframes->count() > 0) {
+      if (given.keyframes->count() > 0) {
         if (live || oni) {
           throw UsageError("--keyframes needs the poses before the run (7-Scenes, TUM, .pcd frames with --poses); "
                            "OpenNI2 frames get theirs as they arrive");
@@ -211,10 +204,10 @@ Command addBuildCommand(CLI::App& app) {
     } else {
       single = loadSingleFrame(o->input, -1, o->intrinsics);
       if (!single.note.empty()) std::fprintf(stderr, "note: %s\n", single.note.c_str());
-      if (depth_scale->count() > 0) rescaleDepth(single, o->depth_scale);
+      if (given.depth_scale->count() > 0) rescaleDepth(single, o->depth_scale);
       frames.push_back(0);
       if (!o->frames.empty()) throw UsageError("--frames needs a directory input");
-      if (keyframes->count() > 0) throw UsageError("--keyframes needs a sequence of frames");
+      if (given.keyframes->count() > 0) throw UsageError("--keyframes needs a sequence of frames");
     }
     std::string gravity_source;
     if (gravity_world) gravity_source = live || oni ? "the static camera's +y axis" : "gravity-direction.txt";
@@ -328,7 +321,7 @@ Command addBuildCommand(CLI::App& app) {
     std::string origin_source;
     if (existing) {
       origin_world = existing->origin_world, origin_source = "the map being extended";
-    } else if (origin->count() > 0) {
+    } else if (given.origin->count() > 0) {
       origin_world = Eigen::Vector3d(o->origin[0], o->origin[1], o->origin[2]), origin_source = "--origin";
     } else if (!is_dir) {
       origin_world = Eigen::Vector3d::Zero(), origin_source = "the camera (a single frame)";
