@@ -55,11 +55,14 @@ Frame loadSequenceFrame(const Sequence& seq, const std::string& input, int frame
 Frame loadSingleFrame(const std::string& input, int frame, const std::string& intrinsics_spec) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  if (fs::is_directory(input, ec) && fs::exists(fs::path(input) / "depth.txt", ec)) {
-    // TUM RGB-D: frames numbered as build numbers them (the depth frames with a pose).
+  const bool tum = fs::is_directory(input, ec) && fs::exists(fs::path(input) / "depth.txt", ec);
+  const std::string ext = fs::path(input).extension().string();
+  if (tum || (!fs::is_directory(input, ec) && (ext == ".pcd" || ext == ".png"))) {
+    // TUM RGB-D (frames numbered as build numbers them: the depth frames with a pose), or
+    // a single file, a sequence of one frame.
     const auto seq = openSequence(input, intrinsics_spec, 0.05);
     Frame f = loadSequenceFrame(*seq, input, frame < 0 ? seq->frames().front() : frame);
-    f.description += " (TUM RGB-D)";
+    if (tum) f.description += " (TUM RGB-D)";
     return f;
   }
   if (fs::is_directory(input, ec)) {
@@ -85,11 +88,6 @@ Frame loadSingleFrame(const std::string& input, int frame, const std::string& in
     }
     return f;
   }
-  const std::string ext = fs::path(input).extension().string();
-  if (ext == ".pcd" || ext == ".png") {  // a sequence of one frame
-    const auto seq = openSequence(input, intrinsics_spec, 0.05);
-    return loadSequenceFrame(*seq, input, frame < 0 ? 0 : frame);
-  }
   if (!fs::exists(input, ec)) throw IoError(input, "no such file or directory");
   throw IoError(input, "unknown input type (expected a .pcd, a 16-bit depth .png, a 7-Scenes or a TUM RGB-D directory)");
 }
@@ -114,10 +112,7 @@ void toInputFrame(perception::FrameResult& r, const Frame& f) {
 void rescaleDepth(Frame& f, double units_per_m) {
   const float factor = depthRescaleFactor(f.depth_unit, units_per_m);
   if (units_per_m == f.depth_unit.units_per_m) return;
-  std::vector<float> no_depth;
-  scaleDepth(f.depth ? f.depth->depth_m : no_depth, f.points, factor);
-  if (f.T_cloud_camera) f.T_cloud_camera->translation() *= static_cast<double>(factor);
-  f.depth_unit.units_per_m = units_per_m;
+  scaleFrame(f, factor, units_per_m);
 }
 
 perception::FrameResult perceiveFrame(const perception::FramePipeline& pipeline, const Frame& f,

@@ -384,10 +384,7 @@ class ScaledSequence : public Sequence {
   void check(int n) const override { inner_->check(n); }
   [[nodiscard]] Frame load(int n) const override {
     Frame f = inner_->load(n);
-    std::vector<float> no_depth;
-    scaleDepth(f.depth ? f.depth->depth_m : no_depth, f.points, factor_);
-    if (f.T_cloud_camera) f.T_cloud_camera->translation() *= static_cast<double>(factor_);
-    f.depth_unit = unit_;
+    scaleFrame(f, factor_, unit_.units_per_m);
     return f;
   }
   [[nodiscard]] std::optional<Eigen::Isometry3d> pose(int n) const override { return inner_->pose(n); }
@@ -403,6 +400,13 @@ class ScaledSequence : public Sequence {
 };
 
 }  // namespace
+
+void scaleFrame(Frame& f, float factor, double units_per_m) {
+  std::vector<float> no_depth;
+  scaleDepth(f.depth ? f.depth->depth_m : no_depth, f.points, factor);
+  if (f.T_cloud_camera) f.T_cloud_camera->translation() *= static_cast<double>(factor);
+  f.depth_unit.units_per_m = units_per_m;
+}
 
 std::unique_ptr<Sequence> withDepthScale(std::unique_ptr<Sequence> seq, double units_per_m) {
   const float factor = depthRescaleFactor(seq->depthUnit(), units_per_m);

@@ -57,6 +57,11 @@ class Sequence {
   [[nodiscard]] virtual DepthUnit depthUnit() const { return {}; }
 };
 
+/// `f`'s depth (or cloud coordinates, and the camera offset of a cloud in another frame)
+/// multiplied by `factor`: read at `units_per_m` instead (depthRescaleFactor gives the
+/// factor).
+void scaleFrame(Frame& f, float factor, double units_per_m);
+
 /// `seq` with its depth read at `units_per_m` instead of its own unit (depth and cloud
 /// coordinates multiplied by own / units_per_m; poses unchanged). `seq` itself when the
 /// two agree.
