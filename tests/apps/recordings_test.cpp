@@ -223,6 +223,14 @@ TEST(FrameSource, ASingleFileIsASequenceOfOneFrame) {
   } catch (const IoError& e) {
     EXPECT_NE(std::string(e.what()).find("is a single frame"), std::string::npos) << e.what();
   }
+  // A missing file is named as missing, before any question of its camera.
+  const std::string missing = (dir.path / "none.png").string();
+  try {
+    (void)loadSingleFrame(missing, -1, "");
+    ADD_FAILURE() << "a missing PNG was loaded";
+  } catch (const IoError& e) {
+    EXPECT_EQ(std::string(e.what()), missing + ": no such file");
+  }
 }
 
 // Camera files as labs have them: ROS 1 and ROS 2 camera_info dumps, a ROS calibration

@@ -329,6 +329,8 @@ namespace {
 class SingleFileSequence : public Sequence {
  public:
   SingleFileSequence(const std::string& input, const std::string& intrinsics_spec) {
+    std::error_code ec;
+    if (!fs::exists(input, ec)) throw IoError(input, "no such file");
     if (fs::path(input).extension() == ".pcd") {
       frame_ = loadPcd(input);
       return;
@@ -337,7 +339,6 @@ class SingleFileSequence : public Sequence {
     // directory or the RealSense data) describes its camera.
     std::string spec = intrinsics_spec;
     if (spec.empty()) {
-      std::error_code ec;
       const fs::path beside = fs::path(input).parent_path() / "camera-intrinsics.txt";
       if (!fs::is_regular_file(beside, ec)) {
         throw UsageError("a depth PNG needs --intrinsics fx,fy,cx,cy or FILE (or a camera-intrinsics.txt beside it)");
