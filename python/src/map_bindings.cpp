@@ -66,14 +66,8 @@ py::dict query(const MapHandle& h, const py::object& points, const std::string& 
     py::gil_scoped_release unlocked;
     for (py::ssize_t i = 0; i < n; ++i) {
       const Eigen::Vector3d q = toMap(map, Eigen::Vector3d(in(i, 0), in(i, 1), in(i, 2)), frame);
-      std::optional<mapping::PointQuery> r;
-      if (!q.allFinite()) {
-        r.reset();
-      } else if (snap) {
-        r = map.snapDown(q, *snap);
-      } else {
-        r = map.query(q);
-      }
+      // Non-finite points are unknown to both (the library checks them).
+      const std::optional<mapping::PointQuery> r = snap ? map.snapDown(q, *snap) : map.query(q);
       if (!r) {
         s(i) = static_cast<std::uint8_t>(mapping::VoxelState::kUnknown);
         mob(i) = kNaN;
@@ -117,13 +111,9 @@ py::dict footprint(const MapHandle& h, const py::object& soles, const std::strin
     py::gil_scoped_release unlocked;
     for (py::ssize_t i = 0; i < n; ++i) {
       const Eigen::Vector3d c = toMap(map, Eigen::Vector3d(in(i, 0), in(i, 1), in(i, 2)), frame);
+      // An unusable sole (non-finite, not positive, too large to sample) gets the library's
+      // answer for it: no samples, nothing known.
       const mapping::Foot foot{c.x(), c.y(), c.z(), yawToMap(map, in(i, 3), frame), in(i, 4), in(i, 5)};
-      if (!c.allFinite() || !std::isfinite(foot.yaw) || !(foot.length > 0) || !(foot.width > 0) ||
-          foot.length > 10.0 || foot.width > 10.0) {
-        a(i) = b(i) = d(i) = z(i) = t(i) = kNaN;
-        k(i) = 0.0;
-        continue;
-      }
       const mapping::FootprintQuery f = map.footprint(foot);
       a(i) = f.min_mobility;
       b(i) = f.mean_mobility;
