@@ -1,4 +1,5 @@
 // `mobmap plan`: footsteps from a start to a goal over a map (mapping::planFootsteps).
+#include "answers/answers.hpp"
 #include "commands/commands.hpp"
 #include "io/files.hpp"
 #include "io/io_error.hpp"
@@ -7,8 +8,6 @@
 #include "pictures/top_view.hpp"
 
 #include "mobmap/mapping/footstep_planner.hpp"
-
-#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <filesystem>
@@ -85,42 +84,9 @@ Command addPlanCommand(CLI::App& app) {
     } catch (const std::invalid_argument& e) {  // a step under two voxels of this map
       throw UsageError(e.what());
     }
-    // Footsteps in the frame the points were given in.
-    const Eigen::Matrix3d R = world ? Eigen::Matrix3d(map.rotationMapWorld().transpose()) : Eigen::Matrix3d(Eigen::Matrix3d::Identity());
-    const auto out = [&](const mapping::Footstep& f, double& yaw) {
-      const Eigen::Vector3d p = world ? map.mapToWorld(Eigen::Vector3d(f.x, f.y, f.z)) : Eigen::Vector3d(f.x, f.y, f.z);
-      const Eigen::Vector3d h = R * Eigen::Vector3d(std::cos(f.yaw), std::sin(f.yaw), 0);
-      yaw = world ? std::atan2(h.y(), h.x()) : f.yaw;
-      return p;
-    };
+    const InputFrame frame = world ? InputFrame::kWorld : InputFrame::kMap;
     if (o->json) {
-      nlohmann::json j{{"found", plan.found}, {"frame", o->frame}};
-      if (!plan.found) j["reason"] = plan.reason;
-      j["footsteps"] = nlohmann::json::array();
-      for (const auto& f : plan.footsteps) {
-        double yaw = 0;
-        const Eigen::Vector3d p = out(f, yaw);
-        j["footsteps"].push_back({{"foot", mapping::toString(f.side)},
-                                  {"x", p.x()},
-                                  {"y", p.y()},
-                                  {"z", p.z()},
-                                  {"yaw", yaw},
-                                  {"min_mobility", f.min_mobility},
-                                  {"tilt_deg", f.tilt_deg}});
-      }
-      j["steps"] = plan.footsteps.size() >= 2 ? plan.footsteps.size() - 2 : 0;
-      j["cost"] = plan.cost;
-      j["length_m"] = plan.length_m;
-      j["max_step_height_m"] = plan.max_step_height_m;
-      j["expansions"] = plan.expansions;
-      j["cost_bound"] = o->params.heuristic_weight;  // the plan costs at most this times the cheapest
-      j["planning_time_s"] = plan.planning_time_s;
-      const auto& r = o->params.robot;
-      j["robot"] = {{"sole_length_m", r.sole_length_m},     {"sole_width_m", r.sole_width_m},
-                    {"max_step_m", r.max_step_m},           {"min_mobility", r.min_mobility},
-                    {"max_stride_m", r.max_stride_m},       {"max_tilt_deg", r.max_tilt_deg},
-                    {"swing_clearance_m", r.swing_clearance_m}, {"stance_width_m", r.stance_width_m}};
-      std::cout << j.dump() << "\n";
+      std::cout << planJson(map, plan, o->params, frame).dump() << "\n";
     } else if (plan.found) {
       std::printf("plan: %zu footsteps after the start stance, %.2f m walked, highest step %.2f m, cost %.2f (%zu states "
                   "expanded in %.3f s); %s frame:\n",
@@ -128,10 +94,9 @@ Command addPlanCommand(CLI::App& app) {
                   plan.planning_time_s, o->frame.c_str());
       for (std::size_t i = 0; i < plan.footsteps.size(); ++i) {
         const auto& f = plan.footsteps[i];
-        double yaw = 0;
-        const Eigen::Vector3d p = out(f, yaw);
+        const FootstepIn s = footstepIn(map, f, frame);
         std::printf("  %2zu %-5s x %7.3f  y %7.3f  z %6.3f  yaw %6.1f deg  mobility >= %.2f  tilt %4.1f deg%s\n", i,
-                    mapping::toString(f.side), p.x(), p.y(), p.z(), yaw * 180 / M_PI, f.min_mobility, f.tilt_deg,
+                    mapping::toString(f.side), s.centre.x(), s.centre.y(), s.centre.z(), s.yaw * 180 / M_PI, f.min_mobility, f.tilt_deg,
                     i < 2 ? "  (start)" : "");
       }
     } else {

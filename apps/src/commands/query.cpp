@@ -1,3 +1,4 @@
+#include "answers/answers.hpp"
 #include "commands/commands.hpp"
 #include "io/io_error.hpp"
 #include "commands/levels.hpp"
@@ -51,28 +52,6 @@ void answerEachInputLine(const std::string& fields,
   }
 }
 
-nlohmann::json pointJson(const mapping::PointQuery& q) {
-  nlohmann::json j{{"state", mapping::toString(q.state)},
-                   {"voxel_centre", {q.centre.x(), q.centre.y(), q.centre.z()}},
-                   {"voxel_size_m", q.size_m},
-                   {"count", q.count},
-                   {"occupancy", q.occupancy}};
-  j["mobility"] = q.has_mobility ? nlohmann::json(q.mobility) : nlohmann::json(nullptr);
-  j["variance"] = q.has_mobility ? nlohmann::json(q.variance) : nlohmann::json(nullptr);
-  return j;
-}
-
-// A place's own facts for JSON: its mobility (null if unknown) and the free or unseen
-// height above it (null: nothing above it in the map).
-nlohmann::json placeJson(const mapping::Place* p) {
-  if (!p) return {{"place", nullptr}, {"standable", false}, {"reachable", false}};
-  return {{"place", {p->x, p->y, p->top_z}},
-          {"standable", p->standable},
-          {"reachable", p->reachable},
-          {"mobility", p->has_mobility ? nlohmann::json(p->mobility) : nlohmann::json(nullptr)},
-          {"headroom_m", std::isfinite(p->headroom_m) ? nlohmann::json(p->headroom_m) : nlohmann::json(nullptr)}};
-}
-
 // The reach line of a point's answer (text).
 void printPlace(const mapping::Place* p, double drop) {
   if (!p) {
@@ -86,20 +65,6 @@ void printPlace(const mapping::Place* p, double drop) {
                 "ask with --foot for the reason)\n",
                 p->top_z);
   }
-}
-
-// A sole's foot-scale answer for JSON.
-nlohmann::json soleReachJson(const mapping::SoleReach& r) {
-  const mapping::Foothold& f = r.foothold;
-  nlohmann::json j{{"standable", r.standable},
-                   {"reachable", r.reachable},
-                   {"support_fraction", f.support_fraction},
-                   {"min_mobility", f.min_mobility},
-                   {"tilt_deg", f.tilt_deg},
-                   {"unevenness_m", f.unevenness_m}};
-  j["support_z"] = f.has_plane ? nlohmann::json(f.z) : nlohmann::json(nullptr);
-  j["problem"] = r.standable ? nlohmann::json(nullptr) : nlohmann::json(mapping::toString(f.problem));
-  return j;
 }
 
 void printPoint(const mapping::PointQuery& q) {
@@ -153,7 +118,6 @@ Command addQueryCommand(CLI::App& app) {
     const OpenedMap opened = openMapFiles(o->map);
     const mapping::MapMetadata& metadata = opened.metadata;
     const mapping::MobilityMap& map = opened.map;
-    auto toMap = [&](Eigen::Vector3d p) { return o->frame == "world" ? map.worldToMap(p) : p; };
     // With --reach: which places the robot can get to, worked out once for every answer.
     std::optional<ReachRun> run;
     if (o->reach) {
@@ -165,63 +129,43 @@ Command addQueryCommand(CLI::App& app) {
                    s.x, s.y, s.z, o->robot.rule.c_str(), run->result.reachableCount(), run->result.standableCount());
     }
     // A sole: X Y Z YAW LENGTH WIDTH. `where` names its source in errors.
+    const InputFrame frame = o->frame == "world" ? InputFrame::kWorld : InputFrame::kMap;
+    const mapping::Reachability* reach_run = run ? &run->result : nullptr;
+    // A sole: X Y Z YAW LENGTH WIDTH. `where` names its source in errors.
     auto answerFoot = [&](const std::vector<double>& s, const std::string& where) {
-      if (!(s[4] > 0 && s[5] > 0 && s[4] <= 10 && s[5] <= 10)) throw UsageError(where + ": LENGTH and WIDTH must be in (0, 10] m");
-      const Eigen::Vector3d c = toMap({s[0], s[1], s[2]});
-      double yaw = s[3];
-      if (o->frame == "world") {  // rotate the heading with the frame
-        const Eigen::Vector3d h = map.rotationMapWorld() * Eigen::Vector3d(std::cos(yaw), std::sin(yaw), 0);
-        yaw = std::atan2(h.y(), h.x());
+      FootAnswer a;
+      try {
+        a = app::answerFoot(map, {s[0], s[1], s[2], s[3], s[4], s[5]}, frame, o->snap, reach_run);
+      } catch (const std::invalid_argument& e) {
+        throw UsageError(where + ": " + e.what());
       }
-      const mapping::Foot sole{c.x(), c.y(), c.z(), yaw, s[4], s[5]};
-      const double down = o->snap >= 0 ? o->snap : 0.1;
-      const auto f = map.footprint(sole, 0.1, down);
-      std::optional<mapping::SoleReach> sole_reach;
-      if (run) sole_reach = run->result.sole(sole, 0.1, down);
-      // The support plane's height and normal in the frame the sole was given in.
-      const Eigen::Vector3d n = o->frame == "world" ? Eigen::Vector3d(map.rotationMapWorld().transpose() * f.support_normal)
-                                                    : f.support_normal;
-      const Eigen::Vector3d under_map(c.x(), c.y(), f.support_height_m);
-      const Eigen::Vector3d under =
-          o->frame == "world" ? map.mapToWorld(under_map) : under_map;
       if (o->json) {
-        nlohmann::json j{{"foot", s},
-                         {"min_mobility", f.min_mobility},
-                         {"mean_mobility", f.mean_mobility},
-                         {"known_fraction", f.known_fraction},
-                         {"max_height_difference_m", f.max_height_difference_m},
-                         {"samples", f.samples}};
-        j["support_plane"] = f.has_support_plane ? nlohmann::json{{"point", {under.x(), under.y(), under.z()}},
-                                                                  {"normal", {n.x(), n.y(), n.z()}},
-                                                                  {"tilt_deg", f.support_tilt_deg},
-                                                                  {"rms_m", f.support_rms_m}}
-                                                 : nlohmann::json();
-        if (sole_reach) {
-          j["reach"] = soleReachJson(*sole_reach);
-        }
-        std::cout << j.dump() << "\n";
+        std::cout << toJson(a).dump() << "\n";
+        return;
+      }
+      const mapping::FootprintQuery& f = a.footprint;
+      const Eigen::Vector3d& under = a.support_point;
+      const Eigen::Vector3d& n = a.support_normal;
+      std::printf("sole: min mobility %.3f, mean %.3f, known %.0f %% of %d samples, height difference %.3f m", f.min_mobility,
+                  f.mean_mobility, 100 * f.known_fraction, f.samples, f.max_height_difference_m);
+      if (f.has_support_plane) {
+        std::printf("; support plane through (%.3f, %.3f, %.3f), normal (%.3f, %.3f, %.3f), tilt %.1f deg, rms %.3f m\n",
+                    under.x(), under.y(), under.z(), n.x(), n.y(), n.z(), f.support_tilt_deg, f.support_rms_m);
       } else {
-        std::printf("sole: min mobility %.3f, mean %.3f, known %.0f %% of %d samples, height difference %.3f m", f.min_mobility,
-                    f.mean_mobility, 100 * f.known_fraction, f.samples, f.max_height_difference_m);
-        if (f.has_support_plane) {
-          std::printf("; support plane through (%.3f, %.3f, %.3f), normal (%.3f, %.3f, %.3f), tilt %.1f deg, rms %.3f m\n",
-                      under.x(), under.y(), under.z(), n.x(), n.y(), n.z(), f.support_tilt_deg, f.support_rms_m);
+        std::printf("; no support plane (fewer than 3 supported samples, or all on one line)\n");
+      }
+      if (a.reach) {
+        const mapping::SoleReach& r = *a.reach;
+        const mapping::Foothold& fh = r.foothold;
+        if (r.reachable) {
+          std::printf("  reach: the robot can stand here and get here (support z = %.3f m)\n", fh.z);
+        } else if (r.standable) {
+          std::printf("  reach: the robot can stand here (support z = %.3f m) but not get here from the start\n", fh.z);
         } else {
-          std::printf("; no support plane (fewer than 3 supported samples, or all on one line)\n");
-        }
-        if (sole_reach) {
-          const mapping::SoleReach& r = *sole_reach;
-          const mapping::Foothold& fh = r.foothold;
-          if (r.reachable) {
-            std::printf("  reach: the robot can stand here and get here (support z = %.3f m)\n", fh.z);
-          } else if (r.standable) {
-            std::printf("  reach: the robot can stand here (support z = %.3f m) but not get here from the start\n", fh.z);
-          } else {
-            std::printf("  reach: the robot cannot stand here: %s (known surface %.0f %% of the sole, min mobility %.2f, "
-                        "tilt %.1f deg, unevenness %.3f m)\n",
-                        mapping::toString(fh.problem), 100 * fh.support_fraction, fh.min_mobility, fh.tilt_deg,
-                        fh.unevenness_m);
-          }
+          std::printf("  reach: the robot cannot stand here: %s (known surface %.0f %% of the sole, min mobility %.2f, "
+                      "tilt %.1f deg, unevenness %.3f m)\n",
+                      mapping::toString(fh.problem), 100 * fh.support_fraction, fh.min_mobility, fh.tilt_deg,
+                      fh.unevenness_m);
         }
       }
     };
@@ -236,31 +180,18 @@ Command addQueryCommand(CLI::App& app) {
       return 0;
     }
     auto answer = [&](const Eigen::Vector3d& p_in) {
-      const Eigen::Vector3d p = toMap(p_in);
-      mapping::PointQuery q;
-      bool found = true;
-      if (o->snap >= 0) {
-        const auto s = map.snapDown(p, o->snap);
-        found = s.has_value();
-        if (found) q = *s;
-      } else {
-        q = map.query(p);
-      }
-      const double drop = o->snap >= 0 ? o->snap : map.tree().getResolution();
-      const mapping::Place* place = run ? run->result.placeBelow(p, drop) : nullptr;
+      const PointAnswer a = answerPoint(map, p_in, frame, o->snap, reach_run);
       if (o->json) {
-        nlohmann::json j = found ? pointJson(q) : nlohmann::json{{"state", "no surface within snap distance"}};
-        j["query"] = {p.x(), p.y(), p.z()};
-        if (run) j["reach"] = placeJson(place);
-        std::cout << j.dump() << "\n";
-      } else {
-        if (found) {
-          printPoint(q);
-        } else {
-          std::printf("no surface within %.3f m below (%.3f, %.3f, %.3f)\n", o->snap, p.x(), p.y(), p.z());
-        }
-        if (run) printPlace(place, drop);
+        std::cout << toJson(a).dump() << "\n";
+        return;
       }
+      if (a.voxel) {
+        printPoint(*a.voxel);
+      } else {
+        const Eigen::Vector3d& p = a.query_map;
+        std::printf("no surface within %.3f m below (%.3f, %.3f, %.3f)\n", o->snap, p.x(), p.y(), p.z());
+      }
+      if (a.with_reach) printPlace(a.place, a.reach_drop_m);
     };
     if (!o->xyz.empty()) {
       if (!Eigen::Vector3d(o->xyz[0], o->xyz[1], o->xyz[2]).allFinite()) throw UsageError("X Y Z: values must be finite");
@@ -346,24 +277,6 @@ void printMetadataSummary(const mapping::MapMetadata& meta) {
   std::printf("all metadata: %s (or info --json)\n", meta.path.c_str());
 }
 
-// A walkable level holds at least this share of the walkable voxels (docs/MAPPING.md).
-constexpr double kMinLevelShare = 0.005;
-
-// Heights where walkable voxels (mobility >= 0.75) gather: floors, landings, table tops.
-// Top faces are binned per voxel (a pruned leaf counts once per column it covers).
-std::vector<Level> walkableLevels(const mapping::MobilityOcTree& t) {
-  const double res = t.getResolution();
-  std::map<long, std::size_t> bins;  // round(top / res) -> voxels
-  for (auto it = t.begin_leafs(); it != t.end_leafs(); ++it) {
-    if (!t.isNodeOccupied(*it) || !it->hasMobility() || it->mobility() < 0.75) continue;
-    bins[std::lround((it.getZ() + it.getSize() / 2) / res)] += static_cast<std::size_t>(std::lround(std::pow(it.getSize() / res, 2)));
-  }
-  // Every level, however many: a staircase of 7 treads has 8. In height order.
-  std::vector<Level> levels = gatherLevels(std::move(bins), res, std::numeric_limits<std::size_t>::max(), kMinLevelShare);
-  std::sort(levels.begin(), levels.end(), [](const Level& a, const Level& b) { return a.z_m < b.z_m; });
-  return levels;
-}
-
 }  // namespace
 
 Command addInfoCommand(CLI::App& app) {
@@ -379,45 +292,17 @@ Command addInfoCommand(CLI::App& app) {
     const OpenedMap opened = openMapFiles(o->map);
     const mapping::MapMetadata& metadata = opened.metadata;
     const mapping::MobilityMap& map = opened.map;
+    if (o->json) {
+      std::printf("%s\n", infoJson(o->map, map, &metadata).dump().c_str());
+      return 0;
+    }
     const auto& t = map.tree();
     double x0, y0, z0, x1, y1, z1;
     t.getMetricMin(x0, y0, z0);
     t.getMetricMax(x1, y1, z1);
-    std::size_t surface = 0, free = 0, unknown_mob = 0;
-    std::vector<std::size_t> hist(10, 0);
-    for (auto it = t.begin_leafs(); it != t.end_leafs(); ++it) {
-      if (!t.isNodeOccupied(*it)) {
-        ++free;
-        continue;
-      }
-      ++surface;
-      if (!it->hasMobility()) {
-        ++unknown_mob;
-        continue;
-      }
-      ++hist[static_cast<std::size_t>(std::clamp(static_cast<int>(it->mobility() * 10), 0, 9))];
-    }
-    if (o->json) {
-      nlohmann::json j{{"map", o->map},
-                       {"tree_type", t.getTreeType()},
-                       {"resolution_m", t.getResolution()},
-                       {"nodes", t.size()},
-                       {"leaves", t.getNumLeafNodes()},
-                       {"surface_leaves", surface},
-                       {"free_leaves", free},
-                       {"surface_leaves_without_mobility", unknown_mob},
-                       {"mobility_histogram", hist},
-                       {"memory_bytes", t.memoryUsage()}};
-      j["walkable_levels"] = nlohmann::json::array();
-      for (const Level& l : walkableLevels(t)) {
-        j["walkable_levels"].push_back({{"z_m", l.z_m}, {"voxels", l.count}, {"share", l.share}});
-      }
-      // An empty tree has no bounds (OctoMap reports its key range's limits).
-      if (surface + free > 0) j["bounds_map"] = {{"min", {x0, y0, z0}}, {"max", {x1, y1, z1}}};
-      j["metadata"] = metadata.found ? nlohmann::json::parse(mapping::formatMapMetadata(metadata)) : nlohmann::json(nullptr);
-      std::printf("%s\n", j.dump().c_str());
-      return 0;
-    }
+    const LeafCounts counts = countLeaves(t);
+    const std::size_t surface = counts.surface, free = counts.free, unknown_mob = counts.surface_without_mobility;
+    const std::vector<std::size_t>& hist = counts.histogram;
     std::printf("%s: %s, resolution %.3f m\n", o->map.c_str(), t.getTreeType().c_str(), t.getResolution());
     if (surface + free > 0) {
       std::printf("bounds (map frame, z up): x %.2f..%.2f  y %.2f..%.2f  z %.2f..%.2f m\n", x0, x1, y0, y1, z0, z1);
