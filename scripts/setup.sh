@@ -10,6 +10,9 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev libpng-dev nlohmann-json3-dev libyaml-cpp-dev
   pybind11-dev python3-dev python3-numpy python3-pytest
+  libcpp-httplib-dev libjs-three
+  # the viewer's test draws the page in headless Chromium
+  chromium
 )
 # `setup.sh fuzz`: also clang and its libFuzzer / sanitizer runtimes (scripts/fuzz.sh).
 if [ "${1:-}" = fuzz ]; then

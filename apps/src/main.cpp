@@ -49,6 +49,7 @@ int main(int argc, char** argv) {
   commands["reach"] = mobmap::app::addReachCommand(app);
   commands["plan"] = mobmap::app::addPlanCommand(app);
   commands["info"] = mobmap::app::addInfoCommand(app);
+  commands["serve"] = mobmap::app::addServeCommand(app);
   commands["evaluate"] = mobmap::app::addEvaluateCommand(app);
   commands["export"] = mobmap::app::addExportCommand(app);
   commands["overlay"] = mobmap::app::addOverlayCommand(app);

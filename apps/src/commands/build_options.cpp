@@ -9,10 +9,15 @@ namespace mobmap::app::build {
 std::shared_ptr<BuildOptions> addBuildOptions(CLI::App& app) {
   auto* cmd = app.add_subcommand("build", "Build a mobility map from a sequence of posed depth frames");
   auto o = std::make_shared<BuildOptions>();
-  cmd->add_option("INPUT", o->input,
-                  "A 7-Scenes / 3DMatch layout directory (frame-NNNNNN.depth.png + .pose.txt), a TUM RGB-D directory "
-                  "(depth.txt + groundtruth.txt), a directory of .pcd frames with --poses, one .pcd frame, one 16-bit "
-                  "depth .png in millimetres (with --intrinsics or a camera-intrinsics.txt beside it), or an OpenNI2 .oni recording");
+  cmd->add_option("INPUT", o->input, kBuildInputHelp);
+  addBuildRunOptions(*cmd, *o);
+  o->given.out->required();
+  return o;
+}
+
+void addBuildRunOptions(CLI::App& cmd_ref, BuildOptions& o_ref) {
+  CLI::App* cmd = &cmd_ref;
+  BuildOptions* o = &o_ref;
   o->given.device = cmd->add_option("--device", o->device,
                                  "Read a live OpenNI2 depth sensor instead of INPUT: the first attached one, or the "
                                  "given device URI. Stops after --frames LAST (default 300 frames) or Ctrl-C")
@@ -27,7 +32,7 @@ std::shared_ptr<BuildOptions> addBuildOptions(CLI::App& app) {
   cmd->add_option("--max-pose-gap", o->max_pose_gap, "TUM / timestamped --poses: skip frames whose neighbouring poses are farther apart in time (s)")
       ->check(finiteNonNegative())
       ->capture_default_str();
-  cmd->add_option("--out", o->out, "Map file to write (MAP.ot; MAP.bt, MAP.octovis.ot and MAP.json go beside it)")->required();
+  o->given.out = cmd->add_option("--out", o->out, "Map file to write (MAP.ot; MAP.bt, MAP.octovis.ot and MAP.json go beside it)");
   cmd->add_option("--frames", o->frames, "FIRST:LAST:STEP of the frame numbers to use (default: all; a live sensor: 0:299; OpenNI2 frames are numbered as they arrive)");
   o->given.max_range = cmd->add_option("--max-range", o->max_range, "Maximum range of points, metres")->capture_default_str();
   o->given.resolution = cmd->add_option("--resolution", o->resolution, "Voxel size of the map, metres")->capture_default_str();
@@ -73,7 +78,6 @@ std::shared_ptr<BuildOptions> addBuildOptions(CLI::App& app) {
                 "corrupt or cut short, a pose file that is missing or not a rigid transform, an unreadable .pcd) "
                 "instead of stopping the run; the summary and MAP.json count them. For sequences of files");
   cmd->add_flag("--quiet,-q", o->quiet, "No progress output");
-  return o;
 }
 
 }  // namespace mobmap::app::build

@@ -8,6 +8,7 @@
 
 #include "mobmap/gp/mobility_model.hpp"
 #include "mobmap/mapping/gravity.hpp"
+#include "mobmap/mapping/live_mapper.hpp"
 #include "mobmap/mapping/map_metadata.hpp"
 #include "mobmap/mapping/mobility_octree.hpp"
 #include "mobmap/perception/pipeline.hpp"
@@ -62,11 +63,43 @@ struct BuildOptions {
     CLI::Option* origin = nullptr;
     CLI::Option* depth_scale = nullptr;
     CLI::Option* fov = nullptr;
+    CLI::Option* out = nullptr;
   } given;
 };
 
+/// The help of build's INPUT (serve --live takes the same inputs).
+inline constexpr const char* kBuildInputHelp =
+    "A 7-Scenes / 3DMatch layout directory (frame-NNNNNN.depth.png + .pose.txt), a TUM RGB-D directory "
+    "(depth.txt + groundtruth.txt), a directory of .pcd frames with --poses, one .pcd frame, one 16-bit "
+    "depth .png in millimetres (with --intrinsics or a camera-intrinsics.txt beside it), or an OpenNI2 .oni recording";
+
 /// Registers `build` and its options on `app`; the options are filled when it parses.
 std::shared_ptr<BuildOptions> addBuildOptions(CLI::App& app);
+/// Registers the options of a build run other than INPUT on `cmd` (which registers INPUT
+/// its own way): `serve --live` builds with them.
+void addBuildRunOptions(CLI::App& cmd, BuildOptions& o);
+
+/// What a caller of runBuild() adds to the run (`mobmap serve --live`). The callbacks
+/// run on the thread named; none may throw.
+struct LiveHooks {
+  /// The mapper exists and serves snapshots (LiveMapper::Config::serve_snapshots), before
+  /// the first frame is read; `frames_in_map` counts those of a map being extended. The
+  /// reading thread.
+  std::function<void(const mapping::LiveMapper& mapper, int frames_in_map)> started;
+  /// After each frame fused: the map with it, the frames in it and the camera's position
+  /// (map frame). The fusion thread.
+  std::function<void(std::shared_ptr<const mapping::MobilityMap> map, int frames_in_map, const Eigen::Vector3d& camera_map)>
+      fused;
+  /// Before each frame is read. The reading thread.
+  std::function<void()> before_frame;
+  /// The map as saved (finalized) and what its MAP.json says, once its files are written.
+  /// The reading thread.
+  std::function<void(std::shared_ptr<const mapping::MobilityMap> map, const mapping::MapMetadata& meta)> saved;
+};
+
+/// Runs `mobmap build` with the options parsed into `o`; returns its exit code (130
+/// after Ctrl-C, with the map saved). `hooks` may be null.
+int runBuild(BuildOptions& o, const LiveHooks* hooks);
 
 
 // The error of a frame that cannot be read, when the run stops for it: it says how not to.

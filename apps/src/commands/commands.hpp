@@ -76,6 +76,7 @@ Command addQueryCommand(CLI::App& app);
 Command addReachCommand(CLI::App& app);
 Command addPlanCommand(CLI::App& app);
 Command addInfoCommand(CLI::App& app);
+Command addServeCommand(CLI::App& app);
 Command addEvaluateCommand(CLI::App& app);
 Command addExportCommand(CLI::App& app);
 Command addOverlayCommand(CLI::App& app);

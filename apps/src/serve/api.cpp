@@ -1,0 +1,400 @@
+#include "serve/api.hpp"
+
+#include "answers/answers.hpp"
+#include "serve/viewer_assets.hpp"
+
+#include "mobmap/mapping/footstep_planner.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <functional>
+#include <limits>
+#include <optional>
+#include <stdexcept>
+#include <unordered_map>
+#include <utility>
+
+namespace mobmap::app::serve {
+
+MapSource::MapSource(ServedMap initial) : current_(std::make_shared<const ServedMap>(std::move(initial))) {}
+
+std::shared_ptr<const ServedMap> MapSource::current() const {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  return current_;
+}
+
+void MapSource::publish(ServedMap next) {
+  auto p = std::make_shared<const ServedMap>(std::move(next));
+  const std::lock_guard<std::mutex> lock(mutex_);
+  current_ = std::move(p);
+}
+
+std::string errorBody(const std::string& message) { return nlohmann::json{{"error", message}}.dump(); }
+
+std::vector<Cell> surfaceCells(const mapping::MobilityOcTree& tree, int level) {
+  const double res = tree.getResolution();
+  const double cell = res * std::ldexp(1.0, level);
+  // Cell index along an axis from a finest-level key: the octree's nodes at depth
+  // 16 - level are exactly these cells.
+  std::unordered_map<std::uint64_t, float> cells;
+  const auto add = [&](const octomap::OcTreeKey& k, float mobility) {
+    const std::uint64_t key = (static_cast<std::uint64_t>(k[2] >> level) << 32) |
+                              (static_cast<std::uint64_t>(k[1] >> level) << 16) | static_cast<std::uint64_t>(k[0] >> level);
+    const auto [it, inserted] = cells.emplace(key, mobility);
+    if (!inserted && mobility == mobility && !(it->second <= mobility)) it->second = mobility;  // lowest known
+  };
+  for (auto it = tree.begin_leafs(); it != tree.end_leafs(); ++it) {
+    if (!tree.isNodeOccupied(*it)) continue;
+    const float m = it->hasMobility() ? it->mobility() : std::numeric_limits<float>::quiet_NaN();
+    const double size = it.getSize();
+    const octomap::point3d c = it.getCoordinate();
+    if (size <= cell) {
+      add(tree.coordToKey(c), m);
+      continue;
+    }
+    // A pruned block larger than a cell: every cell it covers.
+    const int n = static_cast<int>(std::lround(size / cell));
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j)
+        for (int k = 0; k < n; ++k) {
+          const octomap::point3d p(static_cast<float>(c.x() - size / 2 + cell * (i + 0.5)),
+                                   static_cast<float>(c.y() - size / 2 + cell * (j + 0.5)),
+                                   static_cast<float>(c.z() - size / 2 + cell * (k + 0.5)));
+          add(tree.coordToKey(p), m);
+        }
+  }
+  std::vector<std::pair<std::uint64_t, float>> sorted(cells.begin(), cells.end());
+  std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<Cell> out;
+  out.reserve(sorted.size());
+  const double half_keys = 32768.0;
+  const auto centre = [&](std::uint64_t index) { return (static_cast<double>(index) + 0.5) * cell - half_keys * res; };
+  for (const auto& [key, m] : sorted) {
+    out.push_back({Eigen::Vector3d(centre(key & 0xffff), centre((key >> 16) & 0xffff), centre(key >> 32)), m});
+  }
+  return out;
+}
+
+namespace {
+
+// A request that cannot be answered: its status and message.
+struct Refusal : std::runtime_error {
+  int status;
+  Refusal(int s, const std::string& message) : std::runtime_error(message), status(s) {}
+};
+
+Response json(const nlohmann::json& j, int status = 200) { return {status, "application/json", j.dump()}; }
+
+nlohmann::json parseBody(const std::string& body) {
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(body);
+  } catch (const nlohmann::json::exception& e) {
+    throw Refusal(400, std::string("the request body is not JSON: ") + e.what());
+  }
+  if (!j.is_object()) throw Refusal(400, "the request body must be a JSON object");
+  return j;
+}
+
+void onlyKnownFields(const nlohmann::json& body, const std::vector<std::string>& known) {
+  for (const auto& [key, value] : body.items()) {
+    if (std::find(known.begin(), known.end(), key) == known.end()) {
+      std::string list;
+      for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+      throw Refusal(400, "unknown field \"" + key + "\" (known: " + list + ")");
+    }
+  }
+}
+
+double finiteNumber(const nlohmann::json& v, const std::string& what) {
+  if (!v.is_number()) throw Refusal(400, what + " must be a number, got " + v.dump());
+  const double d = v.get<double>();
+  if (!std::isfinite(d)) throw Refusal(400, what + " must be finite");
+  return d;
+}
+
+InputFrame frameOf(const nlohmann::json& body) {
+  if (!body.contains("frame") || body["frame"].is_null()) return InputFrame::kMap;
+  const nlohmann::json& f = body["frame"];
+  if (f == "map") return InputFrame::kMap;
+  if (f == "world") return InputFrame::kWorld;
+  throw Refusal(400, "\"frame\" must be \"map\" or \"world\", got " + f.dump());
+}
+
+// The snap distance: absent or null is none (-1).
+double snapOf(const nlohmann::json& body) {
+  if (!body.contains("snap") || body["snap"].is_null()) return -1;
+  const double s = finiteNumber(body["snap"], "\"snap\"");
+  if (s < 0) throw Refusal(400, "\"snap\" must be >= 0 metres");
+  return s;
+}
+
+// `field` of `body`: an array of arrays of `n` finite numbers, at most `max` of them.
+std::vector<std::vector<double>> rows(const nlohmann::json& body, const std::string& field, std::size_t n, std::size_t max) {
+  if (!body.contains(field)) throw Refusal(400, "\"" + field + "\" is missing");
+  const nlohmann::json& a = body[field];
+  if (!a.is_array()) throw Refusal(400, "\"" + field + "\" must be an array");
+  if (a.size() > max) {
+    throw Refusal(413, "\"" + field + "\" holds " + std::to_string(a.size()) + " entries; at most " + std::to_string(max) +
+                           " per request");
+  }
+  std::vector<std::vector<double>> out;
+  out.reserve(a.size());
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const std::string what = field + "[" + std::to_string(i) + "]";
+    if (!a[i].is_array() || a[i].size() != n) throw Refusal(400, what + " must be an array of " + std::to_string(n) + " numbers");
+    std::vector<double> row(n);
+    for (std::size_t k = 0; k < n; ++k) row[k] = finiteNumber(a[i][k], what + "[" + std::to_string(k) + "]");
+    out.push_back(std::move(row));
+  }
+  return out;
+}
+
+Eigen::Vector3d point(const nlohmann::json& body, const std::string& field) {
+  if (!body.contains(field)) throw Refusal(400, "\"" + field + "\" is missing");
+  const nlohmann::json& a = body[field];
+  if (!a.is_array() || a.size() != 3) throw Refusal(400, "\"" + field + "\" must be an array of 3 numbers");
+  return {finiteNumber(a[0], field + "[0]"), finiteNumber(a[1], field + "[1]"), finiteNumber(a[2], field + "[2]")};
+}
+
+// A non-negative whole number from the query string.
+std::optional<std::size_t> count(const std::multimap<std::string, std::string>& params, const std::string& name,
+                                 std::size_t max) {
+  const auto it = params.find(name);
+  if (it == params.end()) return std::nullopt;
+  const std::string& text = it->second;
+  if (text.empty() || text.size() > 12 || text.find_first_not_of("0123456789") != std::string::npos) {
+    throw Refusal(400, "query parameter " + name + " must be a whole number >= 0, got '" + text.substr(0, 40) + "'");
+  }
+  const unsigned long long v = std::strtoull(text.c_str(), nullptr, 10);
+  if (v > max) throw Refusal(413, "query parameter " + name + " is " + text + "; at most " + std::to_string(max));
+  return static_cast<std::size_t>(v);
+}
+
+using Setters = std::map<std::string, std::function<void(double)>>;
+
+// The plan request's numeric fields: the robot and the search (the names of mobmap.plan's
+// keyword arguments in Python).
+Setters planSetters(mapping::PlanParams& p) {
+  mapping::RobotParams& r = p.robot;
+  return {
+      {"sole_length_m", [&](double v) { r.sole_length_m = v; }},
+      {"sole_width_m", [&](double v) { r.sole_width_m = v; }},
+      {"min_mobility", [&](double v) { r.min_mobility = v; }},
+      {"max_poor_fraction", [&](double v) { r.max_poor_fraction = v; }},
+      {"min_support_fraction", [&](double v) { r.min_support_fraction = v; }},
+      {"max_tilt_deg", [&](double v) { r.max_tilt_deg = v; }},
+      {"max_unevenness_m", [&](double v) { r.max_unevenness_m = v; }},
+      {"clearance_m", [&](double v) { r.clearance_m = v; }},
+      {"max_step_m", [&](double v) { r.max_step_m = v; }},
+      {"max_stride_m", [&](double v) { r.max_stride_m = v; }},
+      {"swing_clearance_m", [&](double v) { r.swing_clearance_m = v; }},
+      {"max_gap_m", [&](double v) { r.max_gap_m = v; }},
+      {"stance_width_m", [&](double v) { r.stance_width_m = v; }},
+      {"lattice_m", [&](double v) { r.lattice_m = v; }},
+      {"goal_tolerance_m", [&](double v) { p.goal_tolerance_m = v; }},
+      {"step_cost_m", [&](double v) { p.step_cost_m = v; }},
+      {"mobility_weight_m", [&](double v) { p.mobility_weight_m = v; }},
+      {"variance_weight_m", [&](double v) { p.variance_weight_m = v; }},
+      {"start_radius_m", [&](double v) { p.start_radius_m = v; }},
+      {"heuristic_weight", [&](double v) { p.heuristic_weight = v; }},
+      {"time_limit_s", [&](double v) { p.time_limit_s = v; }},
+      {"max_expansions",
+       [&](double v) {
+         if (!(v >= 1 && v <= 1e12 && v == std::floor(v))) throw Refusal(400, "\"max_expansions\" must be a whole number >= 1");
+         p.max_expansions = static_cast<std::size_t>(v);
+       }},
+  };
+}
+
+}  // namespace
+
+struct Api::Cache {
+  std::mutex mutex;
+  std::shared_ptr<const ServedMap> served;  // what the entries below were computed from
+  std::optional<nlohmann::json> info;
+  std::map<int, std::shared_ptr<const std::vector<Cell>>> cells;  // by level
+
+  // Drops what belongs to an older map.
+  void follow(const std::shared_ptr<const ServedMap>& s) {
+    if (served == s) return;
+    served = s;
+    info.reset();
+    cells.clear();
+  }
+};
+
+Api::Api(std::string map_label, const MapSource& source, Limits limits)
+    : label_(std::move(map_label)), source_(source), limits_(limits), cache_(std::make_shared<Cache>()) {}
+
+Response Api::handle(const std::string& method, const std::string& path,
+                     const std::multimap<std::string, std::string>& params, const std::string& body) const {
+  try {
+    const std::shared_ptr<const ServedMap> served = source_.current();
+    const mapping::MobilityMap& map = *served->map;
+    const auto expect = [&](const char* m) {
+      if (method != m) throw Refusal(405, path + " takes " + m + " requests, not " + method);
+    };
+    if (path == "/api/info") {
+      expect("GET");
+      nlohmann::json j;
+      {
+        const std::lock_guard<std::mutex> lock(cache_->mutex);
+        cache_->follow(served);
+        if (!cache_->info) cache_->info = infoJson(label_, map, served->metadata.get());
+        j = *cache_->info;
+      }
+      j["frames"] = served->frames;
+      j["building"] = served->building;
+      return json(j);
+    }
+    if (path == "/api/query") {
+      expect("POST");
+      const nlohmann::json b = parseBody(body);
+      onlyKnownFields(b, {"points", "frame", "snap"});
+      const InputFrame frame = frameOf(b);
+      const double snap = snapOf(b);
+      const auto points = rows(b, "points", 3, limits_.max_batch);
+      nlohmann::json answers = nlohmann::json::array();
+      for (const auto& p : points) answers.push_back(toJson(answerPoint(map, {p[0], p[1], p[2]}, frame, snap, nullptr)));
+      return json({{"answers", std::move(answers)}, {"frames", served->frames}});
+    }
+    if (path == "/api/foot") {
+      expect("POST");
+      const nlohmann::json b = parseBody(body);
+      onlyKnownFields(b, {"soles", "frame", "snap"});
+      const InputFrame frame = frameOf(b);
+      const double snap = snapOf(b);
+      const auto soles = rows(b, "soles", 6, limits_.max_batch);
+      nlohmann::json answers = nlohmann::json::array();
+      for (std::size_t i = 0; i < soles.size(); ++i) {
+        const auto& s = soles[i];
+        try {
+          answers.push_back(toJson(answerFoot(map, {s[0], s[1], s[2], s[3], s[4], s[5]}, frame, snap, nullptr)));
+        } catch (const std::invalid_argument& e) {
+          throw Refusal(400, "soles[" + std::to_string(i) + "]: " + e.what());
+        }
+      }
+      return json({{"answers", std::move(answers)}, {"frames", served->frames}});
+    }
+    if (path == "/api/plan") {
+      expect("POST");
+      const nlohmann::json b = parseBody(body);
+      mapping::PlanParams plan_params;
+      Setters setters = planSetters(plan_params);
+      std::vector<std::string> known{"from", "to", "frame"};
+      for (const auto& [name, unused] : setters) known.push_back(name);
+      onlyKnownFields(b, known);
+      for (const auto& [name, set] : setters) {
+        if (b.contains(name)) set(finiteNumber(b[name], "\"" + name + "\""));
+      }
+      if (plan_params.time_limit_s > limits_.max_plan_time_s) {
+        char text[120];
+        std::snprintf(text, sizeof text, "\"time_limit_s\" may be at most %g s on this server", limits_.max_plan_time_s);
+        throw Refusal(400, text);
+      }
+      try {
+        mapping::validate(plan_params);
+      } catch (const std::invalid_argument& e) {
+        throw Refusal(400, e.what());
+      }
+      const InputFrame frame = frameOf(b);
+      const Eigen::Vector3d from_in = point(b, "from"), to_in = point(b, "to");
+      const bool world = frame == InputFrame::kWorld;
+      const Eigen::Vector3d from = world ? map.worldToMap(from_in) : from_in;
+      const Eigen::Vector3d to = world ? map.worldToMap(to_in) : to_in;
+      mapping::Plan plan;
+      try {
+        plan = mapping::planFootsteps(map.tree(), from, to, plan_params);
+      } catch (const mapping::PlanInputError& e) {
+        throw Refusal(400, e.what());
+      } catch (const std::invalid_argument& e) {
+        throw Refusal(400, e.what());
+      }
+      return json(planJson(map, plan, plan_params, frame));
+    }
+    if (path == "/api/voxels") {
+      expect("GET");
+      const std::size_t most = limits_.max_voxels;
+      const std::size_t max = count(params, "max", most).value_or(std::min<std::size_t>(200000, most));
+      const std::optional<std::size_t> level_asked = count(params, "level", 15);
+      const std::size_t offset = count(params, "offset", std::numeric_limits<std::uint32_t>::max()).value_or(0);
+      const std::size_t limit = count(params, "limit", most).value_or(most);
+      if (max == 0) throw Refusal(400, "query parameter max must be at least 1");
+      // The finest level whose cells number at most `max`, unless one is asked for.
+      int level = level_asked ? static_cast<int>(*level_asked) : 0;
+      std::shared_ptr<const std::vector<Cell>> cells;
+      {
+        const std::lock_guard<std::mutex> lock(cache_->mutex);
+        cache_->follow(served);
+        for (;; ++level) {
+          auto& entry = cache_->cells[level];
+          if (!entry) entry = std::make_shared<const std::vector<Cell>>(surfaceCells(map.tree(), level));
+          cells = entry;
+          if (level_asked || cells->size() <= max || level >= 15) break;
+        }
+      }
+      const std::size_t first = std::min(offset, cells->size());
+      const std::size_t n = std::min(limit, cells->size() - first);
+      // Written by hand: a million voxels go out as fast as they are counted.
+      std::string v;
+      v.reserve(n * 40 + 2);
+      v += '[';
+      char text[128];
+      for (std::size_t i = first; i < first + n; ++i) {
+        const Cell& c = (*cells)[i];
+        int len = 0;
+        if (c.mobility == c.mobility) {
+          len = std::snprintf(text, sizeof text, "%s%.4f,%.4f,%.4f,%.3f", i == first ? "" : ",", c.centre.x(), c.centre.y(),
+                              c.centre.z(), static_cast<double>(c.mobility));
+        } else {
+          len = std::snprintf(text, sizeof text, "%s%.4f,%.4f,%.4f,null", i == first ? "" : ",", c.centre.x(), c.centre.y(),
+                              c.centre.z());
+        }
+        v.append(text, static_cast<std::size_t>(len));
+      }
+      v += ']';
+      nlohmann::json head{{"frame", "map"},
+                          {"frames", served->frames},
+                          {"building", served->building},
+                          {"level", level},
+                          {"cell_size_m", map.tree().getResolution() * std::ldexp(1.0, level)},
+                          {"total", cells->size()},
+                          {"offset", first},
+                          {"count", n}};
+      head["next"] = first + n < cells->size() ? nlohmann::json(first + n) : nlohmann::json(nullptr);
+      std::string out = head.dump();
+      out.pop_back();  // the closing brace: the voxels follow
+      out += ",\"voxels\":";
+      out += v;
+      out += '}';
+      return {200, "application/json", std::move(out)};
+    }
+    if (path == "/api/camera_path") {
+      expect("GET");
+      nlohmann::json positions = nlohmann::json::array();
+      for (const Eigen::Vector3d& p : served->camera_path) positions.push_back({p.x(), p.y(), p.z()});
+      return json({{"frame", "map"}, {"frames", served->frames}, {"positions", std::move(positions)}});
+    }
+    if (const ViewerAsset* asset = findViewerAsset(path)) {
+      expect("GET");
+      return {200, asset->content_type, std::string(asset->bytes, asset->size)};
+    }
+    throw Refusal(404, "no such path: " + path.substr(0, 200) +
+                           " (the API: GET /api/info, /api/voxels, /api/camera_path; POST /api/query, /api/foot, "
+                           "/api/plan; the viewer: GET /)");
+  } catch (const Refusal& r) {
+    return {r.status, "application/json", errorBody(r.what())};
+  } catch (const std::bad_alloc&) {
+    return {503, "application/json", errorBody("out of memory answering this request")};
+  } catch (const std::exception& e) {
+    return {500, "application/json", errorBody(std::string("internal error: ") + e.what())};
+  }
+}
+
+}  // namespace mobmap::app::serve

@@ -1,0 +1,90 @@
+#pragma once
+// The HTTP API of `mobmap serve` as plain functions: a request (method, path, query
+// parameters, body) in, a response (status, content type, body) out. The server
+// (http_server.hpp) only carries them over sockets, so tests and fuzzers can call them
+// directly.
+
+#include "mobmap/mapping/map_metadata.hpp"
+#include "mobmap/mapping/mobility_map.hpp"
+
+#include <Eigen/Core>
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+namespace mobmap::app::serve {
+
+/// The map a request is answered from, as one consistent whole.
+struct ServedMap {
+  std::shared_ptr<const mapping::MobilityMap> map;  ///< never null
+  /// Its MAP.json, when it has one (a saved map; a live map once it is saved).
+  std::shared_ptr<const mapping::MapMetadata> metadata;
+  int frames = 0;                          ///< frames fused into the map so far
+  std::vector<Eigen::Vector3d> camera_path;  ///< camera positions, map frame, one per frame
+  bool building = false;                   ///< frames are still being fused (serve --live)
+};
+
+/// Where the served map comes from: a saved map, or a live one that changes as frames are
+/// fused. Thread-safe: requests read it from the server's threads.
+class MapSource {
+ public:
+  explicit MapSource(ServedMap initial);
+  [[nodiscard]] std::shared_ptr<const ServedMap> current() const;
+  void publish(ServedMap next);
+
+ private:
+  mutable std::mutex mutex_;
+  std::shared_ptr<const ServedMap> current_;
+};
+
+struct Limits {
+  std::size_t max_body_bytes = 16u << 20;  ///< request bodies larger than this: 413
+  std::size_t max_batch = 100000;          ///< points or soles per request: 413
+  std::size_t max_voxels = 2000000;        ///< voxels per /api/voxels page: 413
+  double max_plan_time_s = 60.0;           ///< time_limit_s a plan request may ask for
+};
+
+struct Response {
+  int status = 200;
+  std::string content_type = "application/json";
+  std::string body;
+};
+
+/// Answers one request. Never throws: bad requests are 400 (malformed JSON, wrong
+/// shapes, NaN or infinite numbers, unknown fields), 404 (unknown paths), 405 (a known
+/// path with the wrong method) and 413 (batches over the limits), each with a JSON body
+/// {"error": "..."}. `map_label` is the "map" field of /api/info.
+class Api {
+ public:
+  Api(std::string map_label, const MapSource& source, Limits limits = {});
+  [[nodiscard]] Response handle(const std::string& method, const std::string& path,
+                                const std::multimap<std::string, std::string>& params, const std::string& body) const;
+  [[nodiscard]] const Limits& limits() const { return limits_; }
+
+ private:
+  struct Cache;
+  std::string label_;
+  const MapSource& source_;
+  Limits limits_;
+  std::shared_ptr<Cache> cache_;
+};
+
+/// Surface voxels on a grid of cells `level` times coarser than the map (cell side
+/// resolution * 2^level): each cell that holds an occupied voxel, with the lowest known
+/// mobility in it (as the tree's inner nodes keep it) or NaN. Cells in key order (z, y, x).
+struct Cell {
+  Eigen::Vector3d centre;
+  float mobility;
+};
+std::vector<Cell> surfaceCells(const mapping::MobilityOcTree& tree, int level);
+
+/// The error body the API answers with.
+std::string errorBody(const std::string& message);
+
+}  // namespace mobmap::app::serve

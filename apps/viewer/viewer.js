@@ -1,0 +1,302 @@
+// The viewer of `mobmap serve`: the map's surface voxels in mobility colours, the camera
+// path, a click that asks the server about a voxel, and a refresh while a live map grows.
+// Map frame: z up, metres. Query string: ?max=N caps the voxels drawn (default 300000;
+// the server coarsens the grid to stay under it).
+(function () {
+  'use strict';
+
+  const params = new URLSearchParams(window.location.search);
+  const maxVoxels = Math.max(1, Math.min(2000000, parseInt(params.get('max') || '300000', 10) || 300000));
+  const statusEl = document.getElementById('status');
+  const titleEl = document.getElementById('title');
+  const answerEl = document.getElementById('answer');
+
+  // mobmap's colour scale (as the octovis export and the pictures): red 0, yellow 0.5,
+  // green 1; unknown grey.
+  function mobilityRgb(m) {
+    if (m === null || !isFinite(m)) return [140, 140, 140];
+    m = Math.min(1, Math.max(0, m));
+    return [Math.round(255 * Math.min(1, 2 * (1 - m))), Math.round(220 * Math.min(1, 2 * m)), 0];
+  }
+
+  // --- scene --------------------------------------------------------------------------
+  const container = document.getElementById('view');
+  const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+  renderer.setPixelRatio(window.devicePixelRatio || 1);
+  renderer.setSize(window.innerWidth, window.innerHeight);
+  renderer.setClearColor(0x1b1d22);
+  container.appendChild(renderer.domElement);
+  const scene = new THREE.Scene();
+  const camera = new THREE.PerspectiveCamera(50, window.innerWidth / window.innerHeight, 0.02, 2000);
+  camera.up.set(0, 0, 1);  // the map frame's z is up
+  camera.position.set(-4, -6, 5);
+  const controls = new THREE.OrbitControls(camera, renderer.domElement);
+  controls.addEventListener('change', render);
+
+  let frameRequested = false;
+  function render() {
+    if (frameRequested) return;
+    frameRequested = true;
+    requestAnimationFrame(function () {
+      frameRequested = false;
+      renderer.render(scene, camera);
+    });
+  }
+  window.addEventListener('resize', function () {
+    camera.aspect = window.innerWidth / window.innerHeight;
+    camera.updateProjectionMatrix();
+    renderer.setSize(window.innerWidth, window.innerHeight);
+    render();
+  });
+
+  // Voxels: one cube drawn many times (instancing), placed and coloured per voxel;
+  // faces shaded by their direction so that walls and floors read apart.
+  const cube = new THREE.BoxBufferGeometry(1, 1, 1);
+  const material = new THREE.ShaderMaterial({
+    uniforms: { cellSize: { value: 0.02 } },
+    vertexShader: [
+      'uniform float cellSize;',
+      'attribute vec3 offset;',
+      'attribute vec3 colour;',
+      'varying vec3 vColour;',
+      'void main() {',
+      '  float shade = normal.z > 0.5 ? 1.0 : (normal.z < -0.5 ? 0.5 : (abs(normal.x) > 0.5 ? 0.8 : 0.66));',
+      '  vColour = colour * shade;',
+      '  vec3 p = offset + position * cellSize;',
+      '  gl_Position = projectionMatrix * modelViewMatrix * vec4(p, 1.0);',
+      '}'].join('\n'),
+    fragmentShader: [
+      'varying vec3 vColour;',
+      'void main() { gl_FragColor = vec4(vColour, 1.0); }'].join('\n'),
+  });
+  let voxelMesh = null;
+  let pathLine = null;
+  let pathHead = null;
+  const picked = new THREE.LineSegments(new THREE.EdgesGeometry(cube), new THREE.LineBasicMaterial({ color: 0xffffff }));
+  picked.visible = false;
+  scene.add(picked);
+
+  // What is drawn: cell index -> voxel, for clicks.
+  let grid = { size: 0.02, cells: new Map(), min: null, max: null };
+  function cellKey(i, j, k) { return i + ',' + j + ',' + k; }
+
+  function setVoxels(voxels, cellSize) {
+    const n = voxels.length / 4;
+    const offsets = new Float32Array(n * 3);
+    const colours = new Uint8Array(n * 3);
+    const cells = new Map();
+    const min = [Infinity, Infinity, Infinity], max = [-Infinity, -Infinity, -Infinity];
+    for (let v = 0; v < n; ++v) {
+      for (let a = 0; a < 3; ++a) {
+        const c = voxels[4 * v + a];
+        offsets[3 * v + a] = c;
+        min[a] = Math.min(min[a], c - cellSize / 2);
+        max[a] = Math.max(max[a], c + cellSize / 2);
+      }
+      const rgb = mobilityRgb(voxels[4 * v + 3]);
+      colours[3 * v] = rgb[0]; colours[3 * v + 1] = rgb[1]; colours[3 * v + 2] = rgb[2];
+      cells.set(cellKey(Math.floor(voxels[4 * v] / cellSize), Math.floor(voxels[4 * v + 1] / cellSize),
+                        Math.floor(voxels[4 * v + 2] / cellSize)), v);
+    }
+    if (voxelMesh) { scene.remove(voxelMesh); voxelMesh.geometry.dispose(); voxelMesh = null; }
+    if (n > 0) {
+      const g = new THREE.InstancedBufferGeometry();
+      g.setIndex(cube.index);
+      g.setAttribute('position', cube.attributes.position);
+      g.setAttribute('normal', cube.attributes.normal);
+      g.setAttribute('offset', new THREE.InstancedBufferAttribute(offsets, 3));
+      g.setAttribute('colour', new THREE.InstancedBufferAttribute(colours, 3, true));
+      g.maxInstancedCount = n;
+      voxelMesh = new THREE.Mesh(g, material);
+      voxelMesh.frustumCulled = false;  // the unit cube's bounds are not the map's
+      scene.add(voxelMesh);
+    }
+    material.uniforms.cellSize.value = cellSize;
+    grid = { size: cellSize, cells: cells, voxels: voxels, min: n ? min : null, max: n ? max : null };
+  }
+
+  function setPath(positions) {
+    if (pathLine) { scene.remove(pathLine); pathLine.geometry.dispose(); pathLine = null; }
+    if (pathHead) { scene.remove(pathHead); pathHead = null; }
+    if (positions.length === 0) return;
+    const flat = new Float32Array(positions.length * 3);
+    positions.forEach(function (p, i) { flat[3 * i] = p[0]; flat[3 * i + 1] = p[1]; flat[3 * i + 2] = p[2]; });
+    const g = new THREE.BufferGeometry();
+    g.setAttribute('position', new THREE.BufferAttribute(flat, 3));
+    pathLine = new THREE.Line(g, new THREE.LineBasicMaterial({ color: 0x33aaff }));
+    scene.add(pathLine);
+    const last = positions[positions.length - 1];
+    pathHead = new THREE.Mesh(new THREE.SphereBufferGeometry(Math.max(0.03, grid.size), 12, 8),
+                              new THREE.MeshBasicMaterial({ color: 0x33aaff }));
+    pathHead.position.set(last[0], last[1], last[2]);
+    scene.add(pathHead);
+  }
+
+  // The first time there is something to see: look at it from above and behind.
+  let framed = false;
+  function frameView() {
+    if (framed || !grid.min) return;
+    framed = true;
+    const c = new THREE.Vector3((grid.min[0] + grid.max[0]) / 2, (grid.min[1] + grid.max[1]) / 2,
+                                (grid.min[2] + grid.max[2]) / 2);
+    const d = Math.max(1, Math.hypot(grid.max[0] - grid.min[0], grid.max[1] - grid.min[1], grid.max[2] - grid.min[2]));
+    controls.target.copy(c);
+    camera.position.set(c.x - 0.45 * d, c.y - 0.75 * d, c.z + 0.75 * d);
+    camera.near = d / 500;
+    camera.far = d * 20;
+    camera.updateProjectionMatrix();
+    controls.update();
+  }
+
+  // --- the server -----------------------------------------------------------------------
+  function getJson(url) {
+    return fetch(url).then(function (r) {
+      return r.json().then(function (j) {
+        if (!r.ok) throw new Error(j.error || ('HTTP ' + r.status));
+        return j;
+      });
+    });
+  }
+  function postJson(url, body) {
+    return fetch(url, { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify(body) })
+      .then(function (r) { return r.json(); });
+  }
+
+  // All pages of the voxels at the finest grid with at most maxVoxels cells.
+  function loadVoxels() {
+    let all = [];
+    let head = null;
+    function page(offset) {
+      let url = 'api/voxels?max=' + maxVoxels + '&offset=' + offset;
+      if (head) url += '&level=' + head.level;  // the level of the first page, for every page
+      return getJson(url).then(function (j) {
+        if (!head) head = j;
+        all = all.concat(j.voxels);
+        return j.next === null ? { head: head, voxels: all } : page(j.next);
+      });
+    }
+    return page(0);
+  }
+
+  let shownFrames = -1;
+  let shownBuilding = null;
+  let loading = false;
+  function describe(info, head) {
+    const parts = [];
+    parts.push(head.total + ' surface voxels' + (head.level > 0 ? ' (' + (head.cell_size_m * 100).toFixed(0) +
+               ' cm cells, coarsened from ' + (info.resolution_m * 100).toFixed(0) + ' cm)' : ' of ' +
+               (info.resolution_m * 100).toFixed(0) + ' cm'));
+    parts.push(info.frames + ' frames' + (info.building ? ', building...' : ''));
+    return parts.join('; ');
+  }
+
+  function refresh() {
+    if (loading) return;
+    loading = true;
+    getJson('api/info').then(function (info) {
+      titleEl.textContent = info.map;
+      document.title = 'mobmap: ' + info.map;
+      if (info.frames === shownFrames && info.building === shownBuilding) return null;
+      return Promise.all([loadVoxels(), getJson('api/camera_path')]).then(function (got) {
+        const v = got[0];
+        setVoxels(v.voxels, v.head.cell_size_m);
+        setPath(got[1].positions);
+        frameView();
+        shownFrames = v.head.frames;
+        shownBuilding = v.head.building;
+        statusEl.textContent = describe(info, v.head);
+        render();
+        // Tests wait for this: the map is drawn.
+        requestAnimationFrame(function () { document.body.setAttribute('data-drawn-frames', String(shownFrames)); });
+      });
+    }).catch(function (e) {
+      statusEl.textContent = 'error: ' + e.message;
+    }).then(function () {
+      loading = false;
+      // A live map is looked at again while it grows; a finished one is left alone.
+      if (shownBuilding !== false) setTimeout(refresh, 1000);
+    });
+  }
+
+  // --- clicks -----------------------------------------------------------------------------
+  // The first drawn cell along the ray (a grid walk, one cell at a time).
+  function firstCell(ray) {
+    if (!grid.min) return null;
+    const s = grid.size;
+    const o = ray.origin.toArray(), d = ray.direction.toArray();
+    // Enter the map's box first.
+    let t0 = 0, t1 = Infinity;
+    for (let a = 0; a < 3; ++a) {
+      if (Math.abs(d[a]) < 1e-12) {
+        if (o[a] < grid.min[a] || o[a] > grid.max[a]) return null;
+        continue;
+      }
+      let ta = (grid.min[a] - o[a]) / d[a], tb = (grid.max[a] - o[a]) / d[a];
+      if (ta > tb) { const t = ta; ta = tb; tb = t; }
+      t0 = Math.max(t0, ta); t1 = Math.min(t1, tb);
+    }
+    if (t0 > t1) return null;
+    const p = [o[0] + d[0] * t0, o[1] + d[1] * t0, o[2] + d[2] * t0];
+    const cell = p.map(function (x, a) { return Math.floor(x / s - (d[a] < 0 ? 1e-9 : -1e-9)); });
+    const step = d.map(function (x) { return x > 0 ? 1 : -1; });
+    const tMax = [0, 1, 2].map(function (a) {
+      if (d[a] === 0) return Infinity;
+      const edge = (cell[a] + (d[a] > 0 ? 1 : 0)) * s;
+      return t0 + (edge - p[a]) / d[a];
+    });
+    const tDelta = d.map(function (x) { return x === 0 ? Infinity : s / Math.abs(x); });
+    for (let n = 0; n < 100000; ++n) {
+      const v = grid.cells.get(cellKey(cell[0], cell[1], cell[2]));
+      if (v !== undefined) return v;
+      const a = tMax[0] < tMax[1] ? (tMax[0] < tMax[2] ? 0 : 2) : (tMax[1] < tMax[2] ? 1 : 2);
+      if (tMax[a] > t1) return null;
+      cell[a] += step[a];
+      tMax[a] += tDelta[a];
+    }
+    return null;
+  }
+
+  function fmt(x, digits) { return x === null || x === undefined ? 'unknown' : Number(x).toFixed(digits); }
+
+  const down = { x: 0, y: 0 };
+  renderer.domElement.addEventListener('pointerdown', function (e) { down.x = e.clientX; down.y = e.clientY; });
+  renderer.domElement.addEventListener('pointerup', function (e) {
+    if (Math.hypot(e.clientX - down.x, e.clientY - down.y) > 4) return;  // a drag, not a click
+    const rect = renderer.domElement.getBoundingClientRect();
+    const ndc = new THREE.Vector2(((e.clientX - rect.left) / rect.width) * 2 - 1, -((e.clientY - rect.top) / rect.height) * 2 + 1);
+    const raycaster = new THREE.Raycaster();
+    raycaster.setFromCamera(ndc, camera);
+    const v = firstCell(raycaster.ray);
+    if (v === null) { picked.visible = false; answerEl.style.display = 'none'; render(); return; }
+    const c = [grid.voxels[4 * v], grid.voxels[4 * v + 1], grid.voxels[4 * v + 2]];
+    picked.position.set(c[0], c[1], c[2]);
+    picked.scale.setScalar(grid.size * 1.02);
+    picked.visible = true;
+    render();
+    // The voxel's answer, and a sole of the default size centred on its top.
+    const top = c[2] + grid.size / 2;
+    Promise.all([
+      postJson('api/query', { points: [c] }),
+      postJson('api/foot', { soles: [[c[0], c[1], top, 0, 0.25, 0.12]] }),
+    ]).then(function (r) {
+      const q = r[0].answers ? r[0].answers[0] : r[0];
+      const f = r[1].answers ? r[1].answers[0] : r[1];
+      const lines = ['voxel at (' + c.map(function (x) { return x.toFixed(3); }).join(', ') + ') m, map frame'];
+      if (q.error) {
+        lines.push('error: ' + q.error);
+      } else {
+        lines.push('state      ' + q.state);
+        lines.push('mobility   ' + fmt(q.mobility, 3) + (q.variance !== null && q.variance !== undefined ? '  (variance ' + fmt(q.variance, 4) + ')' : ''));
+        lines.push('seen       ' + q.count + ' times');
+      }
+      if (f && !f.error) {
+        lines.push('a 25 x 12 cm sole here: min mobility ' + fmt(f.min_mobility, 2) + ', known ' + fmt(100 * f.known_fraction, 0) + ' %');
+        if (f.support_plane) lines.push('  support tilt ' + fmt(f.support_plane.tilt_deg, 1) + ' deg');
+      }
+      answerEl.textContent = lines.join('\n');
+      answerEl.style.display = 'block';
+    });
+  });
+
+  refresh();
+})();
