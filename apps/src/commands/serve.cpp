@@ -8,6 +8,8 @@
 #include "serve/http_server.hpp"
 
 #include "mobmap/mapping/live_mapper.hpp"
+#include "mobmap/mapping/map_metadata.hpp"
+#include "mobmap/mapping/mobility_map.hpp"
 
 #include <unistd.h>
 
@@ -182,7 +184,15 @@ Command addServeCommand(CLI::App& app) {
       s.map = std::move(map);
       s.frames = meta.frames;
       s.camera_path = cameraPath(meta).positions;
-      s.metadata = std::make_shared<const mapping::MapMetadata>(meta);
+      // As `mobmap info` reads it back from MAP.json.
+      try {
+        s.metadata = std::make_shared<const mapping::MapMetadata>(mapping::readMapMetadata(b.out));
+      } catch (const std::exception&) {
+        mapping::MapMetadata written = meta;
+        written.found = true;
+        written.path = mapping::mapFileStem(b.out) + ".json";
+        s.metadata = std::make_shared<const mapping::MapMetadata>(std::move(written));
+      }
       source.publish(std::move(s));
     };
     // MOBMAP_HOLD_FRAMES_ON_STDIN=1: each frame waits for a line on standard input (end of

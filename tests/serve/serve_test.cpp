@@ -1,0 +1,503 @@
+// `mobmap serve`: its answers are the CLI's, bad requests are refused and the server goes
+// on, a live map's frame count grows while queries are answered, the voxels are paged and
+// coarsened faithfully, and the viewer draws the corridor's green floor and red walls in
+// a real browser.
+// Eigen before httplib: <resolv.h>, which httplib pulls in, defines _res, a name Eigen uses.
+#include "io/png_io.hpp"
+#include "serve/api.hpp"
+
+#include "mobmap/mapping/mobility_map.hpp"
+
+#include "serve_support.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace mobmap::serve_test {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Result {
+  int code = -1;
+  std::string out;
+};
+
+Result runShell(const std::string& command) {
+  Result r;
+  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
+  if (!pipe) return r;
+  char buf[4096];
+  while (std::fgets(buf, sizeof buf, pipe)) r.out += buf;
+  const int status = ::pclose(pipe);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+Result mobmap(const std::string& args) { return runShell(std::string(MOBMAP_EXE) + " " + args); }
+
+// The JSON lines of `out` (notes on standard error may come between).
+std::vector<nlohmann::json> jsonLines(const std::string& out) {
+  std::vector<nlohmann::json> lines;
+  std::istringstream in(out);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line.front() == '{') lines.push_back(nlohmann::json::parse(line));
+  }
+  return lines;
+}
+
+std::string tempDir(const std::string& name) {
+  const fs::path p = fs::temp_directory_path() / ("mobmap-serve-" + std::to_string(::getpid()) + "-" + name);
+  fs::remove_all(p);
+  fs::create_directories(p);
+  return p.string();
+}
+
+// Points over the corridor and around it: on the floor, above it, in the walls, outside.
+std::vector<std::array<double, 3>> probePoints(double step) {
+  std::vector<std::array<double, 3>> points;
+  for (double x = 0.5; x <= 3.51; x += step)
+    for (double y = -1.6; y <= 1.61; y += step)
+      for (double z : {0.01, 0.05, 0.3, 1.0}) points.push_back({x, y, z});
+  points.push_back({1e6, -1e6, 3});  // far outside the map
+  return points;
+}
+
+std::string asLines(const std::vector<std::vector<double>>& rows) {
+  std::ostringstream out;
+  out.precision(17);
+  for (const auto& r : rows) {
+    for (std::size_t i = 0; i < r.size(); ++i) out << (i ? " " : "") << r[i];
+    out << "\n";
+  }
+  return out.str();
+}
+
+// The CLI's answers to `rows` given on standard input: one JSON line each.
+std::vector<nlohmann::json> cliAnswers(const std::string& dir, const std::string& args,
+                                       const std::vector<std::vector<double>>& rows) {
+  const std::string input = dir + "/rows.txt";
+  std::ofstream(input) << asLines(rows);
+  const Result r = mobmap(args + " < " + input);
+  EXPECT_EQ(r.code, 0) << r.out;
+  return jsonLines(r.out);
+}
+
+// A noise-free corridor of 40 frames (walls and a box in view) mapped with its origin
+// moved, so that the world and map frames differ; built once for the suite.
+class ServedCorridor : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new std::string(tempDir("corridor"));
+    const Result sim = mobmap("simulate --out " + *dir_ + "/seq --frames 40 --noise none --quiet");
+    ASSERT_EQ(sim.code, 0) << sim.out;
+    const Result built = mobmap("build " + *dir_ + "/seq --out " + *dir_ + "/m.ot --origin 0.5 0.25 -0.1 --quiet");
+    ASSERT_EQ(built.code, 0) << built.out;
+  }
+  static void TearDownTestSuite() {
+    fs::remove_all(*dir_);
+    delete dir_;
+  }
+  static std::string map() { return *dir_ + "/m.ot"; }
+  static std::string dir() { return *dir_; }
+
+ private:
+  static std::string* dir_;
+};
+std::string* ServedCorridor::dir_ = nullptr;
+
+TEST_F(ServedCorridor, PointAndSoleAnswersAreTheClis) {
+  ServeProcess server({"serve", map(), "--port", "0"}, dir() + "/points.err");
+  ASSERT_TRUE(server.started());
+  const int port = server.port();
+  ASSERT_GT(port, 0) << server.output();
+  auto c = client(port);
+
+  std::vector<std::vector<double>> points;
+  for (const auto& p : probePoints(0.25)) points.push_back({p[0], p[1], p[2]});
+  std::vector<std::vector<double>> soles;
+  for (double x = 0.6; x <= 3.41; x += 0.4)
+    for (double y = -1.2; y <= 1.21; y += 0.6)
+      for (double yaw : {0.0, 0.7}) soles.push_back({x, y, 0.05, yaw, 0.25, 0.12});
+  int surfaces = 0, supported = 0;
+  for (const std::string frame : {"map", "world"}) {
+    for (const double snap : {-1.0, 0.3}) {
+      nlohmann::json request{{"points", points}, {"frame", frame}};
+      std::string snap_arg;
+      if (snap >= 0) {
+        request["snap"] = snap;
+        snap_arg = " --snap 0.3";
+      }
+      const Reply r = post(*c, "/api/query", request.dump());
+      ASSERT_EQ(r.status, 200) << r.raw;
+      const auto cli = cliAnswers(dir(), "query " + map() + " --json --input-frame " + frame + snap_arg, points);
+      ASSERT_EQ(cli.size(), points.size());
+      ASSERT_EQ(r.body["answers"].size(), points.size());
+      for (std::size_t i = 0; i < points.size(); ++i) {
+        EXPECT_EQ(r.body["answers"][i], cli[i]) << frame << " snap " << snap << " point " << i;
+        surfaces += cli[i]["state"] == "surface";
+      }
+      EXPECT_EQ(r.body["frames"], 40);
+
+      nlohmann::json feet{{"soles", soles}, {"frame", frame}};
+      if (snap >= 0) feet["snap"] = snap;
+      const Reply f = post(*c, "/api/foot", feet.dump());
+      ASSERT_EQ(f.status, 200) << f.raw;
+      const auto cli_feet = cliAnswers(dir(), "query " + map() + " --feet --json --input-frame " + frame + snap_arg, soles);
+      ASSERT_EQ(cli_feet.size(), soles.size());
+      for (std::size_t i = 0; i < soles.size(); ++i) {
+        EXPECT_EQ(f.body["answers"][i], cli_feet[i]) << frame << " snap " << snap << " sole " << i;
+        supported += !cli_feet[i]["support_plane"].is_null();
+      }
+    }
+  }
+  // The comparison covered surfaces and supported soles, not only empty space.
+  EXPECT_GT(surfaces, 100);
+  EXPECT_GT(supported, 50);
+  EXPECT_EQ(server.stop(), 0);
+}
+
+TEST_F(ServedCorridor, PlanAndInfoAreTheClis) {
+  ServeProcess server({"serve", map(), "--port", "0"}, dir() + "/plan.err");
+  const int port = server.port();
+  ASSERT_GT(port, 0) << server.output();
+  auto c = client(port);
+  // The CLI's plan without its time, which no two runs share.
+  const auto untimed = [](nlohmann::json j) {
+    EXPECT_TRUE(j.contains("planning_time_s"));
+    j.erase("planning_time_s");
+    return j;
+  };
+  for (const std::string frame : {"map", "world"}) {
+    const Reply r = post(*c, "/api/plan",
+                         nlohmann::json{{"from", {1.0, 0.0, 0.1}}, {"to", {2.6, 0.3, 0.1}}, {"frame", frame},
+                                        {"max_step_m", 0.12}, {"sole_length_m", 0.22}, {"sole_width_m", 0.11}}
+                             .dump());
+    ASSERT_EQ(r.status, 200) << r.raw;
+    const Result cli = mobmap("plan " + map() + " --from 1 0 0.1 --to 2.6 0.3 0.1 --input-frame " + frame +
+                              " --max-step 0.12 --sole 0.22 0.11 --json");
+    ASSERT_EQ(cli.code, 0) << cli.out;
+    const nlohmann::json expected = untimed(jsonLines(cli.out).at(0));
+    EXPECT_EQ(untimed(r.body), expected) << frame;
+    EXPECT_TRUE(expected["found"].get<bool>());
+    EXPECT_GT(expected["footsteps"].size(), 4u);
+  }
+  // No way there: found false, with the reason, as the CLI says it.
+  const Reply none = post(*c, "/api/plan", R"({"from":[1,0,0.1],"to":[2.6,0.3,0.1],"max_stride_m":0.05})");
+  const Result cli_none = mobmap("plan " + map() + " --from 1 0 0.1 --to 2.6 0.3 0.1 --max-stride 0.05 --json");
+  ASSERT_EQ(none.status, 200) << none.raw;
+  EXPECT_EQ(untimed(none.body), untimed(jsonLines(cli_none.out).at(0)));
+
+  const Reply info = get(*c, "/api/info");
+  ASSERT_EQ(info.status, 200);
+  const Result cli_info = mobmap("info " + map() + " --json");
+  nlohmann::json served = info.body;
+  EXPECT_EQ(served["frames"], 40);
+  EXPECT_EQ(served["building"], false);
+  served.erase("frames");
+  served.erase("building");
+  EXPECT_EQ(served, jsonLines(cli_info.out).at(0));
+
+  // The camera path is MAP.json's.
+  const Reply path = get(*c, "/api/camera_path");
+  ASSERT_EQ(path.status, 200);
+  EXPECT_EQ(path.body["positions"], info.body["metadata"]["trajectory_map"]);
+  EXPECT_EQ(server.stop(), 0);
+}
+
+TEST_F(ServedCorridor, BadRequestsAreRefusedAndTheServerGoesOn) {
+  ServeProcess server({"serve", map(), "--port", "0", "--max-batch", "100"}, dir() + "/bad.err");
+  const int port = server.port();
+  ASSERT_GT(port, 0) << server.output();
+  auto c = client(port);
+  struct Bad {
+    std::string path, body;
+    int status;
+  };
+  std::string many = "{\"points\":[";
+  for (int i = 0; i < 101; ++i) many += std::string(i ? "," : "") + "[1,0,0]";
+  many += "]}";
+  const std::string nested = std::string(100000, '[') + std::string(100000, ']');
+  const std::vector<Bad> bad{
+      {"/api/query", "{\"points\": [[1,0,0]", 400},          // cut short
+      {"/api/query", "", 400},                               // empty
+      {"/api/query", "[[1,0,0]]", 400},                      // not an object
+      {"/api/query", "{}", 400},                             // no points
+      {"/api/query", R"({"points": [[1,0]]})", 400},         // two numbers
+      {"/api/query", R"({"points": [1,0,0]})", 400},         // not an array of points
+      {"/api/query", R"({"points": [["1",0,0]]})", 400},     // a string
+      {"/api/query", R"({"points": [[NaN,0,0]]})", 400},     // NaN is not JSON
+      {"/api/query", R"({"points": [[1e999,0,0]]})", 400},   // infinite
+      {"/api/query", R"({"points": [[null,0,0]]})", 400},
+      {"/api/query", R"({"points": [[1,0,0]], "frame": "moon"})", 400},
+      {"/api/query", R"({"points": [[1,0,0]], "snap": -1})", 400},
+      {"/api/query", R"({"points": [[1,0,0]], "snapp": 1})", 400},  // a misspelt field
+      {"/api/query", many, 413},                                    // over --max-batch
+      {"/api/query", nested, 400},
+      {"/api/foot", R"({"soles": [[1,0,0,0,0,0.1]]})", 400},        // a sole of no length
+      {"/api/foot", R"({"soles": [[1,0,0,0,0.2,11]]})", 400},       // wider than 10 m
+      {"/api/foot", R"({"soles": [[1,0,0,0,0.2]]})", 400},
+      {"/api/plan", R"({"to": [2,0,0.1]})", 400},
+      {"/api/plan", R"({"from": [1,0,0.1], "to": [2,0,0.1], "max_step_m": "high"})", 400},
+      {"/api/plan", R"({"from": [1,0,0.1], "to": [2,0,0.1], "max_step_m": -1})", 400},
+      {"/api/plan", R"({"from": [1,0,0.1], "to": [2,0,0.1], "wings": 2})", 400},
+      {"/api/plan", R"({"from": [1,0,0.1], "to": [2,0,0.1], "time_limit_s": 1e9})", 400},
+      {"/api/plan", R"({"from": [50,50,0.1], "to": [2,0,0.1]})", 400},  // no surface at the start
+      {"/api/nothing", "{}", 404},
+  };
+  for (const Bad& b : bad) {
+    const Reply r = post(*c, b.path, b.body);
+    EXPECT_EQ(r.status, b.status) << b.path << " " << b.body.substr(0, 80) << ": " << r.raw;
+    EXPECT_TRUE(r.body.is_object() && r.body["error"].is_string()) << r.raw.substr(0, 200);
+    // Still serving, and still right.
+    const Reply ok = post(*c, "/api/query", R"({"points": [[1.2,0,0.05]], "snap": 0.3, "frame": "world"})");
+    ASSERT_EQ(ok.status, 200) << "after " << b.body.substr(0, 80);
+    EXPECT_EQ(ok.body["answers"][0]["state"], "surface");
+  }
+  const std::vector<std::pair<std::string, int>> bad_gets{
+      {"/api/query", 405},          {"/nothing/here", 404},          {"/api/voxels?max=0", 400},
+      {"/api/voxels?max=abc", 400}, {"/api/voxels?level=16", 413},   {"/api/voxels?limit=1e3", 400},
+      {"/api/voxels?offset=-1", 400}, {"/api/voxels?limit=3000000", 413},
+  };
+  for (const auto& [path, status] : bad_gets) {
+    const Reply r = get(*c, path);
+    EXPECT_EQ(r.status, status) << path << ": " << r.raw;
+    EXPECT_TRUE(r.body.is_object() && r.body["error"].is_string()) << path;
+  }
+  // A body over the server's 16 MiB: refused before it is read.
+  const Reply huge = post(*c, "/api/query", std::string(17u << 20, ' '));
+  EXPECT_EQ(huge.status, 413);
+  auto c2 = client(port);
+  EXPECT_EQ(get(*c2, "/api/info").status, 200);
+  EXPECT_EQ(server.stop(), 0);
+}
+
+// The voxels a viewer draws: every occupied voxel once at the finest level, pages that
+// add up to the whole, and coarser grids whose cells hold the lowest known mobility of
+// the voxels in them (brute force over the finest cells).
+TEST_F(ServedCorridor, VoxelsArePagedAndCoarsenedFaithfully) {
+  const mapping::MobilityMap loaded = mapping::openMap(map());
+  const auto& tree = loaded.tree();
+  const std::vector<app::serve::Cell> fine = app::serve::surfaceCells(tree, 0);
+  std::size_t occupied = 0;
+  for (auto it = tree.begin_leafs(); it != tree.end_leafs(); ++it) {
+    if (!tree.isNodeOccupied(*it)) continue;
+    occupied += static_cast<std::size_t>(std::lround(std::pow(it.getSize() / tree.getResolution(), 3)));
+  }
+  ASSERT_EQ(fine.size(), occupied);
+  for (const auto& cell : fine) {
+    const mapping::PointQuery q = loaded.query(cell.centre);
+    ASSERT_EQ(q.state, mapping::VoxelState::kSurface);
+    ASSERT_NEAR((q.centre - cell.centre).norm(), 0.0, 1e-4 + q.size_m);
+    if (q.has_mobility) {
+      ASSERT_FLOAT_EQ(cell.mobility, static_cast<float>(q.mobility));
+    } else {
+      ASSERT_TRUE(std::isnan(cell.mobility));
+    }
+  }
+  const double res = tree.getResolution();
+  for (int level : {1, 3}) {
+    const double size = res * std::ldexp(1.0, level);
+    std::map<std::array<long, 3>, float> expected;  // cell -> lowest known mobility (NaN: none)
+    for (const auto& f : fine) {
+      const std::array<long, 3> k{std::lround(std::floor(f.centre.x() / size)), std::lround(std::floor(f.centre.y() / size)),
+                                  std::lround(std::floor(f.centre.z() / size))};
+      auto [it, inserted] = expected.emplace(k, f.mobility);
+      if (!inserted && !std::isnan(f.mobility) && !(it->second <= f.mobility)) it->second = f.mobility;
+    }
+    const auto coarse = app::serve::surfaceCells(tree, level);
+    ASSERT_EQ(coarse.size(), expected.size()) << "level " << level;
+    for (const auto& cell : coarse) {
+      const std::array<long, 3> k{std::lround(std::floor(cell.centre.x() / size)),
+                                  std::lround(std::floor(cell.centre.y() / size)),
+                                  std::lround(std::floor(cell.centre.z() / size))};
+      const auto it = expected.find(k);
+      ASSERT_NE(it, expected.end());
+      if (std::isnan(it->second)) {
+        EXPECT_TRUE(std::isnan(cell.mobility));
+      } else {
+        EXPECT_FLOAT_EQ(cell.mobility, it->second);
+      }
+    }
+  }
+
+  // Over HTTP: pages of 5000 add up to the finest grid; a cap on the count coarsens it.
+  ServeProcess server({"serve", map(), "--port", "0"}, dir() + "/voxels.err");
+  const int port = server.port();
+  ASSERT_GT(port, 0) << server.output();
+  auto c = client(port);
+  std::vector<double> all;
+  std::size_t offset = 0;
+  for (int pages = 0;; ++pages) {
+    ASSERT_LT(pages, 1000);
+    const Reply r = get(*c, "/api/voxels?level=0&limit=5000&offset=" + std::to_string(offset));
+    ASSERT_EQ(r.status, 200) << r.raw.substr(0, 200);
+    EXPECT_EQ(r.body["total"], fine.size());
+    for (const auto& v : r.body["voxels"]) all.push_back(v.is_null() ? NAN : v.get<double>());
+    if (r.body["next"].is_null()) break;
+    offset = r.body["next"].get<std::size_t>();
+  }
+  ASSERT_EQ(all.size(), 4 * fine.size());
+  for (std::size_t i = 0; i < fine.size(); ++i) {
+    for (int a = 0; a < 3; ++a) ASSERT_NEAR(all[4 * i + a], fine[i].centre(a), 1e-4);
+    if (std::isnan(fine[i].mobility)) {
+      ASSERT_TRUE(std::isnan(all[4 * i + 3]));
+    } else {
+      ASSERT_NEAR(all[4 * i + 3], fine[i].mobility, 5e-4);
+    }
+  }
+  const std::size_t cap = fine.size() / 10;
+  const Reply capped = get(*c, "/api/voxels?max=" + std::to_string(cap));
+  ASSERT_EQ(capped.status, 200);
+  const int level = capped.body["level"];
+  EXPECT_GE(level, 1);
+  EXPECT_LE(capped.body["total"].get<std::size_t>(), cap);
+  // The finest level under the cap: one level finer is over it.
+  EXPECT_GT(app::serve::surfaceCells(tree, level - 1).size(), cap);
+  EXPECT_DOUBLE_EQ(capped.body["cell_size_m"].get<double>(), res * std::ldexp(1.0, level));
+  EXPECT_EQ(server.stop(), 0);
+}
+
+// Headless Chromium loads the viewer from the server and draws it with WebGL (SwiftShader):
+// the page says it drew the map's 40 frames, and the screenshot shows the corridor's green
+// floor and its red walls.
+TEST_F(ServedCorridor, ViewerDrawsTheGreenFloorAndRedWallsInChromium) {
+  if (runShell("command -v chromium").code != 0) {
+    GTEST_SKIP() << "chromium is not installed (scripts/setup.sh installs it): the viewer is not drawn";
+  }
+  ServeProcess server({"serve", map(), "--port", "0"}, dir() + "/viewer.err");
+  const int port = server.port();
+  ASSERT_GT(port, 0) << server.output();
+  auto c = client(port);
+  // The page and three.js come from the server itself.
+  const auto page = c->Get("/");
+  ASSERT_TRUE(page);
+  EXPECT_EQ(page->status, 200);
+  EXPECT_NE(page->body.find("viewer.js"), std::string::npos);
+  for (const char* asset : {"/three.min.js", "/OrbitControls.js", "/viewer.js"}) {
+    const auto r = c->Get(asset);
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 200) << asset;
+    EXPECT_GT(r->body.size(), 1000u) << asset;
+  }
+
+  const std::string url = "http://127.0.0.1:" + std::to_string(port) + "/";
+  // Virtual time: the page's requests and frames complete before the capture, however
+  // slow the machine.
+  const std::string chromium = "timeout 600 chromium --headless --no-sandbox --use-angle=swiftshader "
+                               "--enable-unsafe-swiftshader --hide-scrollbars --no-first-run --user-data-dir=" +
+                               dir() + "/chromium --window-size=800,600 --virtual-time-budget=30000 ";
+  const Result dom = runShell(chromium + "--dump-dom " + url);
+  ASSERT_NE(dom.out.find("data-drawn-frames=\"40\""), std::string::npos) << dom.out.substr(0, 3000);
+  const std::string png = dir() + "/viewer.png";
+  const Result shot = runShell(chromium + "--screenshot=" + png + " " + url);
+  ASSERT_TRUE(fs::exists(png)) << shot.out;
+  const app::ImageRgb image = app::readPngRgb(png);
+  ASSERT_EQ(image.width, 800);
+  ASSERT_EQ(image.height, 600);
+  // Below the panels (the legend's colour bar would count): the scene only.
+  std::size_t green = 0, red = 0, scene = 0;
+  for (int y = 120; y < image.height; ++y) {
+    for (int x = 0; x < image.width; ++x) {
+      const auto& p = image.pixels[static_cast<std::size_t>(y) * static_cast<std::size_t>(image.width) + static_cast<std::size_t>(x)];
+      ++scene;
+      green += p[1] > 150 && p[0] < 90 && p[2] < 90;
+      red += p[0] > 150 && p[1] < 70 && p[2] < 70;
+    }
+  }
+  const double green_share = static_cast<double>(green) / scene, red_share = static_cast<double>(red) / scene;
+  EXPECT_GT(green_share, 0.10) << "green (walkable floor) share of the scene";
+  EXPECT_GT(red_share, 0.005) << "red (walls) share of the scene";
+  EXPECT_GT(green_share, 3 * red_share) << "the floor is most of what is seen";
+  EXPECT_EQ(server.stop(), 0);
+}
+
+// serve --live: the frame count grows frame by frame while queries are answered (each
+// frame waits for a line on the server's standard input), a snapshot answers as the map
+// of the same frames built by `mobmap build`, and the saved map is served and answered
+// as the CLI answers it.
+TEST(ServeLive, FrameCountGrowsWhileQueriesAreAnswered) {
+  const std::string dir = tempDir("live");
+  const Result sim = mobmap("simulate --out " + dir + "/seq --frames 8 --noise none --quiet");
+  ASSERT_EQ(sim.code, 0) << sim.out;
+  ServeProcess server({"serve", "--live", dir + "/seq", "--out", dir + "/live.ot", "--port", "0", "--quiet"},
+                      dir + "/live.err", {"MOBMAP_HOLD_FRAMES_ON_STDIN=1"});
+  const int port = server.port();
+  ASSERT_GT(port, 0) << server.output();
+  auto c = client(port);
+  std::vector<std::vector<double>> points;
+  for (const auto& p : probePoints(0.5)) points.push_back({p[0], p[1], p[2]});
+  const std::string request = nlohmann::json{{"points", points}, {"snap", 0.3}}.dump();
+
+  // Asks /api/info until `frames` frames are in the map (the server says so; no clock).
+  const auto waitForFrames = [&](int frames) {
+    for (int polls = 0; polls < 1000000; ++polls) {
+      const Reply r = get(*c, "/api/info");
+      if (r.status != 200) return nlohmann::json();
+      if (r.body["frames"] == frames) return r.body;
+      EXPECT_LT(r.body["frames"].get<int>(), frames) << "frames fused before they were let go";
+    }
+    return nlohmann::json();
+  };
+  const nlohmann::json at_start = waitForFrames(0);
+  ASSERT_TRUE(at_start.is_object());
+  EXPECT_EQ(at_start["building"], true);
+  EXPECT_EQ(at_start["surface_leaves"], 0);
+  std::size_t surface_before = 0;
+  for (int k = 1; k <= 8; ++k) {
+    server.writeLine();  // let one more frame go
+    const nlohmann::json info = waitForFrames(k);
+    ASSERT_TRUE(info.is_object()) << "frame " << k;
+    if (k < 8) {
+      EXPECT_EQ(info["building"], true);  // after the last, the map may be saved already
+    }
+    EXPECT_GT(info["surface_leaves"].get<std::size_t>(), surface_before) << "frame " << k << " added nothing";
+    surface_before = info["surface_leaves"].get<std::size_t>();
+    const Reply r = post(*c, "/api/query", request);
+    ASSERT_EQ(r.status, 200);
+    EXPECT_EQ(r.body["frames"], k);
+    ASSERT_EQ(r.body["answers"].size(), points.size());
+    EXPECT_EQ(get(*c, "/api/camera_path").body["positions"].size(), static_cast<std::size_t>(k));
+    if (k == 4) {
+      // The snapshot answers as the map of frames 0..3 built by the CLI.
+      const Result built = mobmap("build " + dir + "/seq --frames 0:3 --out " + dir + "/four.ot --quiet");
+      ASSERT_EQ(built.code, 0) << built.out;
+      const auto cli = cliAnswers(dir, "query " + dir + "/four.ot --json --snap 0.3", points);
+      ASSERT_EQ(cli.size(), points.size());
+      int surfaces = 0;
+      for (std::size_t i = 0; i < points.size(); ++i) {
+        const nlohmann::json& a = r.body["answers"][i];
+        for (const char* field : {"state", "mobility", "variance", "count", "occupancy"}) {
+          EXPECT_EQ(a.value(field, nlohmann::json()), cli[i].value(field, nlohmann::json())) << field << " at point " << i;
+        }
+        surfaces += cli[i]["state"] == "surface";
+      }
+      EXPECT_GT(surfaces, 20);
+    }
+  }
+  server.closeInput();
+  ASSERT_NE(server.lineWith("saved "), "") << server.output();
+  const Reply done = get(*c, "/api/info");
+  EXPECT_EQ(done.body["frames"], 8);
+  EXPECT_EQ(done.body["building"], false);
+  EXPECT_EQ(done.body["metadata"]["frames"], 8);
+  // The map on disk, served: the CLI's answers.
+  const Reply r = post(*c, "/api/query", request);
+  const auto cli = cliAnswers(dir, "query " + dir + "/live.ot --json --snap 0.3", points);
+  ASSERT_EQ(cli.size(), points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) EXPECT_EQ(r.body["answers"][i], cli[i]) << "point " << i;
+  EXPECT_EQ(server.stop(), 0);
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace mobmap::serve_test
