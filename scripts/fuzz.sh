@@ -2,13 +2,13 @@
 # Builds the libFuzzer targets with clang (ASan + UBSan) into ./build-fuzz and runs each
 # for SECONDS (default 30) on its corpus in tests/fuzz/corpus/TARGET, which it grows.
 # Exits non-zero if any target finds a crash (the input is saved as build-fuzz/crash-*).
-#   bash scripts/fuzz.sh [SECONDS] [TARGET...]      targets: map_reader config poses pipeline
+#   bash scripts/fuzz.sh [SECONDS] [TARGET...]      targets: map_reader config poses pipeline api
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${1:-30}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -eq 0 ] && targets=(map_reader config poses pipeline)
+[ ${#targets[@]} -eq 0 ] && targets=(map_reader config poses pipeline api)
 bash scripts/setup.sh fuzz
 mkdir -p build-fuzz/obj
 # -ffp-contract=off as perception/CMakeLists.txt sets it (its vector kernels match the
@@ -17,6 +17,12 @@ flags=(-std=c++17 -O1 -g -ffp-contract=off -fsanitize=address,undefined -fno-san
        -Igp/include -Iperception/include -Iperception/src -Imapping/include -Iapps/src -I/usr/include/eigen3 -I/usr/include/openni2 -Ibuild-fuzz)
 for d in /usr/include/mrpt/*/include; do flags+=("-I$d"); done
 cmake -DIN=apps/default.yaml -DOUT=build-fuzz/default_yaml.inc -P apps/embed.cmake
+# The viewer's files (serve's API hands them out), as apps/CMakeLists.txt embeds them.
+for asset in apps/viewer/index.html:viewer_index_html apps/viewer/viewer.js:viewer_js \
+             /usr/share/javascript/three/three.min.js:three_min_js \
+             /usr/share/javascript/three/examples/js/controls/OrbitControls.js:orbit_controls_js; do
+  cmake -DIN="${asset%%:*}" -DOUT="build-fuzz/${asset##*:}.inc" -DDELIM=mobmapjs -P apps/embed.cmake
+done
 
 # Each source is compiled once, again when it or any first-party header is newer than
 # its object (a header change can change a struct's layout under an old object).
@@ -59,6 +65,9 @@ for target in "${targets[@]}"; do
     poses) link poses tests/fuzz/fuzz_poses.cpp apps/src/io/trajectory_files.cpp apps/src/io/dataset.cpp apps/src/io/files.cpp \
              apps/src/io/png_io.cpp perception/src/camera.cpp mapping/src/gravity.cpp -- -lpng -lyaml-cpp "${mrpt[@]}" ;;
     pipeline) link pipeline tests/fuzz/fuzz_pipeline.cpp "${gp[@]}" "${perception[@]}" -- -lgmp -lmpfr ;;
+    api) link api tests/fuzz/fuzz_api.cpp apps/src/serve/api.cpp apps/src/serve/viewer_assets.cpp apps/src/answers/answers.cpp \
+           apps/src/commands/levels.cpp "${mapping[@]}" "${perception[@]}" "${gp[@]}" \
+           -- -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;
     *) echo "fuzz.sh: unknown target $target" >&2; exit 2 ;;
   esac
 done

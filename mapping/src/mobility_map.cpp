@@ -36,6 +36,16 @@ octomap::point3d toOcto(const Eigen::Vector3d& p) {
   return {static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())};
 }
 
+// The key of a point in the map, or false outside it. OctoMap takes the point as floats
+// and casts it, scaled, to int: a coordinate beyond float's range (1e308) or the int's
+// would be undefined there. Any coordinate that far lies outside the tree's 2^16 voxels
+// per axis, so it is refused first.
+bool keyOf(const MobilityOcTree& tree, const Eigen::Vector3d& p, octomap::OcTreeKey& key) {
+  const double limit = 65536.0 * tree.getResolution();
+  if (!(std::abs(p.x()) < limit && std::abs(p.y()) < limit && std::abs(p.z()) < limit)) return false;
+  return tree.coordToKeyChecked(toOcto(p), key);
+}
+
 }  // namespace
 
 void validate(const MapParams& p) {
@@ -190,7 +200,7 @@ IntegrationReport MobilityMap::integrate(const perception::FrameResult& frame, c
     const double r2 = pc.squaredNorm();
     if (r2 > max_range2) continue;
     octomap::OcTreeKey key;
-    if (!tree_->coordToKeyChecked(toOcto(T_map_camera * pc), key)) {
+    if (!keyOf(*tree_, T_map_camera * pc, key)) {
       ++report.points_outside_map;
       continue;
     }
@@ -376,7 +386,7 @@ PointQuery MobilityMap::query(const Eigen::Vector3d& p) const {
   octomap::OcTreeKey key;
   PointQuery unknown;
   unknown.size_m = tree_->getResolution();
-  if (!p.allFinite() || !tree_->coordToKeyChecked(toOcto(p), key)) {
+  if (!keyOf(*tree_, p, key)) {
     unknown.centre = p;
     return unknown;
   }
@@ -400,7 +410,7 @@ PointQuery MobilityMap::query(const Eigen::Vector3d& p) const {
 
 std::optional<PointQuery> MobilityMap::snapDown(const Eigen::Vector3d& p, double max_drop_m) const {
   octomap::OcTreeKey key;
-  if (!p.allFinite() || !(max_drop_m >= 0) || !std::isfinite(max_drop_m) || !tree_->coordToKeyChecked(toOcto(p), key)) {
+  if (!(max_drop_m >= 0) || !std::isfinite(max_drop_m) || !keyOf(*tree_, p, key)) {
     return std::nullopt;
   }
   // Voxel by voxel through the column, each asked at its centre: stepping a point down by

@@ -2,6 +2,8 @@
 // coordinates.
 #include "mapping_support.hpp"
 
+#include <limits>
+
 namespace mobmap::mapping {
 namespace {
 
@@ -168,6 +170,22 @@ TEST(MobilityMap, SnapAndFootprintQueries) {
   const FootprintQuery edge = map.footprint({1.61, 0.0, 0.0, 0.0, 0.2, 0.1}, 0.3, 0.1);
   EXPECT_NEAR(edge.min_mobility, 0.0, 1e-3);
   EXPECT_GT(edge.max_height_difference_m, 0.2);
+}
+
+// Points beyond the map, however far (past float's range, where OctoMap's own key
+// computation would be undefined), are unknown: no voxel, no surface, no sole support.
+TEST(MobilityMap, PointsBeyondAnyMapAreUnknown) {
+  const MobilityMap map = builtMap();
+  const double inf = std::numeric_limits<double>::infinity();
+  for (const Eigen::Vector3d& p : {Eigen::Vector3d(1e308, -1e308, 0), Eigen::Vector3d(1.3, 0, 1e39),
+                                   Eigen::Vector3d(1.3, 4e9, 0), Eigen::Vector3d(-inf, 0, 0),
+                                   Eigen::Vector3d(1.3, 0, 655.37 * 2)}) {
+    EXPECT_EQ(map.query(p).state, VoxelState::kUnknown) << p.transpose();
+    EXPECT_FALSE(map.snapDown(p, 0.5)) << p.transpose();
+    const FootprintQuery f = map.footprint({p.x(), p.y(), p.z(), 0.0, 0.2, 0.1});
+    EXPECT_EQ(f.known_fraction, 0.0) << p.transpose();
+  }
+  EXPECT_EQ(map.query({1.3, 0.0, 0.01}).state, VoxelState::kSurface);  // what is in the map still is
 }
 
 // snapDown walks the column voxel by voxel: started on a voxel face (a height that is a

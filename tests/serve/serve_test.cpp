@@ -241,6 +241,7 @@ TEST_F(ServedCorridor, BadRequestsAreRefusedAndTheServerGoesOn) {
       {"/api/query", R"({"points": [[1,0,0]], "frame": "moon"})", 400},
       {"/api/query", R"({"points": [[1,0,0]], "snap": -1})", 400},
       {"/api/query", R"({"points": [[1,0,0]], "snapp": 1})", 400},  // a misspelt field
+      {"/api/query", "{\"points\": [[1,0,0]], \"\x9f\x87\xa0\": 1}", 400},  // a field that is not UTF-8
       {"/api/query", many, 413},                                    // over --max-batch
       {"/api/query", nested, 400},
       {"/api/foot", R"({"soles": [[1,0,0,0,0,0.1]]})", 400},        // a sole of no length

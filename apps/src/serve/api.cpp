@@ -34,7 +34,13 @@ void MapSource::publish(ServedMap next) {
   current_ = std::move(p);
 }
 
-std::string errorBody(const std::string& message) { return nlohmann::json{{"error", message}}.dump(); }
+namespace {
+// JSON text of `j`; bytes that are not UTF-8 (a request's own, echoed in an error; a file
+// name) become U+FFFD instead of an exception.
+std::string text(const nlohmann::json& j) { return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace); }
+}  // namespace
+
+std::string errorBody(const std::string& message) { return text(nlohmann::json{{"error", message}}); }
 
 std::vector<Cell> surfaceCells(const mapping::MobilityOcTree& tree, int level) {
   const double res = tree.getResolution();
@@ -88,7 +94,7 @@ struct Refusal : std::runtime_error {
   Refusal(int s, const std::string& message) : std::runtime_error(message), status(s) {}
 };
 
-Response json(const nlohmann::json& j, int status = 200) { return {status, "application/json", j.dump()}; }
+Response json(const nlohmann::json& j, int status = 200) { return {status, "application/json", text(j)}; }
 
 nlohmann::json parseBody(const std::string& body) {
   nlohmann::json j;
@@ -106,13 +112,13 @@ void onlyKnownFields(const nlohmann::json& body, const std::vector<std::string>&
     if (std::find(known.begin(), known.end(), key) == known.end()) {
       std::string list;
       for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
-      throw Refusal(400, "unknown field \"" + key + "\" (known: " + list + ")");
+      throw Refusal(400, "unknown field \"" + key.substr(0, 100) + "\" (known: " + list + ")");
     }
   }
 }
 
 double finiteNumber(const nlohmann::json& v, const std::string& what) {
-  if (!v.is_number()) throw Refusal(400, what + " must be a number, got " + v.dump());
+  if (!v.is_number()) throw Refusal(400, what + " must be a number, got " + text(v).substr(0, 100));
   const double d = v.get<double>();
   if (!std::isfinite(d)) throw Refusal(400, what + " must be finite");
   return d;
@@ -123,7 +129,7 @@ InputFrame frameOf(const nlohmann::json& body) {
   const nlohmann::json& f = body["frame"];
   if (f == "map") return InputFrame::kMap;
   if (f == "world") return InputFrame::kWorld;
-  throw Refusal(400, "\"frame\" must be \"map\" or \"world\", got " + f.dump());
+  throw Refusal(400, "\"frame\" must be \"map\" or \"world\", got " + text(f).substr(0, 100));
 }
 
 // The snap distance: absent or null is none (-1).
@@ -294,9 +300,9 @@ Response Api::handle(const std::string& method, const std::string& path,
         if (b.contains(name)) set(finiteNumber(b[name], "\"" + name + "\""));
       }
       if (plan_params.time_limit_s > limits_.max_plan_time_s) {
-        char text[120];
-        std::snprintf(text, sizeof text, "\"time_limit_s\" may be at most %g s on this server", limits_.max_plan_time_s);
-        throw Refusal(400, text);
+        char message[120];
+        std::snprintf(message, sizeof message, "\"time_limit_s\" may be at most %g s on this server", limits_.max_plan_time_s);
+        throw Refusal(400, message);
       }
       try {
         mapping::validate(plan_params);
@@ -345,18 +351,18 @@ Response Api::handle(const std::string& method, const std::string& path,
       std::string v;
       v.reserve(n * 40 + 2);
       v += '[';
-      char text[128];
+      char number[128];
       for (std::size_t i = first; i < first + n; ++i) {
         const Cell& c = (*cells)[i];
         int len = 0;
         if (c.mobility == c.mobility) {
-          len = std::snprintf(text, sizeof text, "%s%.4f,%.4f,%.4f,%.3f", i == first ? "" : ",", c.centre.x(), c.centre.y(),
+          len = std::snprintf(number, sizeof number, "%s%.4f,%.4f,%.4f,%.3f", i == first ? "" : ",", c.centre.x(), c.centre.y(),
                               c.centre.z(), static_cast<double>(c.mobility));
         } else {
-          len = std::snprintf(text, sizeof text, "%s%.4f,%.4f,%.4f,null", i == first ? "" : ",", c.centre.x(), c.centre.y(),
+          len = std::snprintf(number, sizeof number, "%s%.4f,%.4f,%.4f,null", i == first ? "" : ",", c.centre.x(), c.centre.y(),
                               c.centre.z());
         }
-        v.append(text, static_cast<std::size_t>(len));
+        v.append(number, static_cast<std::size_t>(len));
       }
       v += ']';
       nlohmann::json head{{"frame", "map"},
@@ -368,7 +374,7 @@ Response Api::handle(const std::string& method, const std::string& path,
                           {"offset", first},
                           {"count", n}};
       head["next"] = first + n < cells->size() ? nlohmann::json(first + n) : nlohmann::json(nullptr);
-      std::string out = head.dump();
+      std::string out = text(head);
       out.pop_back();  // the closing brace: the voxels follow
       out += ",\"voxels\":";
       out += v;

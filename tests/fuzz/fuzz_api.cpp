@@ -1,0 +1,82 @@
+// libFuzzer target: `mobmap serve`'s API (serve::Api::handle) on any request. The first
+// byte picks the path and method; the rest is the body, or the query string of
+// /api/voxels. Every answer must be a status the API documents with a JSON body (or a
+// viewer file): the server keeps serving whatever it is sent.
+#include "serve/api.hpp"
+
+#include "mobmap/mapping/mobility_map.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <cstdlib>
+#include <map>
+#include <memory>
+#include <string>
+
+namespace {
+
+using namespace mobmap;
+
+// A floor of 1 x 1 m with a step and a wall, 5 cm voxels, a few without mobility.
+std::shared_ptr<const mapping::MobilityMap> smallMap() {
+  auto tree = std::make_unique<mapping::MobilityOcTree>(0.05);
+  for (int i = 0; i < 20; ++i) {
+    for (int j = 0; j < 20; ++j) {
+      const double z = i < 10 ? 0.0 : 0.15;
+      auto* n = tree->updateNode(octomap::point3d(0.05f * i, 0.05f * j, static_cast<float>(z)), true);
+      for (int k = 0; k < 5; ++k) n = tree->updateNode(octomap::point3d(0.05f * i, 0.05f * j, static_cast<float>(z)), true);
+      if ((i * 20 + j) % 17 != 0) n->setMobility(i == 9 ? 0.1 : 0.9, 1.0, 3);
+    }
+  }
+  for (int j = 0; j < 20; ++j)
+    for (int k = 0; k < 10; ++k) {
+      auto* n = tree->updateNode(octomap::point3d(1.0f, 0.05f * j, 0.05f * k), true);
+      n->setMobility(0.0, 1.0, 2);
+    }
+  tree->updateInnerOccupancy();
+  return std::make_shared<const mapping::MobilityMap>(std::move(tree), mapping::MapParams{}, Eigen::Matrix3d::Identity(),
+                                                      Eigen::Vector3d(0.2, -0.1, 0.05));
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  static const app::serve::MapSource source([] {
+    app::serve::ServedMap s;
+    s.map = smallMap();
+    s.frames = 3;
+    s.camera_path = {Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0.5, 0, 1)};
+    return s;
+  }());
+  static const app::serve::Api api("fuzz.ot", source, [] {
+    app::serve::Limits l;
+    l.max_batch = 2000;
+    l.max_voxels = 100000;
+    l.max_plan_time_s = 2;
+    return l;
+  }());
+  if (size == 0) return 0;
+  static const char* const kPaths[] = {"/api/query", "/api/foot", "/api/plan", "/api/voxels", "/api/info",
+                                       "/api/camera_path", "/", "/nothing"};
+  const std::string path = kPaths[data[0] % 8];
+  const std::string method = (data[0] & 0x80) ? "GET" : "POST";
+  const std::string rest(reinterpret_cast<const char*>(data + 1), size - 1);
+  std::multimap<std::string, std::string> params;
+  if (path == "/api/voxels") {
+    // "key=value&key=value"
+    std::size_t at = 0;
+    while (at <= rest.size()) {
+      const std::size_t end = std::min(rest.find('&', at), rest.size());
+      const std::string pair = rest.substr(at, end - at);
+      const std::size_t eq = pair.find('=');
+      if (eq != std::string::npos) params.emplace(pair.substr(0, eq), pair.substr(eq + 1));
+      at = end + 1;
+    }
+  }
+  const app::serve::Response r = api.handle(method, path, params, path == "/api/voxels" ? std::string() : rest);
+  const bool documented = r.status == 200 || r.status == 400 || r.status == 404 || r.status == 405 || r.status == 413;
+  if (!documented) std::abort();  // 500 is an internal error: a bug
+  if (r.content_type == "application/json" && nlohmann::json::parse(r.body, nullptr, false).is_discarded()) std::abort();
+  return 0;
+}
