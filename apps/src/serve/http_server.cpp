@@ -15,6 +15,9 @@ struct HttpServer::Impl {
 HttpServer::HttpServer(const Api& api) : impl_(std::make_unique<Impl>(api)) {
   httplib::Server& s = impl_->server;
   s.set_payload_max_length(api.limits().max_body_bytes);
+  // Answers leave at once: with Nagle's algorithm a small answer waits for the client's
+  // delayed acknowledgement (40 ms) of the one before.
+  s.set_tcp_nodelay(true);
   const auto answer = [this](const httplib::Request& req, httplib::Response& res) {
     std::multimap<std::string, std::string> params(req.params.begin(), req.params.end());
     const Response r = impl_->api.handle(req.method, req.path, params, req.body);
