@@ -86,6 +86,7 @@ Command addDemoCommand(CLI::App& app) {
               << "  " << stem << ".bt  occupancy only;  " << stem << ".json  metadata\n"
               << "  " << plot << "  the GP mobility surface (paper Fig. 3)\n"
               << "View: octovis " << stem << ".octovis.ot   (Debian package octovis)\n"
+              << "      " << exe << " serve " << map_path << "   (then open http://127.0.0.1:8080/ in a browser; Ctrl-C stops)\n"
               << "Ask:  " << exe << " query " << map_path << " 1.0 0.0 0.3 --snap 0.5\n"
               << "      " << exe << " query " << map_path << " --foot 3.0 -0.9 0.08 0 0.25 0.12   (a sole on the 15-degree ramp)\n"
               << "      " << exe << " info " << map_path << "\n"

@@ -113,7 +113,7 @@ Command addServeCommand(CLI::App& app) {
   const std::size_t before = cmd->get_options().size();
   build::addBuildRunOptions(*cmd, o->build);
   const std::vector<CLI::Option*> all = cmd->get_options();
-  for (std::size_t i = before; i < all.size(); ++i) all[i]->needs(live);
+  for (std::size_t i = before; i < all.size(); ++i) all[i]->needs(live)->group("Build options (with --live; as `mobmap build`)");
   return [o]() {
     if (::pipe(g_stop_pipe) != 0) throw std::runtime_error("cannot create a pipe for the signal handler");
     std::signal(SIGPIPE, SIG_IGN);  // a client that hangs up is its own business
