@@ -222,13 +222,15 @@ Setters planSetters(mapping::PlanParams& p) {
 
 struct Api::Cache {
   std::mutex mutex;
-  std::shared_ptr<const ServedMap> served;  // what the entries below were computed from
+  // What the entries below were computed from. Not held: a live map's snapshot kept
+  // here would make its mapper copy the map to fuse the next frame.
+  std::weak_ptr<const ServedMap> served;
   std::optional<nlohmann::json> info;
   std::map<int, std::shared_ptr<const std::vector<Cell>>> cells;  // by level
 
   // Drops what belongs to an older map.
   void follow(const std::shared_ptr<const ServedMap>& s) {
-    if (served == s) return;
+    if (served.lock() == s) return;
     served = s;
     info.reset();
     cells.clear();
