@@ -282,6 +282,41 @@ TEST_F(ServedCorridor, BadRequestsAreRefusedAndTheServerGoesOn) {
   EXPECT_EQ(server.stop(), 0);
 }
 
+// A port in use is an error, not a second server sharing it; so is an address that is
+// not this machine's. (`timeout`: a server that did start would otherwise serve forever.)
+TEST_F(ServedCorridor, APortInUseIsRefused) {
+  ServeProcess server({"serve", map(), "--port", "0"}, dir() + "/port.err");
+  const int port = server.port();
+  ASSERT_GT(port, 0) << server.output();
+  const Result second = runShell("timeout 120 " + std::string(MOBMAP_EXE) + " serve " + map() + " --port " + std::to_string(port));
+  EXPECT_EQ(second.code, 2) << second.out;
+  EXPECT_NE(second.out.find("cannot listen on 127.0.0.1:" + std::to_string(port)), std::string::npos) << second.out;
+  const Result elsewhere = runShell("timeout 120 " + std::string(MOBMAP_EXE) + " serve " + map() + " --port 0 --bind 192.0.2.1");
+  EXPECT_EQ(elsewhere.code, 2) << elsewhere.out;
+  auto c = client(port);
+  EXPECT_EQ(get(*c, "/api/info").status, 200);  // the first still serves
+  EXPECT_EQ(server.stop(), 0);
+}
+
+// The API keeps no map alive once a newer one is published: a live mapper whose old
+// snapshot were held would have to copy the map to fuse the next frame.
+TEST(ServeApi, HoldsNoMapOnceANewerOneIsPublished) {
+  app::serve::ServedMap first;
+  first.map = std::make_shared<const mapping::MobilityMap>();
+  const std::weak_ptr<const mapping::MobilityMap> first_map = first.map;
+  app::serve::MapSource source(std::move(first));
+  const app::serve::Api api("live.ot", source);
+  EXPECT_EQ(api.handle("GET", "/api/info", {}, "").status, 200);  // figures cached for the first map
+  EXPECT_EQ(api.handle("GET", "/api/voxels", {}, "").status, 200);
+  app::serve::ServedMap second;
+  second.map = std::make_shared<const mapping::MobilityMap>();
+  second.frames = 1;
+  source.publish(std::move(second));
+  EXPECT_TRUE(first_map.expired());
+  const auto info = nlohmann::json::parse(api.handle("GET", "/api/info", {}, "").body);
+  EXPECT_EQ(info["frames"], 1);  // and the figures are the new map's
+}
+
 // The voxels a viewer draws: every occupied voxel once at the finest level, pages that
 // add up to the whole, and coarser grids whose cells hold the lowest known mobility of
 // the voxels in them (brute force over the finest cells).

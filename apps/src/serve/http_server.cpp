@@ -18,6 +18,12 @@ HttpServer::HttpServer(const Api& api) : impl_(std::make_unique<Impl>(api)) {
   // Answers leave at once: with Nagle's algorithm a small answer waits for the client's
   // delayed acknowledgement (40 ms) of the one before.
   s.set_tcp_nodelay(true);
+  // SO_REUSEADDR only: httplib's default also sets SO_REUSEPORT, with which a second
+  // server on a port in use binds too and the two share its requests.
+  s.set_socket_options([](socket_t sock) {
+    int yes = 1;
+    ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+  });
   const auto answer = [this](const httplib::Request& req, httplib::Response& res) {
     std::multimap<std::string, std::string> params(req.params.begin(), req.params.end());
     const Response r = impl_->api.handle(req.method, req.path, params, req.body);
