@@ -1,7 +1,8 @@
 // The viewer of `mobmap serve`: the map's surface voxels in mobility colours, the camera
 // path, a click that asks the server about a voxel, and a refresh while a live map grows.
 // Map frame: z up, metres. Query string: ?max=N caps the voxels drawn (default 300000;
-// the server coarsens the grid to stay under it).
+// the server coarsens the grid to stay under it); ?click=FX,FY clicks at that point of
+// the view (fractions of its width and height) once the map is drawn.
 (function () {
   'use strict';
 
@@ -207,7 +208,10 @@
         statusEl.textContent = describe(info, v.head);
         render();
         // Tests wait for this: the map is drawn.
-        requestAnimationFrame(function () { document.body.setAttribute('data-drawn-frames', String(shownFrames)); });
+        requestAnimationFrame(function () {
+          document.body.setAttribute('data-drawn-frames', String(shownFrames));
+          clickIfAsked();
+        });
       });
     }).catch(function (e) {
       statusEl.textContent = 'error: ' + e.message;
@@ -258,16 +262,20 @@
 
   function fmt(x, digits) { return x === null || x === undefined ? 'unknown' : Number(x).toFixed(digits); }
 
-  const down = { x: 0, y: 0 };
-  renderer.domElement.addEventListener('pointerdown', function (e) { down.x = e.clientX; down.y = e.clientY; });
-  renderer.domElement.addEventListener('pointerup', function (e) {
-    if (Math.hypot(e.clientX - down.x, e.clientY - down.y) > 4) return;  // a drag, not a click
+  // Asks the server about the voxel under the pixel (clientX, clientY) and shows the
+  // answer; resolves to {centre, answer} (null: no voxel there).
+  function pick(clientX, clientY) {
     const rect = renderer.domElement.getBoundingClientRect();
-    const ndc = new THREE.Vector2(((e.clientX - rect.left) / rect.width) * 2 - 1, -((e.clientY - rect.top) / rect.height) * 2 + 1);
+    const ndc = new THREE.Vector2(((clientX - rect.left) / rect.width) * 2 - 1, -((clientY - rect.top) / rect.height) * 2 + 1);
     const raycaster = new THREE.Raycaster();
     raycaster.setFromCamera(ndc, camera);
     const v = firstCell(raycaster.ray);
-    if (v === null) { picked.visible = false; answerEl.style.display = 'none'; render(); return; }
+    if (v === null) {
+      picked.visible = false;
+      answerEl.style.display = 'none';
+      render();
+      return Promise.resolve(null);
+    }
     const c = [grid.voxels[4 * v], grid.voxels[4 * v + 1], grid.voxels[4 * v + 2]];
     picked.position.set(c[0], c[1], c[2]);
     picked.scale.setScalar(grid.size * 1.02);
@@ -275,7 +283,7 @@
     render();
     // The voxel's answer, and a sole of the default size centred on its top.
     const top = c[2] + grid.size / 2;
-    Promise.all([
+    return Promise.all([
       postJson('api/query', { points: [c] }),
       postJson('api/foot', { soles: [[c[0], c[1], top, 0, 0.25, 0.12]] }),
     ]).then(function (r) {
@@ -295,8 +303,30 @@
       }
       answerEl.textContent = lines.join('\n');
       answerEl.style.display = 'block';
+      return { centre: c, answer: q, sole: f };
     });
+  }
+
+  const down = { x: 0, y: 0 };
+  renderer.domElement.addEventListener('pointerdown', function (e) { down.x = e.clientX; down.y = e.clientY; });
+  renderer.domElement.addEventListener('pointerup', function (e) {
+    if (Math.hypot(e.clientX - down.x, e.clientY - down.y) > 4) return;  // a drag, not a click
+    pick(e.clientX, e.clientY);
   });
+
+  // ?click=FX,FY: once the map is drawn, click at that point of the view (fractions of its
+  // width and height); the page records what it was told (data-picked), so that a test
+  // can check a click without a mouse.
+  const click = (params.get('click') || '').split(',').map(Number);
+  let clicked = false;
+  function clickIfAsked() {
+    if (clicked || click.length !== 2 || !click.every(isFinite)) return;
+    clicked = true;
+    const rect = renderer.domElement.getBoundingClientRect();
+    pick(rect.left + click[0] * rect.width, rect.top + click[1] * rect.height).then(function (r) {
+      document.body.setAttribute('data-picked', JSON.stringify(r));
+    });
+  }
 
   refresh();
 })();

@@ -404,8 +404,8 @@ TEST_F(ServedCorridor, VoxelsArePagedAndCoarsenedFaithfully) {
 }
 
 // Headless Chromium loads the viewer from the server and draws it with WebGL (SwiftShader):
-// the page says it drew the map's 40 frames, and the screenshot shows the corridor's green
-// floor and its red walls.
+// the page says it drew the map's 40 frames, the screenshot shows the corridor's green
+// floor and its red walls, and a click shows the server's answer for the voxel hit.
 TEST_F(ServedCorridor, ViewerDrawsTheGreenFloorAndRedWallsInChromium) {
   if (runShell("command -v chromium").code != 0) {
     GTEST_SKIP() << "chromium is not installed (scripts/setup.sh installs it): the viewer is not drawn";
@@ -454,6 +454,24 @@ TEST_F(ServedCorridor, ViewerDrawsTheGreenFloorAndRedWallsInChromium) {
   EXPECT_GT(green_share, 0.10) << "green (walkable floor) share of the scene";
   EXPECT_GT(red_share, 0.005) << "red (walls) share of the scene";
   EXPECT_GT(green_share, 3 * red_share) << "the floor is most of what is seen";
+
+  // A click in the middle of the view (the page clicks itself: ?click=0.5,0.5) lands on
+  // the floor below the map's centre, and the page shows the server's answer for that voxel.
+  const Result clicked = runShell(chromium + "--dump-dom '" + url + "?click=0.5,0.5'");
+  const auto at = clicked.out.find("data-picked=\"");
+  ASSERT_NE(at, std::string::npos) << clicked.out.substr(0, 3000);
+  std::string picked = clicked.out.substr(at + 13, clicked.out.find('"', at + 13) - (at + 13));
+  for (const auto& [entity, text] : std::vector<std::pair<std::string, std::string>>{{"&quot;", "\""}, {"&lt;", "<"}, {"&gt;", ">"}, {"&amp;", "&"}}) {
+    for (std::size_t k = picked.find(entity); k != std::string::npos; k = picked.find(entity, k + text.size())) {
+      picked.replace(k, entity.size(), text);
+    }
+  }
+  const nlohmann::json shown = nlohmann::json::parse(picked, nullptr, false);
+  ASSERT_TRUE(shown.is_object()) << picked;
+  EXPECT_EQ(shown["answer"]["state"], "surface");
+  EXPECT_GT(shown["answer"]["mobility"].get<double>(), 0.9) << "the floor";
+  const Reply direct = post(*c, "/api/query", nlohmann::json{{"points", {shown["centre"]}}}.dump());
+  EXPECT_EQ(shown["answer"], direct.body["answers"][0]);
   EXPECT_EQ(server.stop(), 0);
 }
 
