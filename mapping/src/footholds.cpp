@@ -39,6 +39,49 @@ void validate(const RobotParams& p) {
   if (!(positive(p.lattice_m) && p.lattice_m <= 1)) detail::failParam("RobotParams", "lattice_m", p.lattice_m, "must be in (0, 1]");
 }
 
+namespace {
+// RobotParams' fields and their names, in declaration order.
+struct RobotField {
+  const char* name;
+  double RobotParams::*field;
+};
+constexpr RobotField kRobotFields[] = {
+    {"sole_length_m", &RobotParams::sole_length_m},
+    {"sole_width_m", &RobotParams::sole_width_m},
+    {"min_mobility", &RobotParams::min_mobility},
+    {"max_poor_fraction", &RobotParams::max_poor_fraction},
+    {"min_support_fraction", &RobotParams::min_support_fraction},
+    {"max_tilt_deg", &RobotParams::max_tilt_deg},
+    {"max_unevenness_m", &RobotParams::max_unevenness_m},
+    {"clearance_m", &RobotParams::clearance_m},
+    {"max_step_m", &RobotParams::max_step_m},
+    {"max_stride_m", &RobotParams::max_stride_m},
+    {"swing_clearance_m", &RobotParams::swing_clearance_m},
+    {"max_gap_m", &RobotParams::max_gap_m},
+    {"stance_width_m", &RobotParams::stance_width_m},
+    {"lattice_m", &RobotParams::lattice_m},
+};
+}  // namespace
+
+bool setRobotParameter(RobotParams& params, const std::string& name, double value) {
+  for (const RobotField& f : kRobotFields) {
+    if (name == f.name) {
+      params.*f.field = value;
+      return true;
+    }
+  }
+  return false;
+}
+
+const std::vector<std::string>& robotParameterNames() {
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> n;
+    for (const RobotField& f : kRobotFields) n.emplace_back(f.name);
+    return n;
+  }();
+  return names;
+}
+
 double headingYaw(int heading) { return heading * (2 * kPi / kHeadings); }
 
 const char* toString(FootholdProblem p) {

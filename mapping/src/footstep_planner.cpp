@@ -280,6 +280,49 @@ void validate(const PlanParams& p) {
   if (p.max_expansions < 1) detail::failParam("PlanParams", "max_expansions", static_cast<double>(p.max_expansions), "must be >= 1");
 }
 
+namespace {
+struct PlanField {
+  const char* name;
+  double PlanParams::*field;
+};
+constexpr PlanField kPlanFields[] = {
+    {"goal_tolerance_m", &PlanParams::goal_tolerance_m},
+    {"step_cost_m", &PlanParams::step_cost_m},
+    {"mobility_weight_m", &PlanParams::mobility_weight_m},
+    {"variance_weight_m", &PlanParams::variance_weight_m},
+    {"start_radius_m", &PlanParams::start_radius_m},
+    {"heuristic_weight", &PlanParams::heuristic_weight},
+    {"time_limit_s", &PlanParams::time_limit_s},
+};
+constexpr const char* kMaxExpansions = "max_expansions";
+}  // namespace
+
+bool setPlanParameter(PlanParams& params, const std::string& name, double value) {
+  if (setRobotParameter(params.robot, name, value)) return true;
+  for (const PlanField& f : kPlanFields) {
+    if (name == f.name) {
+      params.*f.field = value;
+      return true;
+    }
+  }
+  if (name != kMaxExpansions) return false;
+  if (!(value >= 1 && value <= 1e12 && value == std::floor(value))) {
+    throw std::invalid_argument("PlanParams: max_expansions must be a whole number >= 1");
+  }
+  params.max_expansions = static_cast<std::size_t>(value);
+  return true;
+}
+
+const std::vector<std::string>& planParameterNames() {
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> n = robotParameterNames();
+    for (const PlanField& f : kPlanFields) n.emplace_back(f.name);
+    n.emplace_back(kMaxExpansions);
+    return n;
+  }();
+  return names;
+}
+
 const char* toString(Side side) { return side == Side::kLeft ? "left" : "right"; }
 
 Plan planFootsteps(const MobilityOcTree& tree, const Eigen::Vector3d& start, const Eigen::Vector3d& goal, const PlanParams& params) {

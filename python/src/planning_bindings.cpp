@@ -9,44 +9,26 @@
 
 #include <pybind11/stl.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
-#include <map>
+#include <string>
+#include <vector>
 
 namespace mobmap::python {
 namespace {
 
-using Setters = std::map<std::string, std::function<void(double)>>;
-
-Setters robotSetters(mapping::RobotParams& r) {
-  return {
-      {"sole_length_m", [&](double v) { r.sole_length_m = v; }},
-      {"sole_width_m", [&](double v) { r.sole_width_m = v; }},
-      {"min_mobility", [&](double v) { r.min_mobility = v; }},
-      {"max_poor_fraction", [&](double v) { r.max_poor_fraction = v; }},
-      {"min_support_fraction", [&](double v) { r.min_support_fraction = v; }},
-      {"max_tilt_deg", [&](double v) { r.max_tilt_deg = v; }},
-      {"max_unevenness_m", [&](double v) { r.max_unevenness_m = v; }},
-      {"clearance_m", [&](double v) { r.clearance_m = v; }},
-      {"max_step_m", [&](double v) { r.max_step_m = v; }},
-      {"max_stride_m", [&](double v) { r.max_stride_m = v; }},
-      {"swing_clearance_m", [&](double v) { r.swing_clearance_m = v; }},
-      {"max_gap_m", [&](double v) { r.max_gap_m = v; }},
-      {"stance_width_m", [&](double v) { r.stance_width_m = v; }},
-      {"lattice_m", [&](double v) { r.lattice_m = v; }},
-  };
-}
-
-// Applies the keyword arguments; TypeError for a name that is none of `setters`.
-void apply(const py::kwargs& kwargs, const Setters& setters, const char* function) {
+// Applies the keyword arguments through `set` (false: not one of `known`): TypeError for
+// an unknown name or a value that is not a number.
+void apply(const py::kwargs& kwargs, const std::function<bool(const std::string&, double)>& set,
+           const std::vector<std::string>& known, const char* function) {
   for (const auto& [key, value] : kwargs) {
     const std::string name = py::str(key);
-    const auto it = setters.find(name);
-    if (it == setters.end()) {
-      std::string known;
-      for (const auto& [k, unused] : setters) known += (known.empty() ? "" : ", ") + k;
+    if (std::find(known.begin(), known.end(), name) == known.end()) {
+      std::string list;
+      for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
       throw py::type_error(std::string(function) + "() got an unexpected keyword argument '" + name + "' (known: " +
-                           known + ")");
+                           list + ")");
     }
     double number = 0;
     try {
@@ -54,7 +36,7 @@ void apply(const py::kwargs& kwargs, const Setters& setters, const char* functio
     } catch (const py::cast_error&) {
       throw py::type_error(std::string(function) + "(): " + name + " must be a number");
     }
-    it->second(number);
+    set(name, number);
   }
 }
 
@@ -67,19 +49,9 @@ py::dict plan(const MapHandle& h, const py::handle& start, const py::handle& goa
               const py::kwargs& robot) {
   const Frame frame = parseFrame(frame_name);
   mapping::PlanParams params;
-  Setters setters = robotSetters(params.robot);
-  setters["goal_tolerance_m"] = [&](double v) { params.goal_tolerance_m = v; };
-  setters["step_cost_m"] = [&](double v) { params.step_cost_m = v; };
-  setters["mobility_weight_m"] = [&](double v) { params.mobility_weight_m = v; };
-  setters["variance_weight_m"] = [&](double v) { params.variance_weight_m = v; };
-  setters["start_radius_m"] = [&](double v) { params.start_radius_m = v; };
-  setters["heuristic_weight"] = [&](double v) { params.heuristic_weight = v; };
-  setters["time_limit_s"] = [&](double v) { params.time_limit_s = v; };
-  setters["max_expansions"] = [&](double v) {
-    if (!(v >= 1 && v <= 1e12)) throw py::value_error("max_expansions must be a count >= 1");
-    params.max_expansions = static_cast<std::size_t>(v);
-  };
-  apply(robot, setters, "plan");
+  apply(
+      robot, [&](const std::string& name, double v) { return mapping::setPlanParameter(params, name, v); },
+      mapping::planParameterNames(), "plan");
   const Eigen::Vector3d s = pointToMap(h, start, "start", frame), g = pointToMap(h, goal, "goal", frame);
   mapping::Plan p;
   {
@@ -126,9 +98,16 @@ py::array_t<bool> reachable(const MapHandle& h, const py::handle& start, const p
   const Frame frame = parseFrame(frame_name);
   if (!(max_drop >= 0 && std::isfinite(max_drop))) throw py::value_error("max_drop must be a distance >= 0 in metres");
   mapping::ReachParams params;
-  Setters setters = robotSetters(params.robot);
-  setters["start_radius_m"] = [&](double v) { params.start_radius_m = v; };
-  apply(robot, setters, "reachable");
+  std::vector<std::string> known = mapping::robotParameterNames();
+  known.emplace_back("start_radius_m");
+  apply(
+      robot,
+      [&](const std::string& name, double v) {
+        if (name != "start_radius_m") return mapping::setRobotParameter(params.robot, name, v);
+        params.start_radius_m = v;
+        return true;
+      },
+      known, "reachable");
   const Eigen::Vector3d s = pointToMap(h, start, "start", frame);
   const auto p = rows(points, 3, "points");
   py::array_t<bool> out(p.shape(0));

@@ -452,6 +452,39 @@ TEST(Reachability, RejectsInvalidParamsAndStartsNamingThem) {
   EXPECT_EQ(r.reachableCount(), 0u);
 }
 
+// Parameters by name (Python's keyword arguments, serve's JSON): each name sets the field
+// validate() names when that field is out of range (NaN), and no other.
+TEST(FootstepPlanner, EachNamedParameterSetsTheFieldOfThatName) {
+  const std::vector<std::string>& names = planParameterNames();
+  EXPECT_EQ(std::set<std::string>(names.begin(), names.end()).size(), names.size());
+  EXPECT_EQ(names.size(), robotParameterNames().size() + 8);
+  for (const std::string& name : names) {
+    PlanParams p;
+    if (name == "max_expansions") {
+      EXPECT_THROW(setPlanParameter(p, name, std::nan("")), std::invalid_argument);
+      EXPECT_THROW(setPlanParameter(p, name, 2.5), std::invalid_argument);
+      ASSERT_TRUE(setPlanParameter(p, name, 1234));
+      EXPECT_EQ(p.max_expansions, 1234u);
+      continue;
+    }
+    ASSERT_TRUE(setPlanParameter(p, name, std::nan(""))) << name;
+    try {
+      validate(p);
+      ADD_FAILURE() << name << " = NaN accepted: the name set no field validate() checks";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(": " + name + " is"), std::string::npos) << name << ": " << e.what();
+    }
+  }
+  for (const std::string& name : robotParameterNames()) {
+    RobotParams r;
+    ASSERT_TRUE(setRobotParameter(r, name, std::nan(""))) << name;
+    EXPECT_THROW(validate(r), std::invalid_argument) << name;
+  }
+  PlanParams p;
+  EXPECT_FALSE(setPlanParameter(p, "max_steps", 1));
+  EXPECT_FALSE(setRobotParameter(p.robot, "heuristic_weight", 1));  // the search's, not the robot's
+}
+
 TEST(FootstepPlanner, StairsOfTenCentimetresAcrossTheFloorAndBadInput) {
   const Scene s;
   PlanParams p;

@@ -182,42 +182,6 @@ std::optional<std::size_t> count(const std::multimap<std::string, std::string>& 
   return static_cast<std::size_t>(v);
 }
 
-using Setters = std::map<std::string, std::function<void(double)>>;
-
-// The plan request's numeric fields: the robot and the search (the names of mobmap.plan's
-// keyword arguments in Python).
-Setters planSetters(mapping::PlanParams& p) {
-  mapping::RobotParams& r = p.robot;
-  return {
-      {"sole_length_m", [&](double v) { r.sole_length_m = v; }},
-      {"sole_width_m", [&](double v) { r.sole_width_m = v; }},
-      {"min_mobility", [&](double v) { r.min_mobility = v; }},
-      {"max_poor_fraction", [&](double v) { r.max_poor_fraction = v; }},
-      {"min_support_fraction", [&](double v) { r.min_support_fraction = v; }},
-      {"max_tilt_deg", [&](double v) { r.max_tilt_deg = v; }},
-      {"max_unevenness_m", [&](double v) { r.max_unevenness_m = v; }},
-      {"clearance_m", [&](double v) { r.clearance_m = v; }},
-      {"max_step_m", [&](double v) { r.max_step_m = v; }},
-      {"max_stride_m", [&](double v) { r.max_stride_m = v; }},
-      {"swing_clearance_m", [&](double v) { r.swing_clearance_m = v; }},
-      {"max_gap_m", [&](double v) { r.max_gap_m = v; }},
-      {"stance_width_m", [&](double v) { r.stance_width_m = v; }},
-      {"lattice_m", [&](double v) { r.lattice_m = v; }},
-      {"goal_tolerance_m", [&](double v) { p.goal_tolerance_m = v; }},
-      {"step_cost_m", [&](double v) { p.step_cost_m = v; }},
-      {"mobility_weight_m", [&](double v) { p.mobility_weight_m = v; }},
-      {"variance_weight_m", [&](double v) { p.variance_weight_m = v; }},
-      {"start_radius_m", [&](double v) { p.start_radius_m = v; }},
-      {"heuristic_weight", [&](double v) { p.heuristic_weight = v; }},
-      {"time_limit_s", [&](double v) { p.time_limit_s = v; }},
-      {"max_expansions",
-       [&](double v) {
-         if (!(v >= 1 && v <= 1e12 && v == std::floor(v))) throw Refusal(400, "\"max_expansions\" must be a whole number >= 1");
-         p.max_expansions = static_cast<std::size_t>(v);
-       }},
-  };
-}
-
 }  // namespace
 
 struct Api::Cache {
@@ -293,13 +257,19 @@ Response Api::handle(const std::string& method, const std::string& path,
     if (path == "/api/plan") {
       expect("POST");
       const nlohmann::json b = parseBody(body);
+      // The robot and the search by the names of mobmap.plan's keyword arguments in Python.
       mapping::PlanParams plan_params;
-      Setters setters = planSetters(plan_params);
       std::vector<std::string> known{"from", "to", "frame"};
-      for (const auto& [name, unused] : setters) known.push_back(name);
+      const std::vector<std::string>& names = mapping::planParameterNames();
+      known.insert(known.end(), names.begin(), names.end());
       onlyKnownFields(b, known);
-      for (const auto& [name, set] : setters) {
-        if (b.contains(name)) set(finiteNumber(b[name], "\"" + name + "\""));
+      for (const std::string& name : names) {
+        if (!b.contains(name)) continue;
+        try {
+          mapping::setPlanParameter(plan_params, name, finiteNumber(b[name], "\"" + name + "\""));
+        } catch (const std::invalid_argument& e) {
+          throw Refusal(400, e.what());
+        }
       }
       if (plan_params.time_limit_s > limits_.max_plan_time_s) {
         char message[120];

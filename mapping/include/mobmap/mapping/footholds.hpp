@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <string>
 #include <vector>
 
 namespace mobmap::mapping {
@@ -52,6 +53,13 @@ struct RobotParams {
 
 /// std::invalid_argument "RobotParams: <field> is <value> (<rule>)".
 void validate(const RobotParams& params);
+
+/// RobotParams' fields by name (the names above: sole_length_m ... lattice_m), for callers
+/// that take them as keyword arguments or JSON (Python, `mobmap serve`). False for a name
+/// that is none of them; the value is not checked (validate() does).
+bool setRobotParameter(RobotParams& params, const std::string& name, double value);
+/// The names setRobotParameter() takes, in the order of the fields.
+const std::vector<std::string>& robotParameterNames();
 
 /// Headings the lattice tries: 16, every 22.5 degrees; a sole is symmetric, so heading k
 /// and k + 8 stand on the same voxels.

@@ -43,6 +43,15 @@ struct PlanParams {
 /// std::invalid_argument naming the field.
 void validate(const PlanParams& params);
 
+/// PlanParams' numbers by name: the robot's (setRobotParameter) and the search's
+/// (goal_tolerance_m, step_cost_m, mobility_weight_m, variance_weight_m, start_radius_m,
+/// heuristic_weight, time_limit_s, max_expansions). False for a name that is none of
+/// them; std::invalid_argument for a max_expansions that is not a whole number >= 1. The
+/// rest is checked by validate().
+bool setPlanParameter(PlanParams& params, const std::string& name, double value);
+/// The names setPlanParameter() takes: the robot's, then the search's.
+const std::vector<std::string>& planParameterNames();
+
 enum class Side { kLeft, kRight };
 const char* toString(Side side);
 
