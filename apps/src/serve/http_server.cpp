@@ -2,18 +2,37 @@
 
 #include <httplib.h>
 
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <stdexcept>
 
 namespace mobmap::app::serve {
+namespace {
+
+// httplib's server with a stop that also works before listening has begun: httplib's
+// own stop() does nothing until then, and a listen that starts after it would never end.
+// Closing the listening socket ends a listen that is running and one that has not begun.
+class StoppableServer : public httplib::Server {
+ public:
+  void closeListeningSocket() {
+    const socket_t sock = svr_sock_.exchange(INVALID_SOCKET);
+    if (sock == INVALID_SOCKET) return;
+    ::shutdown(sock, SHUT_RDWR);
+    ::close(sock);
+  }
+};
+
+}  // namespace
 
 struct HttpServer::Impl {
   const Api& api;
-  httplib::Server server;
+  StoppableServer server;
   explicit Impl(const Api& a) : api(a) {}
 };
 
 HttpServer::HttpServer(const Api& api) : impl_(std::make_unique<Impl>(api)) {
-  httplib::Server& s = impl_->server;
+  StoppableServer& s = impl_->server;
   s.set_payload_max_length(api.limits().max_body_bytes);
   // Answers leave at once: with Nagle's algorithm a small answer waits for the client's
   // delayed acknowledgement (40 ms) of the one before.
@@ -68,6 +87,9 @@ int HttpServer::bind(const std::string& address, int port) {
 
 void HttpServer::run() { impl_->server.listen_after_bind(); }
 
-void HttpServer::stop() { impl_->server.stop(); }
+void HttpServer::stop() {
+  impl_->server.stop();
+  impl_->server.closeListeningSocket();
+}
 
 }  // namespace mobmap::app::serve
