@@ -300,7 +300,8 @@ Response Api::handle(const std::string& method, const std::string& path,
       expect("GET");
       const std::size_t most = limits_.max_voxels;
       const std::size_t max = count(params, "max", most).value_or(std::min<std::size_t>(200000, most));
-      const std::optional<std::size_t> level_asked = count(params, "level", 15);
+      const std::optional<std::size_t> level_asked = count(params, "level", std::numeric_limits<std::uint32_t>::max());
+      if (level_asked && *level_asked > 15) throw Refusal(400, "query parameter level must be 0 to 15 (the octree's depth)");
       const std::size_t offset = count(params, "offset", std::numeric_limits<std::uint32_t>::max()).value_or(0);
       const std::size_t limit = count(params, "limit", most).value_or(most);
       if (max == 0) throw Refusal(400, "query parameter max must be at least 1");
