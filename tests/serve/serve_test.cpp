@@ -166,6 +166,59 @@ TEST_F(ServedCorridor, PointAndSoleAnswersAreTheClis) {
   EXPECT_EQ(server.stop(), 0);
 }
 
+// "reach" in a request answers as `query --reach`: from the map's first camera position by
+// default, or from a point with the robot's limits; the same for soles.
+TEST_F(ServedCorridor, ReachAnswersAreTheClis) {
+  ServeProcess server({"serve", map(), "--port", "0"}, dir() + "/reach.err");
+  const int port = server.port();
+  ASSERT_GT(port, 0) << server.output();
+  auto c = client(port);
+  std::vector<std::vector<double>> points;
+  for (const auto& p : probePoints(0.25)) points.push_back({p[0], p[1], p[2]});
+  std::vector<std::vector<double>> soles;
+  for (double x = 0.6; x <= 3.41; x += 0.2)
+    for (double y = -1.2; y <= 1.21; y += 0.3) soles.push_back({x, y, 0.05, 0.3, 0.25, 0.12});
+  struct Case {
+    std::string frame;
+    nlohmann::json reach;
+    std::string cli;
+  };
+  const std::vector<Case> cases{
+      {"world", true, "--reach"},
+      {"map", {{"from", {1.0, 0.0, 0.1}}, {"max_step_m", 0.12}, {"min_mobility", 0.6}},
+       "--reach --from 1 0 0.1 --max-step 0.12 --min-mobility 0.6"},
+  };
+  int reachable = 0, unreachable = 0;
+  for (const Case& k : cases) {
+    const Reply r = post(*c, "/api/query", nlohmann::json{{"points", points}, {"frame", k.frame}, {"reach", k.reach}}.dump());
+    ASSERT_EQ(r.status, 200) << r.raw.substr(0, 300);
+    const auto cli = cliAnswers(dir(), "query " + map() + " --json --input-frame " + k.frame + " " + k.cli, points);
+    ASSERT_EQ(cli.size(), points.size());
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      EXPECT_EQ(r.body["answers"][i], cli[i]) << k.cli << " point " << i;
+      const nlohmann::json& place = cli[i]["reach"];
+      reachable += place["reachable"] == true;
+      unreachable += place["reachable"] == false;
+    }
+    const Reply f = post(*c, "/api/foot", nlohmann::json{{"soles", soles}, {"frame", k.frame}, {"reach", k.reach}}.dump());
+    ASSERT_EQ(f.status, 200) << f.raw.substr(0, 300);
+    const auto cli_feet = cliAnswers(dir(), "query " + map() + " --feet --json --input-frame " + k.frame + " " + k.cli, soles);
+    ASSERT_EQ(cli_feet.size(), soles.size());
+    for (std::size_t i = 0; i < soles.size(); ++i) EXPECT_EQ(f.body["answers"][i], cli_feet[i]) << k.cli << " sole " << i;
+  }
+  EXPECT_GT(reachable, 50);
+  EXPECT_GT(unreachable, 50);  // no surface under the point, or one the robot cannot get onto
+  // No place to start from, an unknown robot field, a bad start rule: 400.
+  for (const char* bad : {R"({"points": [[1,0,0]], "reach": {"from": [40, 40, 0]}})",
+                          R"({"points": [[1,0,0]], "reach": {"max_steps": 0.2}})",
+                          R"({"points": [[1,0,0]], "reach": {"start": "anywhere"}})",
+                          R"({"points": [[1,0,0]], "reach": {"max_step_m": -1}})", R"({"points": [[1,0,0]], "reach": 3})"}) {
+    const Reply r = post(*c, "/api/query", bad);
+    EXPECT_EQ(r.status, 400) << bad << ": " << r.raw;
+  }
+  EXPECT_EQ(server.stop(), 0);
+}
+
 TEST_F(ServedCorridor, PlanAndInfoAreTheClis) {
   ServeProcess server({"serve", map(), "--port", "0"}, dir() + "/plan.err");
   const int port = server.port();

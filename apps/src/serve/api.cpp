@@ -4,6 +4,7 @@
 #include "serve/viewer_assets.hpp"
 
 #include "mobmap/mapping/footstep_planner.hpp"
+#include "mobmap/mapping/reachability.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -182,6 +183,75 @@ std::optional<std::size_t> count(const std::multimap<std::string, std::string>& 
   return static_cast<std::size_t>(v);
 }
 
+// A request's "reach": true (start from the map's first camera position) or an object
+// with "from" (in the request's frame), "start", "start_radius_m" and the robot's
+// parameters, as `mobmap query --reach` takes them as options.
+struct ReachRequest {
+  mapping::ReachParams params;
+  Eigen::Vector3d from_map = Eigen::Vector3d::Zero();
+  std::string key;  // what the reachability depends on, for the cache
+};
+
+std::optional<ReachRequest> reachOf(const nlohmann::json& body, InputFrame frame, const mapping::MobilityMap& map,
+                                    const std::vector<Eigen::Vector3d>& camera_path) {
+  if (!body.contains("reach") || body["reach"].is_null() || body["reach"] == false) return std::nullopt;
+  const nlohmann::json& r = body["reach"];
+  if (!(r == true || r.is_object())) throw Refusal(400, "\"reach\" must be true or an object (from, start, start_radius_m, the robot's parameters)");
+  ReachRequest q;
+  std::optional<Eigen::Vector3d> from;
+  std::string rule;
+  std::optional<double> radius;
+  if (r.is_object()) {
+    std::vector<std::string> known{"from", "start", "start_radius_m"};
+    const std::vector<std::string>& names = mapping::robotParameterNames();
+    known.insert(known.end(), names.begin(), names.end());
+    for (const auto& [key, value] : r.items()) {
+      if (std::find(known.begin(), known.end(), key) == known.end()) {
+        std::string list;
+        for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+        throw Refusal(400, "unknown field \"reach." + key.substr(0, 100) + "\" (known: " + list + ")");
+      }
+    }
+    if (r.contains("from")) from = point(r, "from");
+    if (r.contains("start")) {
+      if (r["start"] != "nearest" && r["start"] != "largest-level") {
+        throw Refusal(400, "\"reach.start\" must be \"nearest\" or \"largest-level\"");
+      }
+      rule = r["start"].get<std::string>();
+    }
+    if (r.contains("start_radius_m")) radius = finiteNumber(r["start_radius_m"], "\"reach.start_radius_m\"");
+    for (const std::string& name : names) {
+      if (r.contains(name)) mapping::setRobotParameter(q.params.robot, name, finiteNumber(r[name], "\"reach." + name + "\""));
+    }
+  }
+  // The defaults of `mobmap query --reach`: from a given point, the nearest sole within
+  // 0.5 m; from the camera, the largest level within 5 m.
+  if (rule.empty()) rule = from ? "nearest" : "largest-level";
+  q.params.start_rule = rule == "nearest" ? mapping::ReachParams::Start::kNearest : mapping::ReachParams::Start::kLargestLevel;
+  q.params.start_radius_m = radius.value_or(from ? 0.5 : 5.0);
+  try {
+    mapping::validate(q.params);
+  } catch (const std::invalid_argument& e) {
+    throw Refusal(400, e.what());
+  }
+  if (from) {
+    q.from_map = frame == InputFrame::kWorld ? map.worldToMap(*from) : *from;
+  } else if (!camera_path.empty()) {
+    q.from_map = camera_path.front();
+  } else {
+    throw Refusal(400, "\"reach\": the map has no camera path to start from; give reach.from");
+  }
+  nlohmann::json key{{"from", {q.from_map.x(), q.from_map.y(), q.from_map.z()}},
+                     {"start", rule},
+                     {"start_radius_m", q.params.start_radius_m}};
+  const mapping::RobotParams& rp = q.params.robot;
+  key["robot"] = {rp.sole_length_m, rp.sole_width_m, rp.min_mobility, rp.max_poor_fraction, rp.min_support_fraction,
+                  rp.max_tilt_deg, rp.max_unevenness_m, rp.clearance_m, rp.max_step_m, rp.max_stride_m,
+                  rp.swing_clearance_m, rp.max_gap_m, rp.stance_width_m, rp.lattice_m};
+  q.key = key.dump();
+  return q;
+}
+
 }  // namespace
 
 struct Api::Cache {
@@ -191,6 +261,7 @@ struct Api::Cache {
   std::weak_ptr<const ServedMap> served;
   std::optional<nlohmann::json> info;
   std::map<int, std::shared_ptr<const std::vector<Cell>>> cells;  // by level
+  std::map<std::string, std::shared_ptr<const mapping::Reachability>> reach;  // by ReachRequest::key
 
   // Drops what belongs to an older map.
   void follow(const std::shared_ptr<const ServedMap>& s) {
@@ -198,6 +269,7 @@ struct Api::Cache {
     served = s;
     info.reset();
     cells.clear();
+    reach.clear();
   }
 };
 
@@ -211,6 +283,37 @@ Response Api::handle(const std::string& method, const std::string& path,
     const mapping::MobilityMap& map = *served->map;
     const auto expect = [&](const char* m) {
       if (method != m) throw Refusal(405, path + " takes " + m + " requests, not " + method);
+    };
+    // Where the robot can get to, worked out once per map and request of "reach" (the
+    // cache keeps the last few), outside the cache's lock.
+    const auto reachability = [&](const std::optional<ReachRequest>& q) -> std::shared_ptr<const mapping::Reachability> {
+      if (!q) return nullptr;
+      {
+        const std::lock_guard<std::mutex> lock(cache_->mutex);
+        cache_->follow(served);
+        const auto it = cache_->reach.find(q->key);
+        if (it != cache_->reach.end()) return it->second;
+      }
+      std::shared_ptr<const mapping::Reachability> r;
+      try {
+        r = std::make_shared<const mapping::Reachability>(mapping::computeReachability(map.tree(), q->from_map, q->params));
+      } catch (const std::invalid_argument& e) {  // a step under two voxels of this map
+        throw Refusal(400, std::string("\"reach\": ") + e.what());
+      }
+      if (!r->start()) {
+        char text[300];
+        std::snprintf(text, sizeof text,
+                      "\"reach\": no place for a %.2f x %.2f m sole to stand (mobility >= %.2f) within %.2f m of (%.2f, "
+                      "%.2f, %.2f) (map frame); give reach.from nearer a walkable surface, or a larger reach.start_radius_m",
+                      q->params.robot.sole_length_m, q->params.robot.sole_width_m, q->params.robot.min_mobility,
+                      q->params.start_radius_m, q->from_map.x(), q->from_map.y(), q->from_map.z());
+        throw Refusal(400, text);
+      }
+      const std::lock_guard<std::mutex> lock(cache_->mutex);
+      cache_->follow(served);
+      if (cache_->reach.size() >= 8) cache_->reach.clear();
+      cache_->reach.emplace(q->key, r);
+      return r;
     };
     if (path == "/api/info") {
       expect("GET");
@@ -228,26 +331,28 @@ Response Api::handle(const std::string& method, const std::string& path,
     if (path == "/api/query") {
       expect("POST");
       const nlohmann::json b = parseBody(body);
-      onlyKnownFields(b, {"points", "frame", "snap"});
+      onlyKnownFields(b, {"points", "frame", "snap", "reach"});
       const InputFrame frame = frameOf(b);
       const double snap = snapOf(b);
       const auto points = rows(b, "points", 3, limits_.max_batch);
+      const auto reach = reachability(reachOf(b, frame, map, served->camera_path));
       nlohmann::json answers = nlohmann::json::array();
-      for (const auto& p : points) answers.push_back(toJson(answerPoint(map, {p[0], p[1], p[2]}, frame, snap, nullptr)));
+      for (const auto& p : points) answers.push_back(toJson(answerPoint(map, {p[0], p[1], p[2]}, frame, snap, reach.get())));
       return json({{"answers", std::move(answers)}, {"frames", served->frames}});
     }
     if (path == "/api/foot") {
       expect("POST");
       const nlohmann::json b = parseBody(body);
-      onlyKnownFields(b, {"soles", "frame", "snap"});
+      onlyKnownFields(b, {"soles", "frame", "snap", "reach"});
       const InputFrame frame = frameOf(b);
       const double snap = snapOf(b);
       const auto soles = rows(b, "soles", 6, limits_.max_batch);
+      const auto reach = reachability(reachOf(b, frame, map, served->camera_path));
       nlohmann::json answers = nlohmann::json::array();
       for (std::size_t i = 0; i < soles.size(); ++i) {
         const auto& s = soles[i];
         try {
-          answers.push_back(toJson(answerFoot(map, {s[0], s[1], s[2], s[3], s[4], s[5]}, frame, snap, nullptr)));
+          answers.push_back(toJson(answerFoot(map, {s[0], s[1], s[2], s[3], s[4], s[5]}, frame, snap, reach.get())));
         } catch (const std::invalid_argument& e) {
           throw Refusal(400, "soles[" + std::to_string(i) + "]: " + e.what());
         }
