@@ -36,6 +36,7 @@
 #include <mutex>
 #include <limits>
 #include <optional>
+#include <thread>
 
 namespace mobmap::app {
 using namespace build;  // the steps of this command (build_steps.hpp)
@@ -477,6 +478,11 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
     // with this frame.
     if (used != stop_after_frames) return;
     ::raise(SIGSTOP);
+    // A Ctrl-C sent while stopped may be handled by another thread after this one goes
+    // on: while it is still pending, wait for its handler, so that the frame the run
+    // ends with does not depend on which thread the scheduler runs first.
+    sigset_t pending;
+    while (::sigpending(&pending) == 0 && ::sigismember(&pending, SIGINT) == 1) std::this_thread::yield();
     if (g_interrupted.load()) mapper_ptr->cancel();
   };
   live_config.on_frame = [&](const mapping::FrameReport& r) {
