@@ -25,13 +25,6 @@ Eigen::Vector3d fromMap(const mapping::MobilityMap& map, const Eigen::Vector3d& 
   return frame == Frame::kWorld ? map.mapToWorld(p) : p;
 }
 
-// A heading in the world frame's horizontal plane turned into the map frame.
-double yawToMap(const mapping::MobilityMap& map, double yaw, Frame frame) {
-  if (frame == Frame::kMap) return yaw;
-  const Eigen::Vector3d d = map.rotationMapWorld() * Eigen::Vector3d(std::cos(yaw), std::sin(yaw), 0.0);
-  return std::atan2(d.y(), d.x());
-}
-
 // Points (N, 3) given in `from` taken to the other frame.
 py::array_t<double> transformed(const MapHandle& h, const py::object& points, Frame from) {
   const auto a = rows(points, 3, "points");
@@ -113,7 +106,7 @@ py::dict footprint(const MapHandle& h, const py::object& soles, const std::strin
       const Eigen::Vector3d c = toMap(map, Eigen::Vector3d(in(i, 0), in(i, 1), in(i, 2)), frame);
       // An unusable sole (non-finite, not positive, too large to sample) gets the library's
       // answer for it: no samples, nothing known.
-      const mapping::Foot foot{c.x(), c.y(), c.z(), yawToMap(map, in(i, 3), frame), in(i, 4), in(i, 5)};
+      const mapping::Foot foot{c.x(), c.y(), c.z(), (frame == Frame::kWorld ? map.worldYawToMap(in(i, 3)) : in(i, 3)), in(i, 4), in(i, 5)};
       const mapping::FootprintQuery f = map.footprint(foot);
       a(i) = f.min_mobility;
       b(i) = f.mean_mobility;

@@ -68,8 +68,7 @@ py::dict plan(const MapHandle& h, const py::handle& start, const py::handle& goa
     double heading = f.yaw;
     if (frame == Frame::kWorld) {
       c = h.map->mapToWorld(c);
-      const Eigen::Vector3d d = h.map->rotationMapWorld().transpose() * Eigen::Vector3d(std::cos(f.yaw), std::sin(f.yaw), 0);
-      heading = std::atan2(d.y(), d.x());
+      heading = h.map->mapYawToWorld(f.yaw);
     }
     for (int k = 0; k < 3; ++k) o(i, k) = c(k);
     yaw.mutable_at(i) = heading;

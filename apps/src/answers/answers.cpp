@@ -78,11 +78,7 @@ FootAnswer answerFoot(const mapping::MobilityMap& map, const std::array<double, 
   }
   const bool world = frame == InputFrame::kWorld;
   const Eigen::Vector3d c = world ? map.worldToMap(Eigen::Vector3d(s[0], s[1], s[2])) : Eigen::Vector3d(s[0], s[1], s[2]);
-  double yaw = s[3];
-  if (world) {  // the heading turns with the frame
-    const Eigen::Vector3d h = map.rotationMapWorld() * Eigen::Vector3d(std::cos(yaw), std::sin(yaw), 0);
-    yaw = std::atan2(h.y(), h.x());
-  }
+  const double yaw = world ? map.worldYawToMap(s[3]) : s[3];  // the heading turns with the frame
   const mapping::Foot sole{c.x(), c.y(), c.z(), yaw, s[4], s[5]};
   const double down = snap_m >= 0 ? snap_m : 0.1;
   FootAnswer a;
@@ -118,8 +114,7 @@ nlohmann::json toJson(const FootAnswer& a) {
 
 FootstepIn footstepIn(const mapping::MobilityMap& map, const mapping::Footstep& f, InputFrame frame) {
   if (frame == InputFrame::kMap) return {Eigen::Vector3d(f.x, f.y, f.z), f.yaw};
-  const Eigen::Vector3d h = map.rotationMapWorld().transpose() * Eigen::Vector3d(std::cos(f.yaw), std::sin(f.yaw), 0);
-  return {map.mapToWorld(Eigen::Vector3d(f.x, f.y, f.z)), std::atan2(h.y(), h.x())};
+  return {map.mapToWorld(Eigen::Vector3d(f.x, f.y, f.z)), map.mapYawToWorld(f.yaw)};
 }
 
 nlohmann::json planJson(const mapping::MobilityMap& map, const mapping::Plan& plan, const mapping::PlanParams& params,

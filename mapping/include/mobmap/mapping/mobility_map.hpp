@@ -12,6 +12,7 @@
 #include <Eigen/Geometry>
 
 #include <array>
+#include <cmath>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -179,6 +180,17 @@ class MobilityMap {
   /// Converts a point of the map frame into the data's world frame.
   [[nodiscard]] Eigen::Vector3d mapToWorld(const Eigen::Vector3d& p_map) const {
     return R_map_world_.transpose() * p_map + origin_world_;
+  }
+  /// A heading (yaw, radians) of the world frame's x-y plane as a yaw in the map frame:
+  /// the direction (cos, sin, 0) turned into the map frame, seen from above.
+  [[nodiscard]] double worldYawToMap(double yaw_world) const {
+    const Eigen::Vector3d d = R_map_world_ * Eigen::Vector3d(std::cos(yaw_world), std::sin(yaw_world), 0.0);
+    return std::atan2(d.y(), d.x());
+  }
+  /// A yaw of the map frame as a heading in the world frame's x-y plane.
+  [[nodiscard]] double mapYawToWorld(double yaw_map) const {
+    const Eigen::Vector3d d = R_map_world_.transpose() * Eigen::Vector3d(std::cos(yaw_map), std::sin(yaw_map), 0.0);
+    return std::atan2(d.y(), d.x());
   }
   /// The map frame's origin in the world frame.
   [[nodiscard]] const Eigen::Vector3d& originWorld() const { return origin_world_; }
