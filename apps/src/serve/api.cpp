@@ -108,12 +108,13 @@ nlohmann::json parseBody(const std::string& body) {
   return j;
 }
 
-void onlyKnownFields(const nlohmann::json& body, const std::vector<std::string>& known) {
+// `prefix` names the object the fields are in ("reach." for the fields of "reach").
+void onlyKnownFields(const nlohmann::json& body, const std::vector<std::string>& known, const std::string& prefix = "") {
   for (const auto& [key, value] : body.items()) {
     if (std::find(known.begin(), known.end(), key) == known.end()) {
       std::string list;
       for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
-      throw Refusal(400, "unknown field \"" + key.substr(0, 100) + "\" (known: " + list + ")");
+      throw Refusal(400, "unknown field \"" + prefix + key.substr(0, 100) + "\" (known: " + list + ")");
     }
   }
 }
@@ -205,13 +206,7 @@ std::optional<ReachRequest> reachOf(const nlohmann::json& body, InputFrame frame
     std::vector<std::string> known{"from", "start", "start_radius_m"};
     const std::vector<std::string>& names = mapping::robotParameterNames();
     known.insert(known.end(), names.begin(), names.end());
-    for (const auto& [key, value] : r.items()) {
-      if (std::find(known.begin(), known.end(), key) == known.end()) {
-        std::string list;
-        for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
-        throw Refusal(400, "unknown field \"reach." + key.substr(0, 100) + "\" (known: " + list + ")");
-      }
-    }
+    onlyKnownFields(r, known, "reach.");
     if (r.contains("from")) from = point(r, "from");
     if (r.contains("start")) {
       if (r["start"] != "nearest" && r["start"] != "largest-level") {
@@ -328,31 +323,27 @@ Response Api::handle(const std::string& method, const std::string& path,
       j["building"] = served->building;
       return json(j);
     }
-    if (path == "/api/query") {
+    if (path == "/api/query" || path == "/api/foot") {
+      // A batch of points (x y z) or soles (x y z yaw length width) in one frame, with
+      // an optional snap distance and reachability.
       expect("POST");
+      const bool soles = path == "/api/foot";
+      const std::string field = soles ? "soles" : "points";
       const nlohmann::json b = parseBody(body);
-      onlyKnownFields(b, {"points", "frame", "snap", "reach"});
+      onlyKnownFields(b, {field, "frame", "snap", "reach"});
       const InputFrame frame = frameOf(b);
       const double snap = snapOf(b);
-      const auto points = rows(b, "points", 3, limits_.max_batch);
+      const auto batch = rows(b, field, soles ? 6 : 3, limits_.max_batch);
       const auto reach = reachability(reachOf(b, frame, map, served->camera_path));
       nlohmann::json answers = nlohmann::json::array();
-      for (const auto& p : points) answers.push_back(toJson(answerPoint(map, {p[0], p[1], p[2]}, frame, snap, reach.get())));
-      return json({{"answers", std::move(answers)}, {"frames", served->frames}});
-    }
-    if (path == "/api/foot") {
-      expect("POST");
-      const nlohmann::json b = parseBody(body);
-      onlyKnownFields(b, {"soles", "frame", "snap", "reach"});
-      const InputFrame frame = frameOf(b);
-      const double snap = snapOf(b);
-      const auto soles = rows(b, "soles", 6, limits_.max_batch);
-      const auto reach = reachability(reachOf(b, frame, map, served->camera_path));
-      nlohmann::json answers = nlohmann::json::array();
-      for (std::size_t i = 0; i < soles.size(); ++i) {
-        const auto& s = soles[i];
+      for (std::size_t i = 0; i < batch.size(); ++i) {
+        const auto& q = batch[i];
+        if (!soles) {
+          answers.push_back(toJson(answerPoint(map, {q[0], q[1], q[2]}, frame, snap, reach.get())));
+          continue;
+        }
         try {
-          answers.push_back(toJson(answerFoot(map, {s[0], s[1], s[2], s[3], s[4], s[5]}, frame, snap, reach.get())));
+          answers.push_back(toJson(answerFoot(map, {q[0], q[1], q[2], q[3], q[4], q[5]}, frame, snap, reach.get())));
         } catch (const std::invalid_argument& e) {
           throw Refusal(400, "soles[" + std::to_string(i) + "]: " + e.what());
         }
