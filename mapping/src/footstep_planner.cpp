@@ -183,11 +183,12 @@ std::optional<double> surfaceUnder(const SurfaceColumns& cols, const Eigen::Vect
 }
 
 // Reachability of every sole from the start stance, for the planner's checks.
-Reachability reachFromStart(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start, const PlanParams& p) {
+Reachability reachFromStart(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start, const PlanParams& p,
+                            const Budget& budget) {
   ReachParams rp;
   rp.robot = p.robot;
   rp.start_radius_m = p.start_radius_m + 0.5 * p.robot.stance_width_m;
-  return computeReachability(std::move(columns), start, rp);
+  return computeReachability(std::move(columns), start, rp, budget);
 }
 
 // The standable foot places at the goal: within the goal tolerance, on the goal's level.
@@ -325,15 +326,35 @@ const std::vector<std::string>& planParameterNames() {
 
 const char* toString(Side side) { return side == Side::kLeft ? "left" : "right"; }
 
-Plan planFootsteps(const MobilityOcTree& tree, const Eigen::Vector3d& start, const Eigen::Vector3d& goal, const PlanParams& params) {
+namespace {
+Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start, const Eigen::Vector3d& goal,
+          const PlanParams& params, const Budget& budget, std::chrono::steady_clock::time_point t0);
+}  // namespace
+
+Plan planFootsteps(const MobilityOcTree& tree, const Eigen::Vector3d& start, const Eigen::Vector3d& goal, const PlanParams& params,
+                   const Budget& budget) {
+  const auto t0 = std::chrono::steady_clock::now();  // the columns count against the time limit too
   validate(params);
-  return planFootsteps(std::make_shared<const SurfaceColumns>(tree), start, goal, params);
+  return planWithin(std::make_shared<const SurfaceColumns>(tree), start, goal, params, budget, t0);
 }
 
 Plan planFootsteps(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start, const Eigen::Vector3d& goal,
-                   const PlanParams& params) {
-  const auto t0 = std::chrono::steady_clock::now();
+                   const PlanParams& params, const Budget& budget) {
+  return planWithin(std::move(columns), start, goal, params, budget, std::chrono::steady_clock::now());
+}
+
+namespace {
+
+Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start, const Eigen::Vector3d& goal,
+          const PlanParams& params, const Budget& budget, std::chrono::steady_clock::time_point t0) {
   validate(params);
+  // The time limit bounds the whole call (the reachability worked out for a goal that
+  // seems out of reach included); the caller's budget, when it runs out, ends the call
+  // with BudgetExceeded instead of an answer.
+  Budget limited;
+  limited.deadline = t0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                              std::chrono::duration<double>(params.time_limit_s));
+  limited = limited.tightenedBy(budget);
   if (!columns) throw std::invalid_argument("planFootsteps: no columns");
   if (!start.allFinite()) throw std::invalid_argument("planFootsteps: the start is not finite");
   if (!goal.allFinite()) throw std::invalid_argument("planFootsteps: the goal is not finite");
@@ -443,10 +464,22 @@ Plan planFootsteps(std::shared_ptr<const SurfaceColumns> columns, const Eigen::V
   // a second on a 10 m corridor) says whether to go on.
   std::optional<Reachability> reach;
   std::vector<std::size_t> goal_feet;
+  // False when the time ran out first.
   const auto checkReach = [&] {
-    if (reach) return;
-    reach = reachFromStart(columns, start, params);
+    if (reach) return true;
+    try {
+      reach = reachFromStart(columns, start, params, limited);
+    } catch (const BudgetExceeded&) {
+      budget.check("planFootsteps");  // the caller's budget: its exception
+      return false;                   // the time limit
+    }
     goal_feet = goalFeet(*reach, goal, *z_goal, params);
+    return true;
+  };
+  const auto outOfTime = [&] {
+    plan.time_limit_reached = plan.expansions < params.max_expansions;
+    return finish(format("no plan within the limits (%.1f s, ", params.time_limit_s) + std::to_string(plan.expansions) +
+                  " states expanded); raise --time-limit, or --weight to search faster for a costlier plan");
   };
   while (!open.empty()) {
     // Plain variables, not structured bindings: the lambda below captures them (C++17
@@ -462,12 +495,13 @@ Plan planFootsteps(std::shared_ptr<const SurfaceColumns> columns, const Eigen::V
       goal_key = key;
       break;
     }
+    if ((plan.expansions & 255u) == 0) budget.check("planFootsteps");
     if (++plan.expansions >= params.max_expansions || ((plan.expansions & 255u) == 0 && elapsed() > params.time_limit_s)) {
       out_of_time = true;
       break;
     }
     if (plan.expansions == kReachCheck) {
-      checkReach();
+      if (!checkReach()) return outOfTime();
       if (!goalReachable(*reach, goal_feet)) break;  // diagnosed below
     }
     const Foothold& from = search.foothold(st.run, st.heading);
@@ -504,11 +538,7 @@ Plan planFootsteps(std::shared_ptr<const SurfaceColumns> columns, const Eigen::V
     }
   }
   if (!goal_key) {
-    if (out_of_time) {
-      return finish(format("no plan within the limits (%.1f s, ", params.time_limit_s) + std::to_string(plan.expansions) +
-                    " states expanded); raise --time-limit, or --weight to search faster for a costlier plan");
-    }
-    checkReach();
+    if (out_of_time || !checkReach()) return outOfTime();
     return finish(diagnose(cols, *reach, goal_feet, params));
   }
   // The footsteps: the other start sole, then the chain from the root.
@@ -550,4 +580,5 @@ Plan planFootsteps(std::shared_ptr<const SurfaceColumns> columns, const Eigen::V
   return plan;
 }
 
+}  // namespace
 }  // namespace mobmap::mapping

@@ -81,13 +81,21 @@ SoleReach Reachability::sole(const Foot& foot, double search_up_m, double search
   return out;
 }
 
-Reachability computeReachability(const MobilityOcTree& tree, const Eigen::Vector3d& start, const ReachParams& params) {
+std::size_t Reachability::memoryBytes() const {
+  return sizeof(*this) + places_.capacity() * sizeof(Place) + feet_.capacity() * sizeof(FootPlace) +
+         feet_offsets_.capacity() * sizeof(std::uint32_t) + start_feet_.capacity() * sizeof(std::size_t) +
+         (columns_ ? columns_->memoryBytes() : 0);
+}
+
+Reachability computeReachability(const MobilityOcTree& tree, const Eigen::Vector3d& start, const ReachParams& params,
+                                 const Budget& budget) {
   validate(params);
-  return computeReachability(std::make_shared<const SurfaceColumns>(tree), start, params);
+  return computeReachability(std::make_shared<const SurfaceColumns>(tree), start, params, budget);
 }
 
 Reachability computeReachability(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start,
-                                 const ReachParams& params) {
+                                 const ReachParams& params, const Budget& budget) {
+  constexpr const char* kWhat = "computeReachability";
   validate(params);
   if (!start.allFinite()) throw std::invalid_argument("computeReachability: the start point is not finite");
   if (!columns) throw std::invalid_argument("computeReachability: no columns");
@@ -140,6 +148,7 @@ Reachability computeReachability(std::shared_ptr<const SurfaceColumns> columns, 
     }
   };
   for (long i = 0; i < r.lnx_; ++i) {
+    budget.check(kWhat);  // a row of lattice columns: at most milliseconds
     for (long j = 0; j < r.lny_; ++j) {
       r.feet_offsets_[static_cast<std::size_t>(i * r.lny_ + j)] = static_cast<std::uint32_t>(r.feet_.size());
       const long kx = (r.lx0_ + i) * s, ky = (r.ly0_ + j) * s;
@@ -226,7 +235,8 @@ Reachability computeReachability(std::shared_ptr<const SurfaceColumns> columns, 
     r.feet_[f].reachable = true;
     queue.push_back(f);
   }
-  while (!queue.empty()) {
+  for (std::size_t popped = 0; !queue.empty(); ++popped) {
+    if ((popped & 1023u) == 0) budget.check(kWhat);
     const std::size_t a = queue.front();
     queue.pop_front();
     const FootPlace& from = r.feet_[a];
@@ -245,7 +255,9 @@ Reachability computeReachability(std::shared_ptr<const SurfaceColumns> columns, 
   }
 
   // The surfaces under reachable soles.
-  for (const FootPlace& f : r.feet_) {
+  for (std::size_t k = 0; k < r.feet_.size(); ++k) {
+    if ((k & 1023u) == 0) budget.check(kWhat);
+    const FootPlace& f = r.feet_[k];
     if (!f.reachable) continue;
     for (int h = 0; h < kHeadings / 2; ++h) {
       if (!(f.standable & (1u << h))) continue;

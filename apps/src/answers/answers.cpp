@@ -71,11 +71,15 @@ nlohmann::json toJson(const PointAnswer& a) {
   return j;
 }
 
-FootAnswer answerFoot(const mapping::MobilityMap& map, const std::array<double, 6>& s, InputFrame frame, double snap_m,
-                      const mapping::Reachability* reach) {
-  if (!(s[4] > 0 && s[5] > 0 && s[4] <= kMaxSoleSideM && s[5] <= kMaxSoleSideM)) {
+void checkSoleSize(double length_m, double width_m) {
+  if (!(length_m > 0 && width_m > 0 && length_m <= kMaxSoleSideM && width_m <= kMaxSoleSideM)) {
     throw std::invalid_argument("LENGTH and WIDTH must be in (0, 10] m");
   }
+}
+
+FootAnswer answerFoot(const mapping::MobilityMap& map, const std::array<double, 6>& s, InputFrame frame, double snap_m,
+                      const mapping::Reachability* reach) {
+  checkSoleSize(s[4], s[5]);
   const bool world = frame == InputFrame::kWorld;
   const Eigen::Vector3d c = world ? map.worldToMap(Eigen::Vector3d(s[0], s[1], s[2])) : Eigen::Vector3d(s[0], s[1], s[2]);
   const double yaw = world ? map.worldYawToMap(s[3]) : s[3];  // the heading turns with the frame
@@ -121,6 +125,7 @@ nlohmann::json planJson(const mapping::MobilityMap& map, const mapping::Plan& pl
                         InputFrame frame) {
   nlohmann::json j{{"found", plan.found}, {"frame", frame == InputFrame::kWorld ? "world" : "map"}};
   if (!plan.found) j["reason"] = plan.reason;
+  j["time_limit_reached"] = plan.time_limit_reached;
   j["footsteps"] = nlohmann::json::array();
   for (const auto& f : plan.footsteps) {
     const FootstepIn s = footstepIn(map, f, frame);

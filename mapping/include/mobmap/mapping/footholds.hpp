@@ -99,6 +99,11 @@ class SurfaceColumns {
   [[nodiscard]] long keyY0() const { return ky0_; }
   [[nodiscard]] long columnsX() const { return nx_; }
   [[nodiscard]] long columnsY() const { return ny_; }
+  /// Bytes held.
+  [[nodiscard]] std::size_t memoryBytes() const {
+    return sizeof(*this) + offsets_.capacity() * sizeof(std::uint32_t) + runs_.capacity() * sizeof(Run) +
+           run_column_.capacity() * sizeof(std::uint32_t);
+  }
   /// Column keys of a run id.
   [[nodiscard]] long runColumn(std::size_t run) const { return run_column_[run]; }
   /// The highest run of the column holding (x, y) whose top face is at or below `z_max`

@@ -5,6 +5,7 @@
 /// admissible heuristic (PlanParams::heuristic_weight 1: the cheapest plan for the cost
 /// below on the lattice of sole centres and headings).
 
+#include "mobmap/mapping/budget.hpp"
 #include "mobmap/mapping/footholds.hpp"
 #include "mobmap/mapping/mobility_octree.hpp"
 
@@ -76,6 +77,8 @@ struct Plan {
   double max_step_height_m = 0; ///< largest height difference between successive footsteps
   std::size_t expansions = 0;   ///< states expanded by the search
   double planning_time_s = 0;
+  /// PlanParams::time_limit_s ended the call before a plan was found (found = false).
+  bool time_limit_reached = false;
 };
 
 /// The start or goal lies where no surface is (outside the map, in free or unknown space):
@@ -87,13 +90,18 @@ class PlanInputError : public std::runtime_error {
 
 /// Plans from `start_map` (a point on or above the surface the robot stands on) to
 /// `goal_map` (likewise), map frame. No plan (the goal cannot be stood on, a step is too
-/// high, the time limit): found = false and the reason. std::invalid_argument for invalid
-/// params or a non-finite point; PlanInputError when no surface lies within 2 m below the
-/// start or the goal; std::length_error for a map too large (SurfaceColumns).
+/// high, params.time_limit_s): found = false and the reason. The time limit bounds the
+/// whole call, the map's columns and the reachability worked out for a goal that seems
+/// out of reach included. std::invalid_argument for invalid params or a non-finite point;
+/// PlanInputError when no surface lies within 2 m below the start or the goal;
+/// std::length_error for a map too large (SurfaceColumns); BudgetExceeded when the
+/// caller's `budget` runs out (or is stopped) first.
 [[nodiscard]] Plan planFootsteps(const MobilityOcTree& tree, const Eigen::Vector3d& start_map,
-                                 const Eigen::Vector3d& goal_map, const PlanParams& params = {});
+                                 const Eigen::Vector3d& goal_map, const PlanParams& params = {},
+                                 const Budget& budget = {});
 /// The same over columns already made from the map.
 [[nodiscard]] Plan planFootsteps(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start_map,
-                                 const Eigen::Vector3d& goal_map, const PlanParams& params = {});
+                                 const Eigen::Vector3d& goal_map, const PlanParams& params = {},
+                                 const Budget& budget = {});
 
 }  // namespace mobmap::mapping
