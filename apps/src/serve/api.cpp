@@ -4,6 +4,7 @@
 #include "serve/viewer_assets.hpp"
 
 #include "mobmap/mapping/footstep_planner.hpp"
+#include "mobmap/mapping/json_limits.hpp"
 #include "mobmap/mapping/reachability.hpp"
 
 #include <nlohmann/json.hpp>
@@ -97,7 +98,20 @@ struct Refusal : std::runtime_error {
 
 Response json(const nlohmann::json& j, int status = 200) { return {status, "application/json", text(j)}; }
 
-nlohmann::json parseBody(const std::string& body) {
+// Bounded before parsing (mapping/json_limits.hpp): nesting, which the error messages
+// and copies below would recurse through, and the number of values, which sets the
+// parsed document's memory (a few tens of bytes each).
+nlohmann::json parseBody(const std::string& body, const Limits& limits) {
+  mapping::JsonLimits bounds;
+  bounds.max_depth = limits.max_json_depth;
+  bounds.max_values = limits.max_json_values();
+  if (const mapping::JsonLimitProblem problem = mapping::checkJsonLimits(body, bounds)) {
+    if (problem.kind == mapping::JsonLimitProblem::Kind::kTooManyValues) {
+      throw Refusal(413, "the request body holds " + problem.message + "; " + std::to_string(limits.max_batch) +
+                             " points or soles (--max-batch) need fewer");
+    }
+    throw Refusal(400, "the request body is refused: " + problem.message);
+  }
   nlohmann::json j;
   try {
     j = nlohmann::json::parse(body);
@@ -247,6 +261,34 @@ std::optional<ReachRequest> reachOf(const nlohmann::json& body, InputFrame frame
   return q;
 }
 
+// Voxels a search of `metres` down a column visits (a column has 2^16).
+double voxelsDown(double metres, double res) { return std::min(std::ceil(metres / res), 65536.0); }
+
+// One of Limits::max_heavy_requests places, held until the request is answered.
+class HeavySlot {
+ public:
+  HeavySlot() = default;
+  HeavySlot(const HeavySlot&) = delete;
+  HeavySlot& operator=(const HeavySlot&) = delete;
+  ~HeavySlot() {
+    if (count_) count_->fetch_sub(1);
+  }
+  bool take(std::atomic<std::size_t>& count, std::size_t most) {
+    std::size_t n = count.load();
+    while (n < most) {
+      if (count.compare_exchange_weak(n, n + 1)) {
+        count_ = &count;
+        return true;
+      }
+    }
+    return false;
+  }
+  [[nodiscard]] bool held() const { return count_ != nullptr; }
+
+ private:
+  std::atomic<std::size_t>* count_ = nullptr;
+};
+
 }  // namespace
 
 struct Api::Cache {
@@ -256,7 +298,9 @@ struct Api::Cache {
   std::weak_ptr<const ServedMap> served;
   std::optional<nlohmann::json> info;
   std::map<int, std::shared_ptr<const std::vector<Cell>>> cells;  // by level
-  std::map<std::string, std::shared_ptr<const mapping::Reachability>> reach;  // by ReachRequest::key
+  // By ReachRequest::key, oldest first; their memory together.
+  std::vector<std::pair<std::string, std::shared_ptr<const mapping::Reachability>>> reach;
+  std::size_t reach_bytes = 0;
 
   // Drops what belongs to an older map.
   void follow(const std::shared_ptr<const ServedMap>& s) {
@@ -265,11 +309,35 @@ struct Api::Cache {
     info.reset();
     cells.clear();
     reach.clear();
+    reach_bytes = 0;
+  }
+  [[nodiscard]] std::shared_ptr<const mapping::Reachability> findReach(const std::string& key) const {
+    for (const auto& [k, r] : reach) {
+      if (k == key) return r;
+    }
+    return nullptr;
+  }
+  // Keeps `r` unless it alone is over the byte bound, dropping the oldest entries to
+  // stay within both bounds.
+  void keepReach(const std::string& key, std::shared_ptr<const mapping::Reachability> r, const Limits& limits) {
+    const std::size_t bytes = r->memoryBytes();
+    if (bytes > limits.max_reach_cache_bytes || limits.max_reach_cache_entries == 0 || findReach(key)) return;
+    while (!reach.empty() &&
+           (reach.size() >= limits.max_reach_cache_entries || reach_bytes + bytes > limits.max_reach_cache_bytes)) {
+      reach_bytes -= reach.front().second->memoryBytes();
+      reach.erase(reach.begin());
+    }
+    reach.emplace_back(key, std::move(r));
+    reach_bytes += bytes;
   }
 };
 
 Api::Api(std::string map_label, const MapSource& source, Limits limits)
-    : label_(std::move(map_label)), source_(source), limits_(limits), cache_(std::make_shared<Cache>()) {}
+    : label_(std::move(map_label)),
+      source_(source),
+      limits_(limits),
+      cache_(std::make_shared<Cache>()),
+      state_(std::make_shared<State>()) {}
 
 Response Api::handle(const std::string& method, const std::string& path,
                      const std::multimap<std::string, std::string>& params, const std::string& body) const {
@@ -279,6 +347,16 @@ Response Api::handle(const std::string& method, const std::string& path,
     const auto expect = [&](const char* m) {
       if (method != m) throw Refusal(405, path + " takes " + m + " requests, not " + method);
     };
+    // Every request's work ends at this deadline, or when the server stops.
+    const mapping::Budget budget = mapping::Budget::within(limits_.max_request_s, &state_->stop);
+    HeavySlot heavy;
+    const auto takeHeavySlot = [&] {
+      if (heavy.held()) return;
+      if (!heavy.take(state_->heavy, limits_.max_heavy_requests)) {
+        throw Refusal(503, "the server is answering " + std::to_string(limits_.max_heavy_requests) +
+                               " heavy requests (plans, reachability, large batches), its most at once; try again shortly");
+      }
+    };
     // Where the robot can get to, worked out once per map and request of "reach" (the
     // cache keeps the last few), outside the cache's lock.
     const auto reachability = [&](const std::optional<ReachRequest>& q) -> std::shared_ptr<const mapping::Reachability> {
@@ -286,12 +364,13 @@ Response Api::handle(const std::string& method, const std::string& path,
       {
         const std::lock_guard<std::mutex> lock(cache_->mutex);
         cache_->follow(served);
-        const auto it = cache_->reach.find(q->key);
-        if (it != cache_->reach.end()) return it->second;
+        if (auto r = cache_->findReach(q->key)) return r;
       }
+      takeHeavySlot();
       std::shared_ptr<const mapping::Reachability> r;
       try {
-        r = std::make_shared<const mapping::Reachability>(mapping::computeReachability(map.tree(), q->from_map, q->params));
+        r = std::make_shared<const mapping::Reachability>(
+            mapping::computeReachability(map.tree(), q->from_map, q->params, budget));
       } catch (const std::invalid_argument& e) {  // a step under two voxels of this map
         throw Refusal(400, std::string("\"reach\": ") + e.what());
       }
@@ -306,8 +385,7 @@ Response Api::handle(const std::string& method, const std::string& path,
       }
       const std::lock_guard<std::mutex> lock(cache_->mutex);
       cache_->follow(served);
-      if (cache_->reach.size() >= 8) cache_->reach.clear();
-      cache_->reach.emplace(q->key, r);
+      cache_->keepReach(q->key, r, limits_);
       return r;
     };
     if (path == "/api/info") {
@@ -329,14 +407,43 @@ Response Api::handle(const std::string& method, const std::string& path,
       expect("POST");
       const bool soles = path == "/api/foot";
       const std::string field = soles ? "soles" : "points";
-      const nlohmann::json b = parseBody(body);
+      const nlohmann::json b = parseBody(body, limits_);
       onlyKnownFields(b, {field, "frame", "snap", "reach"});
       const InputFrame frame = frameOf(b);
       const double snap = snapOf(b);
       const auto batch = rows(b, field, soles ? 6 : 3, limits_.max_batch);
-      const auto reach = reachability(reachOf(b, frame, map, served->camera_path));
+      const std::optional<ReachRequest> reach_request = reachOf(b, frame, map, served->camera_path);
+      // The work asked for, bounded before any is done (Limits::max_work).
+      const double res = map.tree().getResolution();
+      double work = 0;
+      for (std::size_t i = 0; i < batch.size(); ++i) {
+        if (soles) {
+          const double length = batch[i][4], width = batch[i][5];
+          try {
+            checkSoleSize(length, width);
+          } catch (const std::invalid_argument& e) {
+            throw Refusal(400, "soles[" + std::to_string(i) + "]: " + e.what());
+          }
+          const double samples = std::ceil(length / res) * std::ceil(width / res);
+          work += samples * (1 + voxelsDown(0.1 + (snap >= 0 ? snap : 0.1), res));
+        } else {
+          work += 1 + (snap >= 0 ? voxelsDown(snap, res) : 0);
+        }
+      }
+      if (reach_request) work *= 2;
+      if (work > limits_.max_work) {
+        char message[400];
+        std::snprintf(message, sizeof message,
+                      "this request asks for about %.3g voxel look-ups (%zu entries of \"%s\"%s at %g m voxels), more than the %.3g one "
+                      "request may: ask in smaller batches, with smaller soles or a smaller snap",
+                      work, batch.size(), field.c_str(), snap >= 0 ? " with snap" : "", res, limits_.max_work);
+        throw Refusal(413, message);
+      }
+      if (work > limits_.heavy_work) takeHeavySlot();
+      const auto reach = reachability(reach_request);
       nlohmann::json answers = nlohmann::json::array();
       for (std::size_t i = 0; i < batch.size(); ++i) {
+        if ((soles || (i & 1023u) == 0) && budget.exceeded()) budget.check(path.c_str());
         const auto& q = batch[i];
         if (!soles) {
           answers.push_back(toJson(answerPoint(map, {q[0], q[1], q[2]}, frame, snap, reach.get())));
@@ -352,7 +459,7 @@ Response Api::handle(const std::string& method, const std::string& path,
     }
     if (path == "/api/plan") {
       expect("POST");
-      const nlohmann::json b = parseBody(body);
+      const nlohmann::json b = parseBody(body, limits_);
       // The robot and the search by the names of mobmap.plan's keyword arguments in Python.
       mapping::PlanParams plan_params;
       std::vector<std::string> known{"from", "to", "frame"};
@@ -383,8 +490,13 @@ Response Api::handle(const std::string& method, const std::string& path,
       const Eigen::Vector3d from = world ? map.worldToMap(from_in) : from_in;
       const Eigen::Vector3d to = world ? map.worldToMap(to_in) : to_in;
       mapping::Plan plan;
+      takeHeavySlot();
       try {
-        plan = mapping::planFootsteps(map.tree(), from, to, plan_params);
+        // The plan's own time limit (at most max_plan_time_s) bounds it; the budget stops it
+        // when the server stops.
+        mapping::Budget stop;
+        stop.stop = &state_->stop;
+        plan = mapping::planFootsteps(map.tree(), from, to, plan_params, stop);
       } catch (const mapping::PlanInputError& e) {
         throw Refusal(400, e.what());
       } catch (const std::invalid_argument& e) {
@@ -465,6 +577,11 @@ Response Api::handle(const std::string& method, const std::string& path,
                            "/api/plan; the viewer: GET /)");
   } catch (const Refusal& r) {
     return {r.status, "application/json", errorBody(r.what())};
+  } catch (const mapping::BudgetExceeded& e) {
+    const std::string why = state_->stop.load() ? "the server is stopping"
+                                                : "the request ran past the " + std::to_string(static_cast<int>(limits_.max_request_s)) +
+                                                      " s one request may take";
+    return {503, "application/json", errorBody(why + " (" + e.what() + ")")};
   } catch (const std::bad_alloc&) {
     return {503, "application/json", errorBody("out of memory answering this request")};
   } catch (const std::exception& e) {

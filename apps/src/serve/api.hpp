@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -48,6 +49,27 @@ struct Limits {
   std::size_t max_batch = 100000;          ///< points or soles per request: 413
   std::size_t max_voxels = 2000000;        ///< voxels per /api/voxels page: 413
   double max_plan_time_s = 60.0;           ///< time_limit_s a plan request may ask for
+  // The connections (http_server.cpp), docs/RELIABILITY.md:
+  std::size_t max_connections = 64;             ///< served at once, in all; more: 503 at once
+  std::size_t max_connections_per_client = 16;  ///< from one address; more: 503 at once
+  double request_read_s = 10;                   ///< a request must arrive whole this soon after it begins
+  double keep_alive_idle_s = 5;                 ///< an idle connection is closed after this
+  double answer_write_s = 60;                   ///< an answer must be taken by the client this soon
+  std::size_t large_body_bytes = 1u << 20;      ///< a body larger than this is large
+  std::size_t max_large_bodies = 4;             ///< large bodies read and answered at once; more: 503
+  std::size_t max_json_depth = 16;         ///< arrays and objects nested deeper in a body: 400
+  // The work of one request (docs/RELIABILITY.md), counted in voxel look-ups: a point is
+  // one, plus one per voxel of its snap distance; a sole one per sample (voxel) under it
+  // times the voxels of its search height; twice that with "reach".
+  double max_work = 2e8;             ///< a request asking for more: 413 before any is done (~10 s)
+  double heavy_work = 2e6;           ///< a request asking for more, a plan, or a new reachability is heavy
+  std::size_t max_heavy_requests = 2;  ///< heavy requests answered at once; more: 503
+  double max_request_s = 60;         ///< a request still working after this: 503
+  std::size_t max_reach_cache_entries = 4;       ///< reachabilities kept per map
+  std::size_t max_reach_cache_bytes = 512u << 20;  ///< and their memory, at most
+  /// Values (numbers, strings, arrays, objects) one body may hold: enough for max_batch
+  /// soles of 6 numbers each and the other fields; more: 413 before the body is parsed.
+  [[nodiscard]] std::size_t max_json_values() const { return 8 * max_batch + 1000; }
 };
 
 struct Response {
@@ -66,13 +88,21 @@ class Api {
   [[nodiscard]] Response handle(const std::string& method, const std::string& path,
                                 const std::multimap<std::string, std::string>& params, const std::string& body) const;
   [[nodiscard]] const Limits& limits() const { return limits_; }
+  /// Ends the work of every request being answered (503) and of every later one: for a
+  /// server that is stopping. Any thread.
+  void stopWork() const { state_->stop.store(true); }
 
  private:
   struct Cache;
+  struct State {
+    std::atomic<bool> stop{false};
+    std::atomic<std::size_t> heavy{0};  // heavy requests being answered
+  };
   std::string label_;
   const MapSource& source_;
   Limits limits_;
   std::shared_ptr<Cache> cache_;
+  std::shared_ptr<State> state_;
 };
 
 /// Surface voxels on a grid of cells `level` times coarser than the map (cell side
