@@ -105,27 +105,38 @@ pid_t spawnHeldBuild(std::vector<std::string> args, int stop_after_frames) {
 }
 
 // Ctrl-C after the first frame: the map of that frame is saved, complete.
-TEST(NothingLost, CtrlCDuringBuildSavesTheFramesFusedSoFar) {
-  const std::string dir = tempDir("sigint");
+// Ctrl-C, SIGTERM (a service manager stopping it) and SIGHUP (its terminal closed) each
+// save the frames fused so far and exit 128 + the signal's number.
+class StopSignal : public ::testing::TestWithParam<int> {};
+
+TEST_P(StopSignal, DuringBuildSavesTheFramesFusedSoFar) {
+  const int sig = GetParam();
+  const std::string dir = tempDir("signal" + std::to_string(sig));
   const std::string exe = MOBMAP_EXE;
   ASSERT_EQ(std::system((exe + " simulate --out " + dir + "/seq --frames 60 --noise none --quiet").c_str()), 0);
   const std::string map = dir + "/m.ot";
   const pid_t pid = spawnHeldBuild({exe, "build", dir + "/seq", "--out", map, "--quiet"}, 1);
   ASSERT_GT(pid, 0) << "the build did not stop after its first frame";
-  ::kill(pid, SIGINT);  // delivered when it continues, before it takes the next frame
+  ::kill(pid, sig);  // delivered when it continues, before it takes the next frame
   ::kill(pid, SIGCONT);
   int status = 0;
   ::waitpid(pid, &status, 0);
-  ASSERT_TRUE(WIFEXITED(status));
-  EXPECT_EQ(WEXITSTATUS(status), 130);
+  ASSERT_TRUE(WIFEXITED(status)) << "ended by signal " << (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+  EXPECT_EQ(WEXITSTATUS(status), 128 + sig);
   const auto tree = mapping::loadMobilityMap(map);  // complete and loadable
   EXPECT_GT(tree->size(), 100u);
   std::ifstream meta_in(dir + "/m.json");
   const auto meta = nlohmann::json::parse(meta_in);
   EXPECT_TRUE(meta["interrupted"].get<bool>());
   EXPECT_EQ(meta["frames"].get<int>(), 1);
+  EXPECT_FALSE(fs::exists(dir + "/m.lock"));
   fs::remove_all(dir);
 }
+
+INSTANTIATE_TEST_SUITE_P(NothingLost, StopSignal, ::testing::Values(SIGINT, SIGTERM, SIGHUP),
+                         [](const ::testing::TestParamInfo<int>& p) {
+                           return std::string(p.param == SIGINT ? "SIGINT" : p.param == SIGTERM ? "SIGTERM" : "SIGHUP");
+                         });
 
 std::string fileBytes(const std::string& path) {
   std::ifstream in(path, std::ios::binary);

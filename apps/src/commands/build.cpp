@@ -42,8 +42,18 @@ namespace mobmap::app {
 using namespace build;  // the steps of this command (build_steps.hpp)
 namespace {
 
+// Ctrl-C, SIGTERM (a service manager, `kill`) and SIGHUP (a closed terminal or SSH
+// session) all end the run the same way: the frames fused so far are saved, and the exit
+// code is 128 + the signal's number (130, 143, 129).
 std::atomic<bool> g_interrupted{false};
-extern "C" void onSigint(int) { g_interrupted.store(true); }
+std::atomic<int> g_signal{0};
+extern "C" void onBuildStopSignal(int sig) {
+  int none = 0;
+  g_signal.compare_exchange_strong(none, sig);  // the first signal names the exit code
+  g_interrupted.store(true);
+}
+constexpr int kStopSignals[] = {SIGINT, SIGTERM, SIGHUP};
+int interruptedCode() { return 128 + (g_signal.load() ? g_signal.load() : SIGINT); }
 
 }  // namespace
 
@@ -59,6 +69,10 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (fs::path(o->out).extension() != ".ot") throw UsageError("--out must end in .ot, got '" + o->out + "'");
+  // From here a stop signal ends the run as it stands (with what was fused saved), never
+  // the process in the middle of it: the frames read before the first is fused are the
+  // only ones it can cost.
+  for (const int sig : kStopSignals) std::signal(sig, onBuildStopSignal);
   // One writer per map for the whole run: a second build to the same --out (fresh or
   // --extend) fails here at once instead of replacing the first one's frames.
   const mapping::MapLock map_lock(o->out);
@@ -342,7 +356,6 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
   // fused, reported and checkpointed, for tests that act on a running build.
   const char* stop_env = std::getenv("MOBMAP_STOP_AFTER_FRAMES");
   const int stop_after_frames = stop_env ? std::atoi(stop_env) : -1;
-  std::signal(SIGINT, onSigint);
   // What the run has done so far. Frames are read here, perceived and fused by the
   // LiveMapper's threads; its callbacks (the fusion thread) and this thread both count,
   // so the counts, the progress line and the camera path are shared under `state`.
@@ -482,7 +495,14 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
     // on: while it is still pending, wait for its handler, so that the frame the run
     // ends with does not depend on which thread the scheduler runs first.
     sigset_t pending;
-    while (::sigpending(&pending) == 0 && ::sigismember(&pending, SIGINT) == 1) std::this_thread::yield();
+    const auto stopPending = [&] {
+      if (::sigpending(&pending) != 0) return false;
+      for (const int sig : kStopSignals) {
+        if (::sigismember(&pending, sig) == 1) return true;
+      }
+      return false;
+    };
+    while (stopPending()) std::this_thread::yield();
     if (g_interrupted.load()) mapper_ptr->cancel();
   };
   live_config.on_frame = [&](const mapping::FrameReport& r) {
@@ -616,7 +636,7 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
   if (g_interrupted.load()) mapper->cancel();  // the frames not yet fused are left out
   mapper->finish();
   if (checkpoint_error) std::rethrow_exception(checkpoint_error);
-  std::signal(SIGINT, SIG_DFL);
+  for (const int sig : kStopSignals) std::signal(sig, SIG_DFL);
   const std::shared_ptr<const mapping::MobilityMap> final_map = mapper->snapshot();
   mapper.reset();  // joins its threads: the counts are final
   // Reading, perception and fusion of every frame, as the user waited for them.
@@ -632,17 +652,22 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
     throw IoError(o->input, "no selected frame could be read (" + std::to_string(unreadable.size()) +
                                 " tried; the first: " + unreadable.front() + "); no map written");
   }
-  if (used == 0 && outside_frames > 0 && !g_interrupted.load()) {
+  // Most frames outside the map: a map of the few inside would hide the mistake (a stray
+  // first pose that placed the map, poses in another unit, a wrong --origin).
+  if (outside_frames > used && !g_interrupted.load()) {
+    const std::string which = used == 0 ? "all " + std::to_string(outside_frames)
+                                        : std::to_string(outside_frames) + " of " + std::to_string(outside_frames + used);
     throw IoError(live ? device_label : o->input,
-                  "all " + std::to_string(outside_frames) + " frames with points in range lie outside the map's extent (" +
-                      describeExtent(*final_map) + "); no map written. Are the poses in metres? --origin X Y Z centres the map");
+                  which + " frames with points in range lie outside the map's extent (" + describeExtent(*final_map) +
+                      "); no map written. Are the poses in metres? The map's origin comes from " + origin_source +
+                      ": --origin X Y Z centres the map elsewhere, and --frames leaves out a stray pose");
   }
   if (g_interrupted.load() && used == 0) {
     // Stopped before the first frame was fused: there is nothing to save, and a map
     // being extended stays exactly as it was.
     std::fprintf(stderr, "interrupted before any frame was fused: %s\n",
                  existing ? ("the map at " + o->out + " is unchanged").c_str() : "no map written");
-    return 130;
+    return interruptedCode();
   }
   if (final_map->tree().size() == 0 && used > 0 && !g_interrupted.load()) {
     // Nothing in range anywhere (a range shorter than the scene, depth in the wrong
@@ -711,7 +736,7 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
     } else {
       std::fprintf(stderr, "interrupted: saved the map of the first %d frames\n", used);
     }
-    return 130;
+    return interruptedCode();
   }
   return 0;
 }

@@ -98,7 +98,7 @@ struct LiveHooks {
 };
 
 /// Runs `mobmap build` with the options parsed into `o`; returns its exit code (130
-/// after Ctrl-C, with the map saved). `hooks` may be null.
+/// after Ctrl-C, 143 after SIGTERM, 129 after SIGHUP, with the map saved). `hooks` may be null.
 int runBuild(BuildOptions& o, const LiveHooks* hooks);
 
 
