@@ -75,6 +75,12 @@ std::optional<std::string> checkRigid(const Eigen::Matrix4d& transform,
     return msg.str();
   }
   if (r.determinant() < 0.0) return std::string("rotation is a reflection (det R < 0)");
+  if (transform.topRightCorner<3, 1>().cwiseAbs().maxCoeff() > kMaxWorldCoordinateM) {
+    std::ostringstream msg;
+    msg << "translation (" << transform.topRightCorner<3, 1>().transpose() << ") lies farther than " << kMaxWorldCoordinateM
+        << " m from the origin: not metres";
+    return msg.str();
+  }
   return std::nullopt;
 }
 

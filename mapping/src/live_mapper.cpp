@@ -12,6 +12,8 @@
 #include <map>
 #include <mutex>
 #include <stdexcept>
+#include <string>
+#include <system_error>
 #include <thread>
 #include <vector>
 
@@ -88,7 +90,10 @@ struct LiveMapper::Impl {
     perception::validate(config.perception);
     if (tree) config.map.resolution_m = tree->getResolution();
     validate(config.map);
-    if (config.perception_threads < 1) throw std::invalid_argument("LiveMapper: perception_threads must be >= 1");
+    if (config.perception_threads < 1 || config.perception_threads > kMaxPerceptionThreads) {
+      throw std::invalid_argument("LiveMapper: perception_threads must be in [1, " + std::to_string(kMaxPerceptionThreads) +
+                                  "], got " + std::to_string(config.perception_threads));
+    }
     if (config.queue_capacity < 1) throw std::invalid_argument("LiveMapper: queue_capacity must be >= 1");
     const Eigen::Vector3d& g = config.gravity_down_world;
     if (!g.allFinite() || g.norm() < 1e-9) throw std::invalid_argument("LiveMapper: gravity_down_world must be finite and not zero");
@@ -110,11 +115,19 @@ struct LiveMapper::Impl {
     }
     front = std::move(first);
     back = std::move(second);
-    for (int t = 0; t < config.perception_threads; ++t) workers.emplace_back([this] { perceive(); });
-    fuser = std::thread([this] { fuse(); });
+    try {
+      for (int t = 0; t < config.perception_threads; ++t) workers.emplace_back([this] { perceive(); });
+      fuser = std::thread([this] { fuse(); });
+    } catch (const std::system_error& e) {  // the system would not give this process more threads
+      stopThreads();
+      throw std::runtime_error("LiveMapper: cannot start " + std::to_string(config.perception_threads) +
+                               " perception threads and a fusion thread: " + e.what());
+    }
   }
 
-  ~Impl() {
+  ~Impl() { stopThreads(); }
+
+  void stopThreads() {
     {
       const std::lock_guard<std::mutex> lock(mutex);
       stopping = true;
@@ -123,7 +136,7 @@ struct LiveMapper::Impl {
     }
     changed.notify_all();
     for (auto& t : workers) t.join();
-    fuser.join();
+    if (fuser.joinable()) fuser.join();
   }
 
   void perceive() {

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <sstream>
 #include <unordered_map>
 
 namespace mobmap::mapping {
@@ -105,11 +106,22 @@ std::optional<std::string> voxelBudgetProblem(const MobilityOcTree& tree) {
 MobilityMap::MobilityMap(MapParams params, const Eigen::Matrix3d& R_map_world, const Eigen::Vector3d& origin_world)
     : MobilityMap(nullptr, params, R_map_world, origin_world) {}
 
+namespace {
+void checkOrigin(const Eigen::Vector3d& origin_world) {
+  if (!origin_world.allFinite() || origin_world.cwiseAbs().maxCoeff() > kMaxWorldCoordinateM) {
+    std::ostringstream msg;
+    msg << "MobilityMap: origin_world must be finite and within " << kMaxWorldCoordinateM << " m of the world origin, got ("
+        << origin_world.transpose() << ")";
+    throw std::invalid_argument(msg.str());
+  }
+}
+}  // namespace
+
 MobilityMap::MobilityMap(std::unique_ptr<MobilityOcTree> tree, MapParams params, const Eigen::Matrix3d& R_map_world,
                          const Eigen::Vector3d& origin_world)
     : params_(params), R_map_world_(R_map_world), origin_world_(origin_world), tree_(std::move(tree)) {
   validate(params_);
-  if (!origin_world.allFinite()) throw std::invalid_argument("MobilityMap: origin_world must be finite");
+  checkOrigin(origin_world);
   Eigen::Matrix4d t = Eigen::Matrix4d::Identity();
   t.topLeftCorner<3, 3>() = R_map_world;
   if (auto problem = checkRigid(t)) throw std::invalid_argument("MobilityMap: R_map_world: " + *problem);
@@ -151,7 +163,7 @@ MobilityMap::MobilityMap(const MobilityMap& other)
 
 void MobilityMap::setOriginWorld(const Eigen::Vector3d& origin_world) {
   if (tree_->size() > 0) throw std::logic_error("MobilityMap::setOriginWorld: the map already holds data");
-  if (!origin_world.allFinite()) throw std::invalid_argument("MobilityMap: origin_world must be finite");
+  checkOrigin(origin_world);
   origin_world_ = origin_world;
 }
 

@@ -3,6 +3,8 @@
 #include "io/files.hpp"
 #include "io/io_error.hpp"
 
+#include "mobmap/mapping/gravity.hpp"
+
 #include <cctype>
 #include <cmath>
 #include <ctime>
@@ -59,6 +61,7 @@ std::vector<std::pair<double, Eigen::Isometry3d>> readTumPoses(const std::string
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.linear() = q.normalized().toRotationMatrix();
     T.translation() = Eigen::Vector3d(x[0], x[1], x[2]);
+    if (auto problem = mapping::checkRigid(T.matrix())) throw IoError(path, "pose " + std::to_string(line) + ": " + *problem);
     out.emplace_back(t, T);
   }
   return out;

@@ -41,14 +41,20 @@ struct DownConsensus {
 [[nodiscard]] std::optional<DownConsensus> consensusDown(const std::vector<DownObservation>& observations,
                                                          double max_angle_deg = 5.0);
 
+/// The farthest a pose or a map origin may lie from its world frame's origin, metres:
+/// twice round the Earth, so any geographic frame (UTM, ECEF) fits, while a pose in the
+/// wrong unit or a corrupt number (1e15 m, where a double no longer resolves a decimetre)
+/// is refused instead of mapped wrongly.
+inline constexpr double kMaxWorldCoordinateM = 1e8;
+
 /// Tolerances of checkRigid().
 struct RigidTolerance {
   double orthonormality = 1e-3;  ///< max |R^T R - I| entry (poses are often printed with 6-7 digits)
   double bottom_row = 1e-6;      ///< max |row 3 - (0,0,0,1)| entry
 };
 
-/// Checks that a 4x4 matrix is a rigid transform: finite, R^T R = I, det R = +1,
-/// bottom row (0,0,0,1). Returns nullopt when it is, otherwise the reason in words
+/// Checks that a 4x4 matrix is a rigid transform in metres: finite, R^T R = I, det R = +1,
+/// bottom row (0,0,0,1), translation within kMaxWorldCoordinateM. Returns nullopt when it is, otherwise the reason in words
 /// ("rotation is not orthonormal (max error 0.2)"), for the caller to put next to the
 /// file name and line.
 [[nodiscard]] std::optional<std::string> checkRigid(const Eigen::Matrix4d& transform,

@@ -89,6 +89,8 @@ class LiveMapper {
     kKeepNewest,  ///< drop the oldest waiting frame (a live sensor); Stats::dropped counts them
   };
 
+  static constexpr int kMaxPerceptionThreads = 256;
+
   struct Config {
     /// `mobmap build`'s defaults: 2 cm voxels, points up to 3 m.
     MapParams map = [] {
@@ -101,8 +103,10 @@ class LiveMapper {
     /// Gravity (pointing down) in the world frame of the poses.
     Eigen::Vector3d gravity_down_world = Eigen::Vector3d(0, 0, -1);
     /// The map origin in the world frame; unset: the first frame's camera position
-    /// rounded to 100 m (as `mobmap build`).
+    /// rounded to 100 m (as `mobmap build`). At most kMaxWorldCoordinateM from the world origin.
     std::optional<Eigen::Vector3d> origin_world;
+    /// Frames perceived at once, 1 to kMaxPerceptionThreads (each thread holds a frame's
+    /// working memory); one thread more fuses.
     int perception_threads = 2;
     std::size_t queue_capacity = 2;
     WhenBusy when_busy = WhenBusy::kBlock;
