@@ -28,7 +28,7 @@
 namespace mobmap::app {
 namespace {
 
-// Ctrl-C or SIGTERM while the server runs: a byte down this pipe wakes the main thread.
+// Ctrl-C, SIGTERM or SIGHUP while the server runs: a byte down this pipe wakes the main thread.
 int g_stop_pipe[2] = {-1, -1};
 extern "C" void onStopSignal(int) {
   const char byte = 1;
@@ -36,10 +36,9 @@ extern "C" void onStopSignal(int) {
   (void)written;
 }
 
-// Returns once SIGINT or SIGTERM arrives.
+// Returns once SIGINT, SIGTERM or SIGHUP arrives.
 void waitForStopSignal() {
-  std::signal(SIGINT, onStopSignal);
-  std::signal(SIGTERM, onStopSignal);
+  for (const int sig : {SIGINT, SIGTERM, SIGHUP}) std::signal(sig, onStopSignal);
   char byte = 0;
   while (::read(g_stop_pipe[0], &byte, 1) < 0 && errno == EINTR) {
   }
@@ -56,6 +55,13 @@ class RunningServer {
       throw UsageError(std::string("--bind/--port: ") + e.what());
     }
     thread_ = std::thread([this] { server_.run(); });
+    const bool loopback = address.rfind("127.", 0) == 0 || address == "::1" || address == "localhost";
+    if (!loopback) {
+      std::fprintf(stderr,
+                   "warning: listening on %s: the API has no authentication, and anyone who can reach this machine on "
+                   "port %d can read the map and set it to work (--bind 127.0.0.1 serves this machine only)\n",
+                   address.c_str(), port_);
+    }
   }
   ~RunningServer() {
     server_.stop();
@@ -154,8 +160,6 @@ Command addServeCommand(CLI::App& app) {
     const serve::Api api(b.out, source, limits);
     const RunningServer server(api, o->address, o->port);
     const std::string url = urlOf(o->address, server.port());
-    std::printf("serving the map being built into %s at %s\n", b.out.c_str(), url.c_str());
-    std::fflush(stdout);
 
     std::mutex path_mutex;  // the camera path, added to by the fusion thread
     std::vector<Eigen::Vector3d> path;
@@ -166,6 +170,10 @@ Command addServeCommand(CLI::App& app) {
       s.frames = frames;
       s.building = true;
       source.publish(std::move(s));
+      // Announced once the run has passed build's checks (--out, the input), so that a
+      // run refused at once never says it is serving.
+      std::printf("serving the map being built into %s at %s\n", b.out.c_str(), url.c_str());
+      std::fflush(stdout);
     };
     hooks.fused = [&](std::shared_ptr<const mapping::MobilityMap> map, int frames, const Eigen::Vector3d& camera) {
       serve::ServedMap s;
