@@ -90,6 +90,22 @@ py::dict footprint(const MapHandle& h, const py::object& soles, const std::strin
   const Frame frame = parseFrame(frame_name);
   const auto s = rows(soles, 6, "soles");
   const py::ssize_t n = s.shape(0);
+  {
+    // As `mobmap query --foot` and the server: a sole must be finite and of a size that
+    // can be sampled in reasonable time (NaN or a 100 m sole gave zeros or took seconds).
+    const auto in = s.unchecked<2>();
+    for (py::ssize_t i = 0; i < n; ++i) {
+      for (py::ssize_t k = 0; k < 6; ++k) {
+        if (!std::isfinite(in(i, k))) throw py::value_error("footprint: soles[" + std::to_string(i) + "] holds a value that is not finite");
+      }
+      const double length = in(i, 4), width = in(i, 5);
+      if (!(length > 0 && width > 0 && length <= mapping::kMaxSoleSideM && width <= mapping::kMaxSoleSideM)) {
+        throw py::value_error("footprint: soles[" + std::to_string(i) + "]: length and width must be in (0, " +
+                              std::to_string(static_cast<int>(mapping::kMaxSoleSideM)) + "] m, got " + std::to_string(length) +
+                              " x " + std::to_string(width));
+      }
+    }
+  }
   auto min_mob = newArray(n), mean_mob = newArray(n), known = newArray(n), height_diff = newArray(n),
        support = newArray(n), tilt = newArray(n);
   {
@@ -104,8 +120,6 @@ py::dict footprint(const MapHandle& h, const py::object& soles, const std::strin
     py::gil_scoped_release unlocked;
     for (py::ssize_t i = 0; i < n; ++i) {
       const Eigen::Vector3d c = toMap(map, Eigen::Vector3d(in(i, 0), in(i, 1), in(i, 2)), frame);
-      // An unusable sole (non-finite, not positive, too large to sample) gets the library's
-      // answer for it: no samples, nothing known.
       const mapping::Foot foot{c.x(), c.y(), c.z(), (frame == Frame::kWorld ? map.worldYawToMap(in(i, 3)) : in(i, 3)), in(i, 4), in(i, 5)};
       const mapping::FootprintQuery f = map.footprint(foot);
       a(i) = f.min_mobility;

@@ -89,6 +89,7 @@ py::dict plan(const MapHandle& h, const py::handle& start, const py::handle& goa
   out["max_step_height_m"] = p.max_step_height_m;
   out["expansions"] = p.expansions;
   out["planning_time_s"] = p.planning_time_s;
+  out["time_limit_reached"] = p.time_limit_reached;
   return out;
 }
 

@@ -105,3 +105,15 @@ def test_analyze_scores_a_frame_as_mobmap_analyze_does(corridor):
     # Each segment covers at least as many pixels as it has voxel points.
     counts = np.bincount(image[image >= 0].ravel(), minlength=len(segs["points"]))
     assert np.all(counts >= segs["points"])
+
+
+@pytest.mark.parametrize("threads", [0, -1, 257, 100000])
+def test_a_thread_count_out_of_range_is_a_value_error(threads):
+    with pytest.raises(ValueError, match=r"perception_threads must be in \[1, 256\]"):
+        mobmap.LiveMapper(perception_threads=threads)
+
+
+@pytest.mark.parametrize("origin", [(1e300, 0, 0), (0, 0, 2e8), (np.nan, 0, 0)])
+def test_an_origin_that_is_not_in_metres_is_a_value_error(origin):
+    with pytest.raises(ValueError, match="origin_world"):
+        mobmap.LiveMapper(origin_world=origin)

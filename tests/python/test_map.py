@@ -2,12 +2,13 @@
 the checks of what numpy hands in."""
 
 import json
+import subprocess
 
 import numpy as np
 import pytest
 
 import mobmap
-from conftest import run
+from conftest import EXE, run
 
 
 def cli_points(map_path, points, *options):
@@ -119,3 +120,32 @@ def test_arrays_of_the_wrong_shape_or_dtype_are_value_errors(corridor, bad, mess
 def test_a_missing_map_is_an_os_error_naming_the_file(tmp_path):
     with pytest.raises(OSError, match="nothing.ot"):
         mobmap.open_map(str(tmp_path / "nothing.ot"))
+
+
+@pytest.mark.parametrize("length, width", [(0.0, 0.12), (-0.25, 0.12), (np.nan, 0.12), (np.inf, 0.12), (100.0, 100.0),
+                                           (0.25, 10.5)])
+def test_unusable_soles_are_value_errors_as_in_the_cli(corridor, length, width):
+    m = mobmap.open_map(str(corridor["map"]))
+    soles = np.array([[2.0, 0.0, 0.02, 0.0, 0.25, 0.12], [2.0, 0.0, 0.02, 0.0, length, width]])
+    with pytest.raises(ValueError, match=r"soles\[1\]"):
+        m.footprint(soles)
+    # The CLI refuses the same sole.
+    r = subprocess.run([EXE, "query", str(corridor["map"]), "--foot", "2", "0", "0.02", "0", repr(length), repr(width)],
+                       capture_output=True, text=True)
+    assert r.returncode != 0
+
+
+def test_a_sole_that_is_not_finite_is_a_value_error(corridor):
+    m = mobmap.open_map(str(corridor["map"]))
+    with pytest.raises(ValueError, match="not finite"):
+        m.footprint(np.array([[2.0, np.nan, 0.02, 0.0, 0.25, 0.12]]))
+
+
+def test_a_map_json_nested_past_the_limit_is_an_os_error_naming_it(corridor, tmp_path):
+    # 100,000 nested objects under a key nobody reads recursed past the stack on copy.
+    (tmp_path / "deep.ot").write_bytes(corridor["map"].read_bytes())
+    meta = json.loads((corridor["dir"] / "map.json").read_text())
+    text = json.dumps(meta)[:-1] + ', "extra": ' + '{"a": ' * 100000 + "1" + "}" * 100000 + "}"
+    (tmp_path / "deep.json").write_text(text)
+    with pytest.raises(OSError, match=r"deep\.json.*nested more than 64 deep"):
+        mobmap.open_map(str(tmp_path / "deep.ot"))

@@ -72,7 +72,7 @@ nlohmann::json toJson(const PointAnswer& a) {
 }
 
 void checkSoleSize(double length_m, double width_m) {
-  if (!(length_m > 0 && width_m > 0 && length_m <= kMaxSoleSideM && width_m <= kMaxSoleSideM)) {
+  if (!(length_m > 0 && width_m > 0 && length_m <= mapping::kMaxSoleSideM && width_m <= mapping::kMaxSoleSideM)) {
     throw std::invalid_argument("LENGTH and WIDTH must be in (0, 10] m");
   }
 }

@@ -50,9 +50,8 @@ struct FootAnswer {
   Eigen::Vector3d support_normal = Eigen::Vector3d::UnitZ();  ///< in the frame given
   std::optional<mapping::SoleReach> reach;
 };
-/// The longest side a sole may have, metres.
-inline constexpr double kMaxSoleSideM = 10.0;
-/// std::invalid_argument "LENGTH and WIDTH must be in (0, 10] m" unless both are.
+/// std::invalid_argument "LENGTH and WIDTH must be in (0, 10] m" unless both are
+/// (mapping::kMaxSoleSideM).
 void checkSoleSize(double length_m, double width_m);
 /// std::invalid_argument "LENGTH and WIDTH must be in (0, 10] m" for a sole of no size or
 /// a larger one; the values must be finite. `snap_m` < 0: search 0.1 m below the sole.

@@ -18,6 +18,10 @@ struct SoleSample {
   double a = 0, b = 0, x = 0, y = 0;
 };
 
+/// The longest side a sole may have in the front ends' queries (CLI, server, Python),
+/// metres: a larger one is refused rather than sampled for seconds.
+inline constexpr double kMaxSoleSideM = 10.0;
+
 /// Longest side of a sole, in voxels, that soleSamples() samples.
 inline constexpr double kMaxSoleSamplesPerSide = 10000;
 
