@@ -141,6 +141,20 @@ TEST(Pcd, DeclaredSizesAreCheckedAgainstTheFileAndTheFrameLimitBeforeAnythingIsA
   writeBytes(dir.file("d.pcd"), pcdHeader("100", "binary_compressed") + sizes + std::string(10, '\0'));
   EXPECT_EQ(both(dir.file("d.pcd")), dir.file("d.pcd") + ": PCD compressed data says it holds 4026531840 bytes, but 100 "
                                      "points of 12 bytes are 1200 (corrupt file)");
+  // A COUNT of 10^9 on one field: 8 GB asked of PCL's header reader for two points
+  // (std::bad_alloc, naming no file, under a memory limit), in every data format.
+  for (const char* format : {"ascii", "binary", "binary_compressed"}) {
+    std::string header = pcdHeader("2", format);
+    header.replace(header.find("COUNT 1 1 1"), 11, "COUNT 1 1 1000000000");
+    writeBytes(dir.file("f.pcd"), header + std::string(100, '\0'));
+    EXPECT_EQ(both(dir.file("f.pcd")), dir.file("f.pcd") + ": PCD header declares field 3 of SIZE 4 and COUNT 1000000000; a "
+                                       "point of depth data is a few numbers")
+        << format;
+  }
+  // Compressed data that could not hold what the header declares (LZF shrinks 264 bytes to 3 at best).
+  writeBytes(dir.file("g.pcd"), pcdHeader("1000000", "binary_compressed") + sizes + std::string(100, '\0'));
+  EXPECT_EQ(both(dir.file("g.pcd")), dir.file("g.pcd") + ": PCD header declares 1000000 points of 12 bytes, more than its 108 "
+                                     "bytes of compressed data can hold");
   // The same file honest: 20000 ASCII points load.
   writeBytes(dir.file("e.pcd"), pcdHeader("20000", "ascii") + lines);
   EXPECT_EQ(loadPcd(dir.file("e.pcd")).points.size(), 20000u);

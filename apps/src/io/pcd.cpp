@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <vector>
 
 namespace mobmap::app {
 
@@ -28,30 +29,84 @@ struct PcdHeader {
   bool has_rgb = false;
 };
 
-// PCL's header reader allocates the declared size: WIDTH, HEIGHT and POINTS are read
-// here first and checked against the frame-size limit.
+// PCL's header reader allocates the declared size (points x bytes per point) before it
+// reads a byte of data, so the header is read here first: WIDTH, HEIGHT and POINTS are
+// held to the frame-size limit, SIZE x COUNT per point to kMaxPointBytes, and the data
+// the header promises to what the file can hold (a COUNT of 10^9 asked for gigabytes).
+constexpr unsigned long long kMaxPointBytes = 4096;  // a VFH descriptor is 1,232
+
 void checkDeclaredPointCount(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   std::string line;
   unsigned long long width = 1, height = 1, points = 0;
-  for (int lines = 0; lines < 64 && std::getline(in, line); ++lines) {
-    std::istringstream words(line);
-    std::string key;
-    words >> key;
-    if (key == "DATA") break;
-    if (key != "WIDTH" && key != "HEIGHT" && key != "POINTS") continue;
-    std::string value;
-    words >> value;
+  std::vector<unsigned long long> sizes, counts;
+  std::string data;
+  const auto number = [&](const std::string& key, const std::string& value) {
     if (value.empty() || value.find_first_not_of("0123456789") != std::string::npos || value.size() > 15) {
       throw IoError(path, "PCD header's " + key + " '" + value + "' is not a whole number below 10^15");
     }
-    (key == "WIDTH" ? width : key == "HEIGHT" ? height : points) = std::stoull(value);
+    return std::stoull(value);
+  };
+  for (int lines = 0; lines < 64 && std::getline(in, line); ++lines) {
+    std::istringstream words(line);
+    std::string key, value;
+    words >> key;
+    if (key == "DATA") {
+      words >> data;
+      break;
+    }
+    if (key == "SIZE" || key == "COUNT") {
+      auto& list = key == "SIZE" ? sizes : counts;
+      while (words >> value) list.push_back(number(key, value));
+      continue;
+    }
+    if (key != "WIDTH" && key != "HEIGHT" && key != "POINTS") continue;
+    words >> value;
+    (key == "WIDTH" ? width : key == "HEIGHT" ? height : points) = number(key, value);
   }
   const unsigned long long declared = std::max(points, width * height);
   if (declared > static_cast<unsigned long long>(kMaxFramePixels)) {
     throw IoError(path, "PCD header declares " + std::to_string(declared) + " points (WIDTH " + std::to_string(width) +
                             ", HEIGHT " + std::to_string(height) + "), more than mobmap reads in one frame (" +
                             std::to_string(kMaxFramePixels) + ")");
+  }
+  unsigned long long point_bytes = 0, values = 0;
+  for (std::size_t i = 0; i < sizes.size(); ++i) {
+    const unsigned long long count = i < counts.size() ? counts[i] : 1;
+    if (sizes[i] > 8 || count > kMaxPointBytes) {
+      throw IoError(path, "PCD header declares field " + std::to_string(i + 1) + " of SIZE " + std::to_string(sizes[i]) +
+                              " and COUNT " + std::to_string(count) + "; a point of depth data is a few numbers");
+    }
+    point_bytes += sizes[i] * count;
+    values += std::max(1ULL, count);
+  }
+  if (point_bytes > kMaxPointBytes) {
+    throw IoError(path, "PCD header declares " + std::to_string(point_bytes) + " bytes per point, more than the " +
+                            std::to_string(kMaxPointBytes) + " mobmap reads (a point of depth data is a few numbers)");
+  }
+  // The data the header promises must fit the file: binary data is all there, ASCII data
+  // needs at least two bytes ("0 ") per value, and compressed data can hold at most 88
+  // times its size (the sizes in its block are checked once PCL has found where it starts).
+  const std::streamoff data_at = in ? static_cast<std::streamoff>(in.tellg()) : -1;
+  std::error_code ec;
+  const auto size = static_cast<unsigned long long>(std::filesystem::file_size(path, ec));
+  if (ec || data_at < 0) return;  // PCL's reader says what is wrong
+  const unsigned long long start = static_cast<unsigned long long>(data_at);
+  const unsigned long long bytes = size > start ? size - start : 0;
+  const unsigned long long cells = width * height;
+  if (data == "binary" && bytes < cells * point_bytes) {
+    throw IoError(path, "PCD data is shorter than its header declares (" + std::to_string(size) + " bytes, " +
+                            std::to_string(start + cells * point_bytes) + " needed)");
+  }
+  // LZF, PCL's compression, turns at most 264 bytes into 3.
+  if (data == "binary_compressed" && cells * point_bytes > 88 * bytes) {
+    throw IoError(path, "PCD header declares " + std::to_string(cells) + " points of " + std::to_string(point_bytes) +
+                            " bytes, more than its " + std::to_string(bytes) + " bytes of compressed data can hold");
+  }
+  if (data == "ascii" && cells * values * 2 > bytes) {
+    throw IoError(path, "PCD header declares " + std::to_string(cells) + " points of " + std::to_string(values) +
+                            " values, but its " + std::to_string(bytes) + " bytes of ASCII data hold at most " +
+                            std::to_string(bytes / (2 * std::max<unsigned long long>(1, values))) + " (corrupt or truncated file)");
   }
 }
 
@@ -83,11 +138,10 @@ PcdHeader readPcdHeader(const std::string& path) {
 
 namespace {
 
-// What the header declares must fit the file, checked before PCL allocates the declared
-// size (a header claiming 10^7 points over a few kilobytes of data); readPcdHeader has
-// held it to the frame-size limit already. Binary data must be all there; ASCII data
-// needs at least two bytes ("0 ") per value.
+// binary_compressed data must be what the header declares, checked before PCL
+// decompresses it (checkDeclaredPointCount has held the rest to the file already).
 void checkPcdDeclaredSize(const std::string& path, const PcdHeader& h) {
+  if (h.data_type != 2) return;
   const unsigned long long points = static_cast<unsigned long long>(h.fields.width) * h.fields.height;
   std::error_code ec;
   const auto size = static_cast<unsigned long long>(std::filesystem::file_size(path, ec));
@@ -95,40 +149,25 @@ void checkPcdDeclaredSize(const std::string& path, const PcdHeader& h) {
   const unsigned long long start = h.data_offset;
   const unsigned long long data = size > start ? size - start : 0;
   const unsigned long long declared = points * h.fields.point_step;
-  if (h.data_type == 1) {
-    if (data < declared) {
-      throw IoError(path, "PCD data is shorter than its header declares (" + std::to_string(size) + " bytes, " +
-                              std::to_string(start + declared) + " needed)");
-    }
-  } else if (h.data_type == 2) {
-    // Two little-endian 32-bit sizes (compressed, uncompressed), then the compressed bytes.
-    std::ifstream in(path, std::ios::binary);
-    unsigned char sizes[8] = {};
-    if (!in.seekg(static_cast<std::streamoff>(start)) || !in.read(reinterpret_cast<char*>(sizes), 8)) {
-      throw IoError(path, "PCD data is corrupt or shorter than its header declares (no compressed block sizes)");
-    }
-    const auto le32 = [&](int at) {
-      return static_cast<unsigned long long>(sizes[at]) | static_cast<unsigned long long>(sizes[at + 1]) << 8 |
-             static_cast<unsigned long long>(sizes[at + 2]) << 16 | static_cast<unsigned long long>(sizes[at + 3]) << 24;
-    };
-    const unsigned long long compressed = le32(0), uncompressed = le32(4);
-    if (data < 8 + compressed) {
-      throw IoError(path, "PCD data is shorter than its header declares (" + std::to_string(size) + " bytes, " +
-                              std::to_string(start + 8 + compressed) + " needed)");
-    }
-    if (uncompressed != declared) {
-      throw IoError(path, "PCD compressed data says it holds " + std::to_string(uncompressed) + " bytes, but " +
-                              std::to_string(points) + " points of " + std::to_string(h.fields.point_step) +
-                              " bytes are " + std::to_string(declared) + " (corrupt file)");
-    }
-  } else {
-    std::size_t values = 0;
-    for (const auto& f : h.fields.fields) values += std::max<std::size_t>(1, f.count);
-    if (points * values * 2 > data) {
-      throw IoError(path, "PCD header declares " + std::to_string(points) + " points of " + std::to_string(values) +
-                              " values, but its " + std::to_string(data) + " bytes of ASCII data hold at most " +
-                              std::to_string(data / (2 * std::max<std::size_t>(1, values))) + " (corrupt or truncated file)");
-    }
+  // Two little-endian 32-bit sizes (compressed, uncompressed), then the compressed bytes.
+  std::ifstream in(path, std::ios::binary);
+  unsigned char sizes[8] = {};
+  if (!in.seekg(static_cast<std::streamoff>(start)) || !in.read(reinterpret_cast<char*>(sizes), 8)) {
+    throw IoError(path, "PCD data is corrupt or shorter than its header declares (no compressed block sizes)");
+  }
+  const auto le32 = [&](int at) {
+    return static_cast<unsigned long long>(sizes[at]) | static_cast<unsigned long long>(sizes[at + 1]) << 8 |
+           static_cast<unsigned long long>(sizes[at + 2]) << 16 | static_cast<unsigned long long>(sizes[at + 3]) << 24;
+  };
+  const unsigned long long compressed = le32(0), uncompressed = le32(4);
+  if (data < 8 + compressed) {
+    throw IoError(path, "PCD data is shorter than its header declares (" + std::to_string(size) + " bytes, " +
+                            std::to_string(start + 8 + compressed) + " needed)");
+  }
+  if (uncompressed != declared) {
+    throw IoError(path, "PCD compressed data says it holds " + std::to_string(uncompressed) + " bytes, but " +
+                            std::to_string(points) + " points of " + std::to_string(h.fields.point_step) + " bytes are " +
+                            std::to_string(declared) + " (corrupt file)");
   }
 }
 
