@@ -137,6 +137,13 @@ std::unique_ptr<MobilityOcTree> loadMobilityMap(const std::string& path) {
   if (tree->size() != size) {
     ioFail(path, "header declares " + std::to_string(size) + " nodes, the data holds " + std::to_string(tree->size()));
   }
+  // Nothing may follow the tree: bytes after it mean a file joined to another or
+  // overwritten in part, whose tree cannot be trusted either.
+  if (in.peek() != std::char_traits<char>::eof()) {
+    const auto at = static_cast<std::uintmax_t>(in.tellg());
+    ioFail(path, std::to_string(file_size - at) + " bytes follow the tree's data (at byte " + std::to_string(at) +
+                     "): the file is corrupt, or two files were joined");
+  }
   if (auto problem = voxelBudgetProblem(*tree)) ioFail(path, *problem + ": not a map mobmap can use");
   return tree;
 }

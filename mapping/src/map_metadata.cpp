@@ -427,6 +427,22 @@ void saveMapMetadata(const MapMetadata& metadata, const std::string& json_path) 
 }
 
 MobilityMap openMap(std::unique_ptr<MobilityOcTree> tree, const MapMetadata& metadata, MapParams params) {
+  // MAP.json must describe this tree: a MAP.json left beside another map would put its
+  // origin and rotation on the wrong voxels.
+  if (metadata.found) {
+    const MapRun& run = metadata.latest;
+    if (run.tree_type && *run.tree_type != tree->getTreeType()) {
+      fail(metadata.path, "records a " + *run.tree_type + " map, but the map beside it is a " + tree->getTreeType() +
+                              ": the two files belong to different maps");
+    }
+    const double res = tree->getResolution();
+    if (run.resolution_m && std::abs(*run.resolution_m - res) > 1e-6 * res) {
+      std::ostringstream msg;
+      msg << "records " << *run.resolution_m << " m voxels, but the map beside it has " << res
+          << " m voxels: the two files belong to different maps";
+      fail(metadata.path, msg.str());
+    }
+  }
   params.resolution_m = tree->getResolution();
   MobilityMap map(std::move(tree), params, metadata.R_map_world(), metadata.originWorld());
   map.setFramesIntegrated(metadata.frames);

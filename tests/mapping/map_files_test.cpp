@@ -93,6 +93,10 @@ TEST(MapFiles, HostileFilesGiveClearErrors) {
   const std::string fut = tempPath("future.ot");
   std::ofstream(fut, std::ios::binary) << future;
   EXPECT_NE(loadError(fut).find("another version"), std::string::npos);
+  // Bytes after the tree (two files joined, a partial overwrite) are named, not ignored.
+  const std::string joined = tempPath("joined.ot");
+  std::ofstream(joined, std::ios::binary) << bytes << "junk";
+  EXPECT_NE(loadError(joined).find("joined.ot: 4 bytes follow the tree's data"), std::string::npos) << loadError(joined);
 }
 
 // A .ot whose tree is one chain from the root down to a single occupied leaf at `depth`:

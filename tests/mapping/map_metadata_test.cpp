@@ -241,6 +241,52 @@ TEST(MapMetadata, AMalformedEntryIsNamed) {
   }
 }
 
+// Nesting is bounded before parsing: 100,000 nested objects, even under a key nobody
+// reads, overflowed the stack when the parsed value was copied.
+TEST(MapMetadata, NestingPastTheLimitIsRefusedBeforeParsing) {
+  MapMetadata good;
+  good.latest = fullRun(0);
+  std::string text = formatMapMetadata(good);
+  text.resize(text.rfind('}'));
+  const auto nested = [](int depth) { return std::string(depth, '[') + "1" + std::string(depth, ']'); };
+  try {
+    parseMapMetadata(text + ", \"extra\": " + nested(100000) + "}", "dir/deep.json");
+    ADD_FAILURE() << "accepted 100,000 levels";
+  } catch (const MapIoError& e) {
+    EXPECT_NE(std::string(e.what()).find("dir/deep.json: not a map metadata file: arrays and objects are nested more than 64 deep"),
+              std::string::npos)
+        << e.what();
+  }
+  // 64 levels under an unknown key are kept, as any unknown entry is.
+  const MapMetadata kept = parseMapMetadata(text + ", \"extra\": " + nested(63) + "}", "m.json");
+  EXPECT_NE(kept.latest.other_entries.find(nested(63)), std::string::npos);
+  // A NUL byte and what follows it is not taken for the end of the file.
+  EXPECT_THROW(parseMapMetadata(formatMapMetadata(good) + std::string(1, '\0') + "junk", "m.json"), MapIoError);
+}
+
+// A MAP.json beside a map it does not describe (another resolution or tree type): its
+// origin and rotation would be put on the wrong voxels.
+TEST(MapMetadata, OneThatDescribesAnotherMapIsRefused) {
+  MapMetadata meta;
+  meta.found = true;
+  meta.path = "dir/m.json";
+  meta.latest.resolution_m = 0.04;
+  const auto openWith = [&](const MapMetadata& m) { return openMap(std::make_unique<MobilityOcTree>(0.02), m); };
+  try {
+    (void)openWith(meta);
+    ADD_FAILURE() << "opened a 2 cm tree with a MAP.json of 4 cm voxels";
+  } catch (const MapIoError& e) {
+    EXPECT_NE(std::string(e.what()).find("dir/m.json: records 0.04 m voxels, but the map beside it has 0.02 m voxels"),
+              std::string::npos)
+        << e.what();
+  }
+  meta.latest.resolution_m = 0.02;
+  meta.latest.tree_type = "ColorOcTree";
+  EXPECT_THROW((void)openWith(meta), MapIoError);
+  meta.latest.tree_type = MobilityOcTree::kTreeType;
+  EXPECT_NO_THROW((void)openWith(meta));
+}
+
 TEST(MapMetadata, SavedAtomicallyAndReadBesideTheMap) {
   const fs::path dir = fs::temp_directory_path() / ("mobmap_meta_" + std::to_string(::getpid()));
   fs::remove_all(dir);
