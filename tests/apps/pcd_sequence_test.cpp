@@ -72,7 +72,7 @@ TEST(PcdSequence, ACutFrameIsFoundFromItsHeaderBeforeTheRun) {
   EXPECT_NO_THROW(app::checkPcdComplete(c));  // the sizes add up (the bytes are only checked by loading)
   std::ofstream(c, std::ios::binary) << head << sizes.substr(0, 5);
   EXPECT_THROW(app::checkPcdComplete(c), app::IoError);
-  // No x, y, z; and ASCII, which only loading can check.
+  // No x, y, z; and ASCII data shorter than two bytes a value.
   const std::string d = (dir / "d.pcd").string();
   std::ofstream(d) << "# .PCD v0.7\nVERSION 0.7\nFIELDS x y\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nWIDTH 1\nHEIGHT 1\n"
                       "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 1\nDATA ascii\n1 2\n";
@@ -84,6 +84,9 @@ TEST(PcdSequence, ACutFrameIsFoundFromItsHeaderBeforeTheRun) {
   }
   std::ofstream(d) << "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\n"
                       "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA ascii\n1 2 3\n";
+  EXPECT_THROW(app::checkPcdComplete(d), app::IoError);  // 6 bytes cannot hold 6 values
+  std::ofstream(d) << "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\n"
+                      "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA ascii\n1 2 3\n4 5 6\n";
   EXPECT_NO_THROW(app::checkPcdComplete(d));
   EXPECT_THROW(app::checkPcdComplete((dir / "none.pcd").string()), app::IoError);
   fs::remove_all(dir);

@@ -2,6 +2,9 @@
 // frames and bad numbers are caught.
 #include "cli_support.hpp"
 
+#include <sys/wait.h>
+#include <unistd.h>
+
 namespace mobmap::cli_test {
 namespace {
 
@@ -202,6 +205,69 @@ TEST(Cli, FarAwayCoordinatesGiveTheSameMapAndFramesOutsideAreReported) {
   };
   EXPECT_EQ(q(dir + "/moved.ot", "1.5 0 0.0")["state"], q(dir + "/home.ot", "1.5 0 0.0")["state"]);
   EXPECT_EQ(run("build " + dir + "/home --out " + dir + "/moved.ot --extend --origin 0 0 0").code, 2);  // the map keeps its own
+  fs::remove_all(dir);
+}
+
+// Poses no robot has (1e15 m), and a stray first pose 1000 km from the rest, which
+// placed the map there: refused with the diagnosis, no map written (they used to report
+// every frame fused into a wrong map, or 1 of 6 fused with exit 0).
+TEST(Cli, PosesThatAreNotMetresAndAStrayFirstPoseWriteNoMap) {
+  const std::string dir = tempDir("stray");
+  ASSERT_EQ(run("simulate --out " + dir + "/home --frames 6 --noise none --quiet").code, 0);
+  fs::copy(dir + "/home", dir + "/huge");
+  shiftPose(dir + "/huge", 2, Eigen::Vector3d(1e15, 0, 0));
+  const Result huge = run("build " + dir + "/huge --out " + dir + "/huge.ot --quiet");
+  EXPECT_EQ(huge.code, 1) << huge.out;
+  EXPECT_NE(huge.out.find("frame-000002.pose.txt: not a rigid transform: translation"), std::string::npos) << huge.out;
+  EXPECT_NE(huge.out.find("lies farther than 1e+08 m from the origin"), std::string::npos) << huge.out;
+  EXPECT_FALSE(fs::exists(dir + "/huge.ot"));
+  fs::copy(dir + "/home", dir + "/first");
+  shiftPose(dir + "/first", 0, Eigen::Vector3d(1e6, 0, 0));
+  const Result first = run("build " + dir + "/first --out " + dir + "/first.ot --quiet");
+  EXPECT_EQ(first.code, 1) << first.out;
+  EXPECT_NE(first.out.find("5 of 6 frames with points in range lie outside the map's extent"), std::string::npos) << first.out;
+  EXPECT_NE(first.out.find("comes from the first camera position"), std::string::npos) << first.out;
+  EXPECT_FALSE(fs::exists(dir + "/first.ot"));
+  // What the message suggests works: the stray frame left out.
+  EXPECT_EQ(run("build " + dir + "/first --out " + dir + "/first.ot --frames 1:5 --quiet").code, 0);
+  fs::remove_all(dir);
+}
+
+// Files a command writes: a folder that does not exist is refused up front (plan --png
+// used to create /nonexistent/dir); temporaries of a save killed before its rename are
+// removed by the next save of the same files, those of a live process kept; simulate
+// --force replaces a longer sequence whole.
+TEST(Cli, OutputsGoIntoFoldersThatExistAndLeaveNothingStale) {
+  const std::string dir = tempDir("outputs");
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 6 --noise none --quiet").code, 0);
+  ASSERT_EQ(run("build " + dir + "/seq --out " + dir + "/m.ot --quiet").code, 0);
+  const Result png = run("plan " + dir + "/m.ot --from 1 0 0.1 --to 2 0 0.1 --png " + dir + "/no/such/plan.png");
+  EXPECT_EQ(png.code, 1) << png.out;
+  EXPECT_NE(png.out.find("plan.png: --png's folder " + dir + "/no/such does not exist"), std::string::npos) << png.out;
+  EXPECT_EQ(png.out.find("footsteps"), std::string::npos) << "planned before refusing: " << png.out;
+  EXPECT_FALSE(fs::exists(dir + "/no"));
+
+  // A process that has ended (its PID is free) and one that runs (this test).
+  const pid_t child = ::fork();
+  if (child == 0) ::_exit(0);
+  ::waitpid(child, nullptr, 0);
+  const std::string dead = std::to_string(child), alive = std::to_string(::getpid());
+  for (const std::string& name : {"m.ot.new." + dead, "m.json.new." + dead + ".tmp." + dead, "m.bt.tmp." + dead,
+                                  "m.ot.new." + alive}) {
+    std::ofstream(dir + "/" + name) << "left by a killed save";
+  }
+  ASSERT_EQ(run("build " + dir + "/seq --out " + dir + "/m.ot --force --quiet").code, 0);
+  EXPECT_FALSE(fs::exists(dir + "/m.ot.new." + dead));
+  EXPECT_FALSE(fs::exists(dir + "/m.json.new." + dead + ".tmp." + dead));
+  EXPECT_FALSE(fs::exists(dir + "/m.bt.tmp." + dead));
+  EXPECT_TRUE(fs::exists(dir + "/m.ot.new." + alive));
+
+  ASSERT_EQ(run("simulate --out " + dir + "/seq --frames 2 --force --noise none --quiet").code, 0);
+  int frames = 0;
+  for (const auto& e : fs::directory_iterator(dir + "/seq")) frames += e.path().filename().string().rfind("frame-", 0) == 0;
+  EXPECT_EQ(frames, 2 * 4);  // depth, colour, labels, pose of frames 0 and 1
+  const Result rebuilt = run("build " + dir + "/seq --out " + dir + "/two.ot --quiet");
+  EXPECT_NE(rebuilt.out.find("2 of 2 frames fused"), std::string::npos) << rebuilt.out;
   fs::remove_all(dir);
 }
 

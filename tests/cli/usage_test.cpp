@@ -56,6 +56,12 @@ TEST(Cli, ScoreErrorsAreClearWithUsageExitCodes) {
 
 TEST(Cli, ScorePlotWritesAPng) {
   const std::string dir = tempDir("plot");
+  // Pictures go into folders that exist: a mistyped folder is refused, not created.
+  const Result missing = run("score --plot " + dir + "/surface.png");
+  EXPECT_EQ(missing.code, 1);
+  EXPECT_NE(missing.out.find("surface.png: --plot's folder " + dir + " does not exist"), std::string::npos) << missing.out;
+  EXPECT_FALSE(fs::exists(dir));
+  fs::create_directories(dir);
   const Result r = run("score --plot " + dir + "/surface.png");
   ASSERT_EQ(r.code, 0) << r.out;
   std::ifstream in(dir + "/surface.png", std::ios::binary);

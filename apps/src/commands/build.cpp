@@ -87,6 +87,7 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
   // (a directory of that name) when they are renamed into place.
   const std::string stem = mapping::mapFileStem(o->out);
   const std::array<std::string, 4> map_paths{o->out, stem + ".bt", stem + ".octovis.ot", stem + ".json"};
+  for (const std::string& path : map_paths) checkWritable(path);  // creates the map's folder
   {
     std::vector<NamedPath> inputs{{"the input", o->input}, {"--poses", o->poses}, {"--config", o->config}};
     if (fs::is_regular_file(o->intrinsics, ec)) inputs.push_back({"--intrinsics", o->intrinsics});
@@ -94,7 +95,6 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
                              {"--out's octovis export", map_paths[2]}, {"--out's metadata", map_paths[3]}},
                             inputs);
   }
-  for (const std::string& path : map_paths) checkWritable(path);
   Config config = o->config.empty() ? Config{} : loadConfig(o->config);
   perception::PerceptionParams& pp = config.perception;
   mapping::MapParams& mp = config.mapping;

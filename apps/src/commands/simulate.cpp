@@ -36,7 +36,7 @@ Command addSimulateCommand(CLI::App& app) {
                   "are smoothed and mixed; 0 gives sharp edges (docs/SIMULATOR.md)")
       ->check(CLI::Range(0, 31))
       ->capture_default_str();
-  cmd->add_flag("--force", o->force, "Write into a directory that already holds a sequence");
+  cmd->add_flag("--force", o->force, "Write into a directory that already holds a sequence (its frames are replaced)");
   cmd->add_flag("--quiet,-q", o->quiet, "No progress output");
   return [o]() {
     namespace fs = std::filesystem;
@@ -55,6 +55,19 @@ Command addSimulateCommand(CLI::App& app) {
       throw UsageError(e.what());
     }
     const sim::CorridorScene scene(p);
+    if (o->force) {
+      // The frames of an older, longer sequence past this one's last would otherwise stay
+      // and be read as part of it.
+      for (fs::directory_iterator it(o->out, ec), end; !ec && it != end; it.increment(ec)) {
+        const std::string name = it->path().filename().string();
+        if (name.size() < 13 || name.compare(0, 6, "frame-") != 0 || name[12] != '.' ||
+            name.find_first_not_of("0123456789", 6) != 12) {
+          continue;
+        }
+        std::error_code ignored;
+        if (std::stoi(name.substr(6, 6)) >= p.frames) fs::remove(it->path(), ignored);
+      }
+    }
     Progress progress("simulate", p.frames, o->quiet);
     const int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
     writeSimulation(scene, o->out, threads, [&](int done) { progress.update(done); });

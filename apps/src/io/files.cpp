@@ -2,6 +2,7 @@
 
 #include "io/io_error.hpp"
 
+#include <signal.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -54,6 +55,11 @@ void refuseToOverwriteInputs(const std::vector<NamedPath>& outputs, const std::v
   for (std::size_t i = 0; i < outputs.size(); ++i) {
     const NamedPath& out = outputs[i];
     if (out.path.empty()) continue;
+    const fs::path folder = fs::path(out.path).parent_path();
+    std::error_code ec;
+    if (!folder.empty() && !fs::is_directory(folder, ec)) {
+      throw IoError(out.path, out.name + "'s folder " + folder.string() + " does not exist (create it first)");
+    }
     for (const NamedPath& in : inputs) {
       if (in.path.empty()) continue;
       if (sameFile(out.path, in.path)) {
@@ -85,16 +91,52 @@ void createParentDirectory(const std::string& path) {
 
 namespace {
 
+// IoError naming `path` when the folder it goes in does not exist.
+void requireParentDirectory(const std::string& path) {
+  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+  std::error_code ec;
+  if (parent.empty() || std::filesystem::is_directory(parent, ec)) return;
+  throw IoError(path, "the folder " + parent.string() + " does not exist (create it first)");
+}
+
+// Removes the temporaries of `path` (path.new.PID..., path.tmp.PID...) whose process is
+// gone: a save killed between writing and renaming leaves one, and nothing else would
+// ever remove it. Those of a process still running are left alone.
+void removeStaleTemporaries(const std::string& path) {
+  const std::filesystem::path target(path);
+  const std::filesystem::path dir = target.has_parent_path() ? target.parent_path() : std::filesystem::path(".");
+  const std::string base = target.filename().string();
+  std::error_code ec;
+  for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    for (const char* tag : {".new.", ".tmp."}) {
+      const std::string prefix = base + tag;
+      if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
+      const std::size_t digits = name.find_first_not_of("0123456789", prefix.size());
+      const std::string pid_text = name.substr(prefix.size(), digits == std::string::npos ? std::string::npos : digits - prefix.size());
+      if (pid_text.empty() || pid_text.size() > 9) continue;
+      const pid_t pid = static_cast<pid_t>(std::stol(pid_text));
+      if (pid == ::getpid() || ::kill(pid, 0) == 0 || errno != ESRCH) continue;  // running, or not ours to judge
+      std::error_code ignored;
+      std::filesystem::remove(it->path(), ignored);
+    }
+  }
+}
+
 // Writes each file to path + suffix + PID, then renames them all into place in order;
 // on a failed write every temporary is removed and the error names the file itself.
-void replaceFiles(const std::vector<PendingFile>& files, const std::string& suffix) {
+void replaceFiles(const std::vector<PendingFile>& files, const std::string& suffix, bool create_parents) {
   std::error_code ec;
+  for (const PendingFile& f : files) {
+    if (!create_parents) requireParentDirectory(f.path);
+    removeStaleTemporaries(f.path);
+  }
   std::vector<std::string> temporaries;
   const auto discard = [&](std::size_t from) {
     for (std::size_t i = from; i < temporaries.size(); ++i) std::filesystem::remove(temporaries[i], ec);
   };
   for (const PendingFile& f : files) {
-    createParentDirectory(f.path);
+    if (create_parents) createParentDirectory(f.path);
     temporaries.push_back(f.path + suffix + std::to_string(::getpid()));
     const std::string& tmp = temporaries.back();
     try {
@@ -128,13 +170,13 @@ void replaceFiles(const std::vector<PendingFile>& files, const std::string& suff
 }  // namespace
 
 void writeAtomically(const std::string& path, const std::function<void(const std::string&)>& write) {
-  replaceFiles({{path, write}}, ".tmp.");
+  replaceFiles({{path, write}}, ".tmp.", false);
 }
 
 void writeFilesTogether(const std::vector<PendingFile>& files) {
   // Not ".tmp.PID", which the writers' own atomic saves use inside: a temporary left
   // behind by a killed run then says which of the two left it.
-  replaceFiles(files, ".new.");
+  replaceFiles(files, ".new.", true);
 }
 
 void checkWritable(const std::string& path) {

@@ -13,7 +13,9 @@ std::string readTextFile(const std::string& path, std::size_t max_bytes = 64u <<
 
 /// Calls `write(temporary_path)` and then renames the temporary file over `path`, so
 /// `path` is either the old file or the complete new one, never half written. The
-/// temporary file is removed if `write` throws. Creates missing parent directories.
+/// temporary file is removed if `write` throws. The folder must exist: IoError naming it
+/// if not (a mistyped path is not made into a tree of new folders). Temporaries of
+/// `path` that a killed process left behind are removed first.
 void writeAtomically(const std::string& path, const std::function<void(const std::string&)>& write);
 
 /// One file of a set written together: `write(temporary_path)` writes it there.
@@ -26,7 +28,9 @@ struct PendingFile {
 /// all or nothing: every file goes to a temporary beside its path first, and only when
 /// all are written are they renamed into place, in the given order. If a write fails
 /// (disk full), every temporary is removed, the files on disk stay as they were, and the
-/// error names the file that failed. Creates missing parent directories.
+/// error names the file that failed. Creates missing parent directories (a map's folder,
+/// as `build --out` names it). Temporaries of these files that a killed process left
+/// behind are removed first.
 void writeFilesTogether(const std::vector<PendingFile>& files);
 
 /// Checks before a long job that `path` could be written: creates its directory and a
@@ -40,8 +44,8 @@ struct NamedPath {
   std::string path;
 };
 
-/// Before a command writes anything: UsageError if an output is one of the inputs, or
-/// the same file as another output, naming both. Files are compared as the files they
+/// Before a command writes anything: IoError if an output's folder does not exist;
+/// UsageError if an output is one of the inputs, or the same file as another output, naming both. Files are compared as the files they
 /// resolve to (another spelling, a symbolic or a hard link is the same file). Empty
 /// paths (options not given) are left out.
 void refuseToOverwriteInputs(const std::vector<NamedPath>& outputs, const std::vector<NamedPath>& inputs);

@@ -2,6 +2,7 @@
 
 #include "io/dataset.hpp"
 #include "io/files.hpp"
+#include "io/io_error.hpp"
 #include "io/png_io.hpp"
 
 #include <atomic>
@@ -98,6 +99,9 @@ void writeSimulation(const sim::CorridorScene& scene, const std::string& dir, in
                      const std::function<void(int)>& progress) {
   namespace fs = std::filesystem;
   const auto& p = scene.params();
+  std::error_code ec;
+  fs::create_directories(dir, ec);  // the sequence's own folder
+  if (ec) throw IoError(dir, "cannot create the folder: " + ec.message());
   writeIntrinsicsFile((fs::path(dir) / "camera-intrinsics.txt").string(), p.intrinsics);
   writeGravityFile((fs::path(dir) / "gravity-direction.txt").string(), scene.gravityDown());
 
