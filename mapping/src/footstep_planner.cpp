@@ -458,7 +458,7 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
   root_of(left);
   root_of(right);
   std::optional<std::uint64_t> goal_key;
-  bool out_of_time = false;
+  bool expansions_spent = false;
   // A goal the robot cannot get to at all would have the search expand every state it
   // can reach (seconds): after kReachCheck expansions, whole-map reachability (about half
   // a second on a 10 m corridor) says whether to go on.
@@ -495,9 +495,13 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
       goal_key = key;
       break;
     }
-    if ((plan.expansions & 255u) == 0) budget.check("planFootsteps");
-    if (++plan.expansions >= params.max_expansions || ((plan.expansions & 255u) == 0 && elapsed() > params.time_limit_s)) {
-      out_of_time = true;
+    // The limits, at the first expansion and every 256th after.
+    if ((plan.expansions & 255u) == 0) {
+      budget.check("planFootsteps");
+      if (elapsed() > params.time_limit_s) return outOfTime();
+    }
+    if (++plan.expansions >= params.max_expansions) {
+      expansions_spent = true;
       break;
     }
     if (plan.expansions == kReachCheck) {
@@ -538,7 +542,7 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
     }
   }
   if (!goal_key) {
-    if (out_of_time || !checkReach()) return outOfTime();
+    if (expansions_spent || !checkReach()) return outOfTime();
     return finish(diagnose(cols, *reach, goal_feet, params));
   }
   // The footsteps: the other start sole, then the chain from the root.

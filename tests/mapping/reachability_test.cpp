@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <functional>
 #include <map>
@@ -523,6 +525,61 @@ TEST(FootstepPlanner, StairsOfTenCentimetresAcrossTheFloorAndBadInput) {
   bad = p;
   bad.time_limit_s = 0;
   EXPECT_THROW((void)planFootsteps(s.tree, {1, 1, 0}, {2, 1, 0}, bad), std::invalid_argument);
+}
+
+// A budget stops the long computations at their next check: a stop flag set (a server
+// shutting down) or a deadline passed; the plan's own time limit bounds the whole call
+// and is said in the answer. (The deadlines used are in the past, or a nanosecond: no
+// computation ends before them, on any machine.)
+TEST(Budget, StopsReachabilityAndPlansAndTheTimeLimitIsSaid) {
+  const Scene s;
+  std::atomic<bool> stop{true};
+  Budget stopped;
+  stopped.stop = &stop;
+  ReachParams rp;
+  EXPECT_THROW((void)computeReachability(s.tree, {0.7, 0.3, 0.02}, rp, stopped), BudgetExceeded);
+  Budget past;
+  past.deadline = std::chrono::steady_clock::now() - std::chrono::seconds(1);
+  try {
+    (void)computeReachability(s.tree, {0.7, 0.3, 0.02}, rp, past);
+    ADD_FAILURE() << "a budget already spent let the computation end";
+  } catch (const BudgetExceeded& e) {
+    EXPECT_NE(std::string(e.what()).find("computeReachability: ran out of time"), std::string::npos) << e.what();
+  }
+  stop = false;
+  EXPECT_NO_THROW((void)computeReachability(s.tree, {0.7, 0.3, 0.02}, rp, stopped));  // the flag clear: it ends
+
+  PlanParams p;
+  stop = true;
+  EXPECT_THROW((void)planFootsteps(s.tree, {0.7, 0.3, 0.02}, {1.8, 0.3, 0.32}, p, stopped), BudgetExceeded);
+  // The time limit: an answer, not an exception, and it says so.
+  p.time_limit_s = 1e-9;
+  const Plan cut = planFootsteps(s.tree, {0.7, 0.3, 0.02}, {1.8, 0.3, 0.32}, p);
+  EXPECT_FALSE(cut.found);
+  EXPECT_TRUE(cut.time_limit_reached);
+  EXPECT_NE(cut.reason.find("no plan within the limits"), std::string::npos) << cut.reason;
+  // Out of expansions is another limit: found = false, but not the time's.
+  p.time_limit_s = 10;
+  p.max_expansions = 3;
+  const Plan few = planFootsteps(s.tree, {0.7, 0.3, 0.02}, {1.8, 0.3, 0.32}, p);
+  EXPECT_FALSE(few.found);
+  EXPECT_FALSE(few.time_limit_reached);
+  p.max_expansions = PlanParams{}.max_expansions;
+  const Plan whole = planFootsteps(s.tree, {0.7, 0.3, 0.02}, {1.8, 0.3, 0.32}, p);
+  EXPECT_TRUE(whole.found) << whole.reason;
+  EXPECT_FALSE(whole.time_limit_reached);
+  EXPECT_THROW((void)Budget::within(0), std::invalid_argument);
+}
+
+TEST(Reachability, MemoryBytesCountsWhatTheResultHolds) {
+  const Scene s;
+  const Reachability r = computeReachability(s.tree, {0.7, 0.3, 0.02});
+  // At least its places, its foot places and its columns' runs (a cache that counted
+  // less would hold more than its bound).
+  ASSERT_GT(r.footPlaces().size(), 100u);
+  EXPECT_GE(r.columns().memoryBytes(), r.columns().runs().size() * sizeof(r.columns().runs()[0]));
+  EXPECT_GE(r.memoryBytes(),
+            r.places().size() * sizeof(Place) + r.footPlaces().size() * sizeof(FootPlace) + r.columns().memoryBytes());
 }
 
 }  // namespace

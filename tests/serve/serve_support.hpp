@@ -14,7 +14,10 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cstdio>
+#include <filesystem>
 #include <memory>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -107,6 +110,10 @@ class ServeProcess {
     stdin_ = -1;
   }
 
+  // Sends `signal` without waiting.
+  void signal(int sig) {
+    if (pid_ > 0) ::kill(pid_, sig);
+  }
   // Sends `signal` and waits for the exit; its exit code, or -1 if it did not exit.
   int stop(int signal = SIGINT) {
     if (pid_ <= 0) return -1;
@@ -166,6 +173,44 @@ inline Reply post(httplib::Client& c, const std::string& path, const std::string
   r.raw = res->body;
   r.body = nlohmann::json::parse(res->body, nullptr, false);
   return r;
+}
+
+// `mobmap ARGS` (or any command) to the end, its output and standard error together.
+struct Result {
+  int code = -1;
+  std::string out;
+};
+
+inline Result runShell(const std::string& command) {
+  Result r;
+  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
+  if (!pipe) return r;
+  char buf[4096];
+  while (std::fgets(buf, sizeof buf, pipe)) r.out += buf;
+  const int status = ::pclose(pipe);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+inline Result mobmap(const std::string& args) { return runShell(std::string(MOBMAP_EXE) + " " + args); }
+
+// The JSON lines of `out` (notes on standard error may come between).
+inline std::vector<nlohmann::json> jsonLines(const std::string& out) {
+  std::vector<nlohmann::json> lines;
+  std::istringstream in(out);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line.front() == '{') lines.push_back(nlohmann::json::parse(line));
+  }
+  return lines;
+}
+
+inline std::string tempDir(const std::string& name) {
+  namespace fs = std::filesystem;
+  const fs::path p = fs::temp_directory_path() / ("mobmap-serve-" + std::to_string(::getpid()) + "-" + name);
+  fs::remove_all(p);
+  fs::create_directories(p);
+  return p.string();
 }
 
 }  // namespace mobmap::serve_test

@@ -26,42 +26,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct Result {
-  int code = -1;
-  std::string out;
-};
-
-Result runShell(const std::string& command) {
-  Result r;
-  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
-  if (!pipe) return r;
-  char buf[4096];
-  while (std::fgets(buf, sizeof buf, pipe)) r.out += buf;
-  const int status = ::pclose(pipe);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
-
-Result mobmap(const std::string& args) { return runShell(std::string(MOBMAP_EXE) + " " + args); }
-
-// The JSON lines of `out` (notes on standard error may come between).
-std::vector<nlohmann::json> jsonLines(const std::string& out) {
-  std::vector<nlohmann::json> lines;
-  std::istringstream in(out);
-  std::string line;
-  while (std::getline(in, line)) {
-    if (!line.empty() && line.front() == '{') lines.push_back(nlohmann::json::parse(line));
-  }
-  return lines;
-}
-
-std::string tempDir(const std::string& name) {
-  const fs::path p = fs::temp_directory_path() / ("mobmap-serve-" + std::to_string(::getpid()) + "-" + name);
-  fs::remove_all(p);
-  fs::create_directories(p);
-  return p.string();
-}
-
 // Points over the corridor and around it: on the floor, above it, in the walls, outside.
 std::vector<std::array<double, 3>> probePoints(double step) {
   std::vector<std::array<double, 3>> points;

@@ -13,6 +13,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <csignal>
 #include <cstdio>
@@ -95,6 +96,8 @@ Command addServeCommand(CLI::App& app) {
     int port = 8080;
     std::string address = "127.0.0.1";
     std::size_t max_batch = serve::Limits{}.max_batch;
+    std::size_t max_connections = serve::Limits{}.max_connections;
+    double request_timeout = serve::Limits{}.request_read_s;
     build::BuildOptions build;
   };
   auto o = std::make_shared<Options>();
@@ -116,6 +119,14 @@ Command addServeCommand(CLI::App& app) {
   cmd->add_option("--max-batch", o->max_batch, "Most points or soles one request may ask about (more: HTTP 413)")
       ->check(CLI::Range(1, 10000000))
       ->capture_default_str();
+  cmd->add_option("--max-connections", o->max_connections,
+                  "Connections served at once (more: HTTP 503 at once); one client address may hold a quarter of them")
+      ->check(CLI::Range(1, 4096))
+      ->capture_default_str();
+  cmd->add_option("--request-timeout", o->request_timeout,
+                  "Seconds a request may take to arrive whole; a slower one is cut off")
+      ->check(CLI::Range(0.1, 3600.0))
+      ->capture_default_str();
   const std::size_t before = cmd->get_options().size();
   build::addBuildRunOptions(*cmd, o->build);
   const std::vector<CLI::Option*> all = cmd->get_options();
@@ -125,6 +136,9 @@ Command addServeCommand(CLI::App& app) {
     std::signal(SIGPIPE, SIG_IGN);  // a client that hangs up is its own business
     serve::Limits limits;
     limits.max_batch = o->max_batch;
+    limits.max_connections = o->max_connections;
+    limits.max_connections_per_client = std::max<std::size_t>(1, o->max_connections / 4);
+    limits.request_read_s = o->request_timeout;
     if (!o->live) {
       if (o->path.empty()) throw UsageError("give the MAP.ot to serve, or --live INPUT --out MAP.ot to build one");
       OpenedMap opened = openMapFiles(o->path);

@@ -51,7 +51,7 @@ struct Limits {
   double max_plan_time_s = 60.0;           ///< time_limit_s a plan request may ask for
   // The connections (http_server.cpp), docs/RELIABILITY.md:
   std::size_t max_connections = 64;             ///< served at once, in all; more: 503 at once
-  std::size_t max_connections_per_client = 16;  ///< from one address; more: 503 at once
+  std::size_t max_connections_per_client = 16;  ///< from one address (a quarter of the above); more: 503 at once
   double request_read_s = 10;                   ///< a request must arrive whole this soon after it begins
   double keep_alive_idle_s = 5;                 ///< an idle connection is closed after this
   double answer_write_s = 60;                   ///< an answer must be taken by the client this soon
