@@ -14,10 +14,18 @@
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <poll.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
 
+#include <atomic>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <mutex>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace mobmap::serve_test {
@@ -398,6 +406,110 @@ TEST(HardenedLive, SigtermSavesTheFramesFusedSoFar) {
   EXPECT_GT(mapping::loadMobilityMap(dir + "/live.ot")->size(), 100u);
   EXPECT_FALSE(fs::exists(dir + "/live.lock"));
   fs::remove_all(dir);
+}
+
+// The server under a memory limit (RLIMIT_AS) while heavy and hostile clients press it
+// from other addresses (deep nesting, 16 MiB bodies of tiny values, batches near the work
+// bound, plans, a new reachability every time, requests trickling in, idle connections):
+// a normal client's every request is answered, right, and the server neither aborts nor
+// outgrows the limit. MOBMAP_SOAK_ROUNDS normal requests (default 300; the soak in
+// docs/RELIABILITY.md runs 20,000).
+TEST_F(Hardened, SoakUnderAMemoryLimitAnswersEveryNormalRequest) {
+  const char* rounds_env = std::getenv("MOBMAP_SOAK_ROUNDS");
+  const int rounds = rounds_env ? std::max(1, std::atoi(rounds_env)) : 300;
+  constexpr rlim_t kLimit = 2048ull << 20;
+  // The limit is set on this process for the spawn (a child inherits it), then lifted.
+  rlimit before{};
+  ::getrlimit(RLIMIT_AS, &before);
+  rlimit limited = before;
+  limited.rlim_cur = kLimit;
+  ASSERT_EQ(::setrlimit(RLIMIT_AS, &limited), 0);
+  ServeProcess server({"serve", map(), "--port", "0"}, dir() + "/soak.err");
+  ::setrlimit(RLIMIT_AS, &before);
+  const int port = server.port();
+  ASSERT_GT(port, 0) << server.output();
+
+  std::atomic<bool> done{false};
+  std::mutex seen_mutex;
+  std::map<std::string, std::map<int, int>> seen;  // client kind -> status -> count
+  const auto note = [&](const std::string& kind, int status) {
+    const std::lock_guard<std::mutex> lock(seen_mutex);
+    ++seen[kind][status];
+  };
+  std::string tiny = "{\"points\": [";
+  while (tiny.size() < (16u << 20) - 100) tiny += "{},";
+  tiny += "{}]}";
+  std::string batch = "{\"soles\": [";
+  for (int i = 0; i < 20000; ++i) batch += std::string(i ? "," : "") + "[1.2, 0, 0.05, " + std::to_string(i % 16) + ", 0.25, 0.12]";
+  batch += "], \"snap\": 0.5}";
+  const std::string deep = R"({"points": [[1, 0, 0]], "frame": )" + std::string(65000, '[') + std::string(65000, ']') + "}";
+  std::vector<std::thread> clients;
+  // Heavy and hostile clients, each on an address of its own.
+  const auto heavy = [&](const std::string& kind, const std::string& source, const std::function<std::string(int)>& body,
+                         const std::string& path) {
+    clients.emplace_back([&, kind, source, body, path] {
+      for (int i = 0; !done.load(); ++i) {
+        Connection c(port, source);
+        if (!c.connected() || !c.send(request(path, body(i)))) continue;
+        note(kind, statusOf(c.answer()));
+      }
+    });
+  };
+  heavy("deep", "127.0.0.2", [&](int) { return deep; }, "/api/query");
+  heavy("tiny values", "127.0.0.2", [&](int) { return tiny; }, "/api/query");
+  heavy("tiny values", "127.0.0.2", [&](int) { return tiny; }, "/api/query");
+  heavy("batch", "127.0.0.3", [&](int) { return batch; }, "/api/foot");
+  heavy("batch", "127.0.0.3", [&](int) { return batch; }, "/api/foot");
+  heavy("plan", "127.0.0.4", [](int) { return std::string(R"({"from": [0.8, 0, 0.1], "to": [2.2, 0.3, 0.1]})"); },
+        "/api/plan");
+  heavy("plan", "127.0.0.4", [](int) { return std::string(R"({"from": [0.8, 0, 0.1], "to": [2.2, 0.3, 0.1], "heuristic_weight": 1})"); },
+        "/api/plan");
+  heavy("new reach", "127.0.0.4", [](int i) {
+    return R"({"points": [[1.2, 0, 0.05]], "reach": {"max_step_m": )" + std::to_string(0.05 + 1e-4 * (i % 1000)) + "}}";
+  }, "/api/query");
+  // Requests that trickle in and never end, and connections left idle.
+  for (const char* source : {"127.0.0.5", "127.0.0.6"}) {
+    for (int k = 0; k < 6; ++k) {
+      clients.emplace_back([&, source, k] {
+        while (!done.load()) {
+          Connection c(port, source);
+          if (!c.connected()) continue;
+          if (k % 2 == 0) c.send("POST /api/query HTTP/1.1\r\nHost: test\r\nContent-Length: 100\r\n\r\n{");
+          while (!done.load() && !c.closedWithin(100)) {
+            if (k % 2 == 0) c.send(" ");
+          }
+          note(k % 2 == 0 ? "trickle" : "idle", 0);
+        }
+      });
+    }
+  }
+  // The normal client: one point at a time, each answered and right.
+  auto c = client(port);
+  int answered = 0;
+  for (int i = 0; i < rounds; ++i) {
+    const Reply r = post(*c, "/api/query", kPoint);
+    if (r.status == 200 && r.body["answers"][0]["state"] == "surface") ++answered;
+    else ADD_FAILURE() << "normal request " << i << ": " << r.status << " " << r.raw.substr(0, 200);
+  }
+  done = true;
+  for (std::thread& t : clients) t.join();
+  EXPECT_EQ(answered, rounds);
+  std::string summary;
+  for (const auto& [kind, statuses] : seen) {
+    summary += kind + ":";
+    for (const auto& [status, n] : statuses) summary += " " + std::to_string(status) + " x" + std::to_string(n);
+    summary += "; ";
+  }
+  // The server's peak resident memory, as the kernel counted it.
+  std::ifstream status("/proc/" + std::to_string(server.pid()) + "/status");
+  std::string line, peak = "?";
+  while (std::getline(status, line)) {
+    if (line.rfind("VmHWM:", 0) == 0) peak = line.substr(6);
+  }
+  std::printf("soak (%d normal requests, server peak RSS %s): %s\n", rounds, peak.c_str(), summary.c_str());
+  // Each hostile kind was refused as documented, never answered 500.
+  for (const auto& [kind, statuses] : seen) EXPECT_EQ(statuses.count(500), 0u) << kind;
+  EXPECT_EQ(server.stop(SIGTERM), 0) << "the server did not exit cleanly: " << summary;
 }
 
 }  // namespace

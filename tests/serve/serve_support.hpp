@@ -71,6 +71,7 @@ class ServeProcess {
   ServeProcess& operator=(const ServeProcess&) = delete;
 
   [[nodiscard]] bool started() const { return pid_ > 0; }
+  [[nodiscard]] pid_t pid() const { return pid_; }
 
   // Reads standard output up to a line holding `text`, and returns that line; "" if the
   // process ends first. Everything read goes to output().

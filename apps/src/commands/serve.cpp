@@ -11,6 +11,7 @@
 #include "mobmap/mapping/map_metadata.hpp"
 #include "mobmap/mapping/mobility_map.hpp"
 
+#include <malloc.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -134,6 +135,14 @@ Command addServeCommand(CLI::App& app) {
   return [o]() {
     if (::pipe(g_stop_pipe) != 0) throw std::runtime_error("cannot create a pipe for the signal handler");
     std::signal(SIGPIPE, SIG_IGN);  // a client that hangs up is its own business
+    // Request bodies and answers of megabytes come and go on many threads. glibc raises
+    // its mmap threshold to the largest block freed, after which such blocks are carved
+    // from per-thread arenas and kept there, and it keeps up to 16 arenas on two cores:
+    // the soak of hostile clients (serve_hardening_test) peaked at 1.04 GB. A fixed
+    // threshold gives every block over 1 MiB back when it is freed (464 MB), and four
+    // arenas keep less idle memory (305 MB), with the same requests answered.
+    ::mallopt(M_MMAP_THRESHOLD, 1 << 20);
+    ::mallopt(M_ARENA_MAX, 4);
     serve::Limits limits;
     limits.max_batch = o->max_batch;
     limits.max_connections = o->max_connections;
