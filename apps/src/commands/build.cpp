@@ -394,7 +394,7 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
   // (--checkpoint) writes the same files in the middle of the run; fusion then goes on
   // in the finalized (pruned) tree, which gives the same map as without (docs/MAPPING.md).
   const std::string device_label = "OpenNI2 device " + (o->device.empty() ? std::string("(first attached)") : o->device);
-  // After the handler is in place: from here Ctrl-C saves the frames fused so far.
+  // The stop signals' handler is in place since the start of the run: Ctrl-C saves the frames fused so far.
   if (live && !o->quiet) std::fprintf(stderr, "reading %s (Ctrl-C stops and saves the map)\n", device_label.c_str());
   DepthCheckTally depth_checks;  // under `state`, as the rest the callbacks update
   const DepthUnit depth_unit = dir ? dir->depthUnit() : single.depth_unit;
