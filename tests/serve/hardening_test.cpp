@@ -105,25 +105,12 @@ std::string request(const std::string& path, const std::string& body, const std:
 const std::string kPoint = R"({"points": [[1.2, 0, 0.05]], "snap": 0.3})";
 
 // A noise-free corridor of 10 frames, built once for the suite.
-class Hardened : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
-    dir_ = new std::string(tempDir("hardened"));
-    ASSERT_EQ(mobmap("simulate --out " + *dir_ + "/seq --frames 10 --noise none --quiet").code, 0);
-    const Result built = mobmap("build " + *dir_ + "/seq --out " + *dir_ + "/m.ot --quiet");
-    ASSERT_EQ(built.code, 0) << built.out;
-  }
-  static void TearDownTestSuite() {
-    fs::remove_all(*dir_);
-    delete dir_;
-  }
-  static std::string map() { return *dir_ + "/m.ot"; }
-  static std::string dir() { return *dir_; }
-
- private:
-  static std::string* dir_;
+struct ShortCorridor {
+  static constexpr const char* kName = "hardened";
+  static constexpr int kFrames = 10;
+  static constexpr const char* kBuild = "";
 };
-std::string* Hardened::dir_ = nullptr;
+using Hardened = MappedCorridor<ShortCorridor>;
 
 // A value nested 65,000 arrays deep inside any field (a 130 KB request) crashed the
 // server: the error message turned it back into text, recursing past the stack.

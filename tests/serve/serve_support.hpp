@@ -214,4 +214,27 @@ inline std::string tempDir(const std::string& name) {
   return p.string();
 }
 
+// A noise-free simulated corridor and its map, built once for a test suite: Spec names
+// the suite's folder (kName), the frames (kFrames) and build's extra options (kBuild).
+template <typename Spec>
+class MappedCorridor : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new std::string(tempDir(Spec::kName));
+    const Result sim = mobmap("simulate --out " + *dir_ + "/seq --frames " + std::to_string(Spec::kFrames) + " --noise none --quiet");
+    ASSERT_EQ(sim.code, 0) << sim.out;
+    const Result built = mobmap("build " + *dir_ + "/seq --out " + *dir_ + "/m.ot " + Spec::kBuild + " --quiet");
+    ASSERT_EQ(built.code, 0) << built.out;
+  }
+  static void TearDownTestSuite() {
+    std::filesystem::remove_all(*dir_);
+    delete dir_;
+  }
+  static std::string map() { return *dir_ + "/m.ot"; }
+  static std::string dir() { return *dir_; }
+
+ private:
+  static inline std::string* dir_ = nullptr;
+};
+
 }  // namespace mobmap::serve_test

@@ -58,26 +58,12 @@ std::vector<nlohmann::json> cliAnswers(const std::string& dir, const std::string
 
 // A noise-free corridor of 40 frames (walls and a box in view) mapped with its origin
 // moved, so that the world and map frames differ; built once for the suite.
-class ServedCorridor : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
-    dir_ = new std::string(tempDir("corridor"));
-    const Result sim = mobmap("simulate --out " + *dir_ + "/seq --frames 40 --noise none --quiet");
-    ASSERT_EQ(sim.code, 0) << sim.out;
-    const Result built = mobmap("build " + *dir_ + "/seq --out " + *dir_ + "/m.ot --origin 0.5 0.25 -0.1 --quiet");
-    ASSERT_EQ(built.code, 0) << built.out;
-  }
-  static void TearDownTestSuite() {
-    fs::remove_all(*dir_);
-    delete dir_;
-  }
-  static std::string map() { return *dir_ + "/m.ot"; }
-  static std::string dir() { return *dir_; }
-
- private:
-  static std::string* dir_;
+struct CorridorWithOrigin {
+  static constexpr const char* kName = "corridor";
+  static constexpr int kFrames = 40;
+  static constexpr const char* kBuild = "--origin 0.5 0.25 -0.1";
 };
-std::string* ServedCorridor::dir_ = nullptr;
+using ServedCorridor = MappedCorridor<CorridorWithOrigin>;
 
 TEST_F(ServedCorridor, PointAndSoleAnswersAreTheClis) {
   ServeProcess server({"serve", map(), "--port", "0"}, dir() + "/points.err");
