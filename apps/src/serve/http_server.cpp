@@ -130,18 +130,21 @@ class DeadlineStream : public httplib::Stream {
 // Set on a thread that must refuse the connection it is handed (every worker is busy).
 thread_local bool t_refuse_all_busy = false;
 
-// A fixed set of workers, one connection each, and no queue: a connection that finds
-// every worker busy is refused at once on the accepting thread (503), rather than
-// waiting behind slow clients for as long as they hold the workers.
+// A fixed set of workers, one connection each: a connection that finds every worker
+// taken is refused at once on the accepting thread (503), rather than waiting behind
+// slow clients for as long as they hold the workers. A connection counts from its accept
+// to the end of its last request, so whether it is taken does not depend on how soon a
+// worker thread is scheduled.
 class WorkerPool : public httplib::TaskQueue {
  public:
-  explicit WorkerPool(std::size_t n) {
+  explicit WorkerPool(std::size_t n) : most_(n) {
     for (std::size_t i = 0; i < n; ++i) threads_.emplace_back([this] { work(); });
   }
   void enqueue(std::function<void()> fn) override {
     {
       std::unique_lock<std::mutex> lock(mutex_);
-      if (idle_ > jobs_.size()) {
+      if (taken_ < most_) {
+        ++taken_;
         jobs_.push_back(std::move(fn));
         ready_.notify_one();
         return;
@@ -166,19 +169,20 @@ class WorkerPool : public httplib::TaskQueue {
       std::function<void()> fn;
       {
         std::unique_lock<std::mutex> lock(mutex_);
-        ++idle_;
         ready_.wait(lock, [this] { return stopping_ || !jobs_.empty(); });
-        --idle_;
         if (jobs_.empty()) return;  // stopping
         fn = std::move(jobs_.front());
         jobs_.pop_front();
       }
       fn();
+      const std::lock_guard<std::mutex> lock(mutex_);
+      --taken_;
     }
   }
+  const std::size_t most_;
   std::vector<std::thread> threads_;
   std::list<std::function<void()>> jobs_;
-  std::size_t idle_ = 0;
+  std::size_t taken_ = 0;  // connections accepted and not yet done with
   bool stopping_ = false;
   std::mutex mutex_;
   std::condition_variable ready_;
