@@ -75,10 +75,13 @@ class DeadlineStream : public httplib::Stream {
   ssize_t read(char* ptr, size_t size) override {
     if (begin_ == end_) {
       if (!waitFor(sock_, POLLIN, read_by_)) return -1;
+      // A body is read in large pieces: straight into the caller's buffer.
+      const bool direct = size >= sizeof buffer_;
       ssize_t n;
       do {
-        n = ::recv(sock_, buffer_, sizeof buffer_, 0);
+        n = ::recv(sock_, direct ? ptr : buffer_, direct ? size : sizeof buffer_, 0);
       } while (n < 0 && errno == EINTR);
+      if (direct) return n;
       if (n <= 0) return n;
       begin_ = 0, end_ = static_cast<std::size_t>(n);
     }
