@@ -364,6 +364,52 @@ TEST_F(Hardened, HeavyRequestsTakeAPlaceAndAStopEndsTheirWork) {
   }
 }
 
+// Each new set of "reach" parameters worked out a reachability that the cache kept,
+// eight at a time then all dropped (3 GB after eight sets on a large map): now the oldest
+// go first, within an entry and a byte bound, and one over the byte bound is not kept.
+TEST_F(Hardened, TheReachCacheKeepsWithinItsBounds) {
+  app::serve::ServedMap served;
+  served.map = std::make_shared<const mapping::MobilityMap>(mapping::openMap(map()));
+  served.camera_path = {Eigen::Vector3d(0.5, 0, 1.2)};
+  const app::serve::MapSource source(std::move(served));
+  const auto ask = [](const app::serve::Api& api, int k) {
+    const std::string body = R"({"points": [[1.2, 0, 0.05]], "reach": {"max_step_m": )" + std::to_string(0.06 + 0.01 * k) + "}}";
+    return api.handle("POST", "/api/query", {}, body).status;
+  };
+  const app::serve::Api api("m.ot", source);
+  std::size_t one = 0;
+  for (int k = 0; k < 10; ++k) {
+    ASSERT_EQ(ask(api, k), 200) << k;
+    const auto figures = api.reachCache();
+    EXPECT_EQ(figures.entries, std::min<std::size_t>(static_cast<std::size_t>(k) + 1, 4)) << k;
+    if (k == 0) one = figures.bytes;
+    EXPECT_LE(figures.bytes, app::serve::Limits{}.max_reach_cache_bytes);
+  }
+  EXPECT_GT(one, 0u);
+  EXPECT_EQ(ask(api, 9), 200);  // asked again: answered from the cache, nothing added
+  EXPECT_EQ(api.reachCache().entries, 4u);
+  // A byte bound of two entries keeps two; one under a single entry keeps none.
+  app::serve::Limits two;
+  two.max_reach_cache_bytes = 2 * one + one / 2;
+  const app::serve::Api api_two("m.ot", source, two);
+  for (int k = 0; k < 5; ++k) ASSERT_EQ(ask(api_two, k), 200);
+  EXPECT_EQ(api_two.reachCache().entries, 2u);
+  app::serve::Limits tiny;
+  tiny.max_reach_cache_bytes = one / 2;
+  const app::serve::Api api_none("m.ot", source, tiny);
+  EXPECT_EQ(ask(api_none, 0), 200);
+  EXPECT_EQ(api_none.reachCache().entries, 0u);
+}
+
+// serve --live with an --out it cannot write is refused before it says it is serving.
+TEST_F(Hardened, ALiveServeRefusedAtOnceNeverSaysItIsServing) {
+  const Result r = runShell("timeout 300 " + std::string(MOBMAP_EXE) + " serve --live " + dir() + "/seq --out " + dir() +
+                            "/not-a-map.txt --port 0");
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("--out must end in .ot"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("serving"), std::string::npos) << r.out;
+}
+
 // SIGTERM during `serve --live` lost the whole run (no map, a stale lock); now it saves
 // the frames fused so far, as Ctrl-C does, and exits 143.
 TEST(HardenedLive, SigtermSavesTheFramesFusedSoFar) {

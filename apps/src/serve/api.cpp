@@ -339,6 +339,11 @@ Api::Api(std::string map_label, const MapSource& source, Limits limits)
       cache_(std::make_shared<Cache>()),
       state_(std::make_shared<State>()) {}
 
+Api::ReachCacheFigures Api::reachCache() const {
+  const std::lock_guard<std::mutex> lock(cache_->mutex);
+  return {cache_->reach.size(), cache_->reach_bytes};
+}
+
 Response Api::handle(const std::string& method, const std::string& path,
                      const std::multimap<std::string, std::string>& params, const std::string& body) const {
   try {

@@ -91,6 +91,11 @@ class Api {
   /// Ends the work of every request being answered (503) and of every later one: for a
   /// server that is stopping. Any thread.
   void stopWork() const { state_->stop.store(true); }
+  /// The reachabilities kept for "reach" and their memory (Limits::max_reach_cache_*).
+  struct ReachCacheFigures {
+    std::size_t entries = 0, bytes = 0;
+  };
+  [[nodiscard]] ReachCacheFigures reachCache() const;
 
  private:
   struct Cache;
