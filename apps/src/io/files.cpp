@@ -49,17 +49,22 @@ bool sameFile(const std::string& a, const std::string& b) {
   return resolved(a) == resolved(b);
 }
 
+// IoError naming `path` when the folder it goes in does not exist; `what` names the
+// folder in the message ("--png's folder").
+void requireParentDirectory(const std::string& path, const std::string& what = "the folder") {
+  const fs::path parent = fs::path(path).parent_path();
+  std::error_code ec;
+  if (parent.empty() || fs::is_directory(parent, ec)) return;
+  throw IoError(path, what + " " + parent.string() + " does not exist (create it first)");
+}
+
 }  // namespace
 
 void refuseToOverwriteInputs(const std::vector<NamedPath>& outputs, const std::vector<NamedPath>& inputs) {
   for (std::size_t i = 0; i < outputs.size(); ++i) {
     const NamedPath& out = outputs[i];
     if (out.path.empty()) continue;
-    const fs::path folder = fs::path(out.path).parent_path();
-    std::error_code ec;
-    if (!folder.empty() && !fs::is_directory(folder, ec)) {
-      throw IoError(out.path, out.name + "'s folder " + folder.string() + " does not exist (create it first)");
-    }
+    requireParentDirectory(out.path, out.name + "'s folder");
     for (const NamedPath& in : inputs) {
       if (in.path.empty()) continue;
       if (sameFile(out.path, in.path)) {
@@ -91,14 +96,6 @@ void createParentDirectory(const std::string& path) {
 
 namespace {
 
-// IoError naming `path` when the folder it goes in does not exist.
-void requireParentDirectory(const std::string& path) {
-  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
-  std::error_code ec;
-  if (parent.empty() || std::filesystem::is_directory(parent, ec)) return;
-  throw IoError(path, "the folder " + parent.string() + " does not exist (create it first)");
-}
-
 // Removes the temporaries of `path` (path.new.PID..., path.tmp.PID...) whose process is
 // gone: a save killed between writing and renaming leaves one, and nothing else would
 // ever remove it. Those of a process still running are left alone.
@@ -123,12 +120,15 @@ void removeStaleTemporaries(const std::string& path) {
   }
 }
 
+// Whether the folders of the files written must exist, or are created.
+enum class Folders { kMustExist, kCreate };
+
 // Writes each file to path + suffix + PID, then renames them all into place in order;
 // on a failed write every temporary is removed and the error names the file itself.
-void replaceFiles(const std::vector<PendingFile>& files, const std::string& suffix, bool create_parents) {
+void replaceFiles(const std::vector<PendingFile>& files, const std::string& suffix, Folders folders) {
   std::error_code ec;
   for (const PendingFile& f : files) {
-    if (!create_parents) requireParentDirectory(f.path);
+    if (folders == Folders::kMustExist) requireParentDirectory(f.path);
     removeStaleTemporaries(f.path);
   }
   std::vector<std::string> temporaries;
@@ -136,7 +136,7 @@ void replaceFiles(const std::vector<PendingFile>& files, const std::string& suff
     for (std::size_t i = from; i < temporaries.size(); ++i) std::filesystem::remove(temporaries[i], ec);
   };
   for (const PendingFile& f : files) {
-    if (create_parents) createParentDirectory(f.path);
+    if (folders == Folders::kCreate) createParentDirectory(f.path);
     temporaries.push_back(f.path + suffix + std::to_string(::getpid()));
     const std::string& tmp = temporaries.back();
     try {
@@ -170,13 +170,13 @@ void replaceFiles(const std::vector<PendingFile>& files, const std::string& suff
 }  // namespace
 
 void writeAtomically(const std::string& path, const std::function<void(const std::string&)>& write) {
-  replaceFiles({{path, write}}, ".tmp.", false);
+  replaceFiles({{path, write}}, ".tmp.", Folders::kMustExist);
 }
 
 void writeFilesTogether(const std::vector<PendingFile>& files) {
   // Not ".tmp.PID", which the writers' own atomic saves use inside: a temporary left
   // behind by a killed run then says which of the two left it.
-  replaceFiles(files, ".new.", true);
+  replaceFiles(files, ".new.", Folders::kCreate);
 }
 
 void checkWritable(const std::string& path) {
