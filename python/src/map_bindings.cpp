@@ -99,7 +99,7 @@ py::dict footprint(const MapHandle& h, const py::object& soles, const std::strin
         if (!std::isfinite(in(i, k))) throw py::value_error("footprint: soles[" + std::to_string(i) + "] holds a value that is not finite");
       }
       const double length = in(i, 4), width = in(i, 5);
-      if (!(length > 0 && width > 0 && length <= mapping::kMaxSoleSideM && width <= mapping::kMaxSoleSideM)) {
+      if (!mapping::soleSizeAllowed(length, width)) {
         throw py::value_error("footprint: soles[" + std::to_string(i) + "]: length and width must be in (0, " +
                               std::to_string(static_cast<int>(mapping::kMaxSoleSideM)) + "] m, got " + std::to_string(length) +
                               " x " + std::to_string(width));

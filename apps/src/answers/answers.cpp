@@ -72,7 +72,7 @@ nlohmann::json toJson(const PointAnswer& a) {
 }
 
 void checkSoleSize(double length_m, double width_m) {
-  if (!(length_m > 0 && width_m > 0 && length_m <= mapping::kMaxSoleSideM && width_m <= mapping::kMaxSoleSideM)) {
+  if (!mapping::soleSizeAllowed(length_m, width_m)) {
     throw std::invalid_argument("LENGTH and WIDTH must be in (0, 10] m");
   }
 }

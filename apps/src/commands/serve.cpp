@@ -14,7 +14,6 @@
 #include <malloc.h>
 #include <unistd.h>
 
-#include <algorithm>
 #include <cerrno>
 #include <csignal>
 #include <cstdio>
@@ -146,7 +145,6 @@ Command addServeCommand(CLI::App& app) {
     serve::Limits limits;
     limits.max_batch = o->max_batch;
     limits.max_connections = o->max_connections;
-    limits.max_connections_per_client = std::max<std::size_t>(1, o->max_connections / 4);
     limits.request_read_s = o->request_timeout;
     if (!o->live) {
       if (o->path.empty()) throw UsageError("give the MAP.ot to serve, or --live INPUT --out MAP.ot to build one");

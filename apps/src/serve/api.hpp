@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
@@ -51,7 +52,6 @@ struct Limits {
   double max_plan_time_s = 60.0;           ///< time_limit_s a plan request may ask for
   // The connections (http_server.cpp), docs/RELIABILITY.md:
   std::size_t max_connections = 64;             ///< served at once, in all; more: 503 at once
-  std::size_t max_connections_per_client = 16;  ///< from one address (a quarter of the above); more: 503 at once
   double request_read_s = 10;                   ///< a request must arrive whole this soon after it begins
   double keep_alive_idle_s = 5;                 ///< an idle connection is closed after this
   double answer_write_s = 60;                   ///< an answer must be taken by the client this soon
@@ -67,6 +67,8 @@ struct Limits {
   double max_request_s = 60;         ///< a request still working after this: 503
   std::size_t max_reach_cache_entries = 4;       ///< reachabilities kept per map
   std::size_t max_reach_cache_bytes = 512u << 20;  ///< and their memory, at most
+  /// Connections one client address may hold: a quarter of max_connections (16); more: 503 at once.
+  [[nodiscard]] std::size_t max_connections_per_client() const { return std::max<std::size_t>(1, max_connections / 4); }
   /// Values (numbers, strings, arrays, objects) one body may hold: enough for max_batch
   /// soles of 6 numbers each and the other fields; more: 413 before the body is parsed.
   [[nodiscard]] std::size_t max_json_values() const { return 8 * max_batch + 1000; }

@@ -278,8 +278,8 @@ class GuardedServer : public httplib::Server {
         close();
         return false;
       }
-      if (per_client_[client] >= limits_.max_connections_per_client) {
-        refuse(sock, "this address has " + std::to_string(limits_.max_connections_per_client) +
+      if (per_client_[client] >= limits_.max_connections_per_client()) {
+        refuse(sock, "this address has " + std::to_string(limits_.max_connections_per_client()) +
                          " connections open, the most one client may have");
         close();
         return false;

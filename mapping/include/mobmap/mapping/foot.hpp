@@ -21,6 +21,10 @@ struct SoleSample {
 /// The longest side a sole may have in the front ends' queries (CLI, server, Python),
 /// metres: a larger one is refused rather than sampled for seconds.
 inline constexpr double kMaxSoleSideM = 10.0;
+/// A sole the front ends answer for: both sides in (0, kMaxSoleSideM] (false for NaN).
+[[nodiscard]] inline bool soleSizeAllowed(double length_m, double width_m) {
+  return length_m > 0 && width_m > 0 && length_m <= kMaxSoleSideM && width_m <= kMaxSoleSideM;
+}
 
 /// Longest side of a sole, in voxels, that soleSamples() samples.
 inline constexpr double kMaxSoleSamplesPerSide = 10000;
