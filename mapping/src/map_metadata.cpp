@@ -94,6 +94,9 @@ void fields(MapRun& r, V& v) {
   v("depth_intrinsics", r.depth_intrinsics);
   v("poses", r.poses);
   v("max_pose_gap_s", r.max_pose_gap_s);
+  v("depth_topic", r.depth_topic);
+  v("camera_info_topic", r.camera_info_topic);
+  v("world_frame", r.world_frame);
   v("frames_without_pose", r.frames_without_pose);
   v("unreadable", r.unreadable);
   v("frame_numbers", r.frame_numbers);

@@ -134,7 +134,8 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
   const bool live = given.device->count() > 0;
   const bool oni = !live && fs::path(o->input).extension() == ".oni";
   if (live == !o->input.empty()) throw UsageError("give either INPUT or --device");
-  const bool is_dir = live || oni || fs::is_directory(o->input, ec) || !o->poses.empty();
+  const bool bag = !live && !o->input.empty() && sources::isRecording(o->input);
+  const bool is_dir = live || oni || bag || fs::is_directory(o->input, ec) || !o->poses.empty();
   if (o->skip_bad_frames && (live || oni || !is_dir)) {
     throw UsageError("--skip-bad-frames is for sequences of files (7-Scenes, TUM, .pcd frames with --poses), not " +
                      std::string(live ? "a live sensor" : oni ? "an .oni recording" : "a single frame"));
@@ -164,7 +165,7 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
     dir = openOpenNi(on);
   }
   if (is_dir) {
-    if (!dir) dir = openSequence(o->input, o->intrinsics, o->max_pose_gap, o->poses);
+    if (!dir) dir = openSequence(o->input, o->intrinsics, o->max_pose_gap, o->poses, {o->depth_topic, o->camera_info_topic, o->world_frame});
     if (given.depth_scale->count() > 0) dir = withDepthScale(std::move(dir), o->depth_scale);
     const FrameRange range = parseRange(o->frames);
     for (int f : dir->frames()) {
@@ -215,7 +216,10 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
       frames = std::move(kept);
     }
     if (!o->quiet) std::fprintf(stderr, "%s\n", dir->describe().c_str());
-    if (!dir->skipped().empty()) std::fprintf(stderr, "note: %s\n", dir->skipped().c_str());
+    if (!dir->skipped().empty()) {
+      const bool ended_early = dir->recording() && !dir->recording()->fault().empty();
+      std::fprintf(stderr, "%s: %s\n", ended_early ? "warning" : "note", dir->skipped().c_str());
+    }
     if (keyframes_considered > 0 && !o->quiet) {
       std::fprintf(stderr, "keyframes: %zu of the %d selected frames (%s)\n", frames.size(), keyframes_considered,
                    describeKeyframeRule(o->keyframes[0], o->keyframes[1]).c_str());
@@ -229,7 +233,7 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
     if (given.keyframes->count() > 0) throw UsageError("--keyframes needs a sequence of frames");
   }
   std::string gravity_source;
-  if (gravity_world) gravity_source = live || oni ? "the static camera's +y axis" : "gravity-direction.txt";
+  if (gravity_world) gravity_source = live || oni ? "the static camera's +y axis" : dir->gravitySource();
   const bool gravity_from_floor = o->gravity == "floor";
   if (gravity_from_floor) {
     if (existing) throw UsageError("--gravity floor: --extend keeps the map's gravity");
@@ -412,6 +416,11 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
     if (depth_k) run.depth_intrinsics = mapping::DepthCameraRecord{depth_k->fx, depth_k->fy, depth_k->cx, depth_k->cy, depth_k->width, depth_k->height};
     if (!o->poses.empty()) run.poses = fs::absolute(o->poses, ec).lexically_normal().string();
     run.max_pose_gap_s = o->max_pose_gap;
+    if (const sources::Recording* rec = is_dir ? dir->recording() : nullptr) {
+      run.depth_topic = rec->depthTopic();
+      if (!rec->cameraInfoTopic().empty()) run.camera_info_topic = rec->cameraInfoTopic();
+      run.world_frame = rec->worldFrame();
+    }
     if (no_pose > 0) run.frames_without_pose = no_pose;
     run.unreadable = unreadable;
     run.frame_numbers = std::array<long long, 2>{frames.front(), last_fused};

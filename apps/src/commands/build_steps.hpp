@@ -53,6 +53,7 @@ struct BuildOptions {
   double max_pose_gap = 0.05;
   std::string poses;
   std::string device;
+  std::string depth_topic, camera_info_topic, world_frame;  // a recording's choices
   /// The options whose presence (not only value) matters, as CLI11 registered them.
   struct Given {
     CLI::Option* max_range = nullptr;
@@ -71,7 +72,8 @@ struct BuildOptions {
 inline constexpr const char* kBuildInputHelp =
     "A 7-Scenes / 3DMatch layout directory (frame-NNNNNN.depth.png + .pose.txt), a TUM RGB-D directory "
     "(depth.txt + groundtruth.txt), a directory of .pcd frames with --poses, one .pcd frame, one 16-bit "
-    "depth .png in millimetres (with --intrinsics or a camera-intrinsics.txt beside it), or an OpenNI2 .oni recording";
+    "depth .png in millimetres (with --intrinsics or a camera-intrinsics.txt beside it), an OpenNI2 .oni recording, "
+    "or a ROS 2 bag (its folder with metadata.yaml, a .db3 or an .mcap file; posed through its TF tree)";
 
 /// Registers `build` and its options on `app`; the options are filled when it parses.
 std::shared_ptr<BuildOptions> addBuildOptions(CLI::App& app);

@@ -46,6 +46,21 @@ inline std::string fovSpec(double degrees) {
   return text;
 }
 
+/// The options that choose what a ROS 2 bag is read for (build, serve --live, analyze,
+/// overlay): its depth topic, its camera_info topic and the TF frame its poses are in.
+inline void addRecordingOptions(CLI::App& cmd, std::string& depth_topic, std::string& camera_info_topic,
+                                std::string& world_frame) {
+  cmd.add_option("--depth-topic", depth_topic,
+                 "A ROS 2 bag: the depth image topic to read (default: its only depth topic, 16UC1 / 32FC1 "
+                 "sensor_msgs/Image or compressedDepth; several are an error listing them)");
+  cmd.add_option("--camera-info-topic", camera_info_topic,
+                 "A ROS 2 bag: the camera_info giving the depth camera's intrinsics (default: the one in the depth "
+                 "topic's namespace; --intrinsics replaces it)");
+  cmd.add_option("--world-frame", world_frame,
+                 "A ROS 2 bag: the TF frame the camera poses are in (default: map if the TF tree has it, else odom; "
+                 "gravity is its -z for map and odom, REP 105)");
+}
+
 /// `--background` of overlay and analyze --overlay.
 inline constexpr const char* kBackgroundHelp =
     "What the mobility colours are laid over, shown in grey: colour (the frame's colour image when the input has one "

@@ -1,24 +1,14 @@
 #pragma once
-// Errors of the apps layer's readers and writers: the message always starts with
-// the path and says what is wrong with it.
+// The apps' errors: IoError is the library's (a file and what is wrong with it);
+// UsageError is a mistake on the command line.
+
+#include "mobmap/sources/io_error.hpp"
 
 #include <stdexcept>
-#include <string>
 
 namespace mobmap::app {
 
-/// An I/O or format error: "<path>: <reason>".
-class IoError : public std::runtime_error {
- public:
-  IoError(const std::string& path, const std::string& reason)
-      : std::runtime_error(path + ": " + reason), path_(path), reason_(reason) {}
-  [[nodiscard]] const std::string& path() const { return path_; }
-  [[nodiscard]] const std::string& reason() const { return reason_; }
-
- private:
-  std::string path_;
-  std::string reason_;
-};
+using sources::IoError;
 
 /// A mistake on the command line (exit code 2).
 class UsageError : public std::runtime_error {

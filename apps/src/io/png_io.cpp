@@ -5,7 +5,6 @@
 
 #include <png.h>
 
-#include <algorithm>
 #include <cerrno>
 #include <csetjmp>
 #include <cstdio>
@@ -15,7 +14,7 @@
 namespace mobmap::app {
 namespace {
 
-constexpr int kMaxSide = 16384;
+constexpr int kMaxSide = kMaxFrameSide;
 
 // libpng reports errors through a callback that must not return: we record the
 // message and longjmp back to the setjmp in the calling function. Only trivially
@@ -38,85 +37,6 @@ struct FileCloser {
   }
 };
 using FilePtr = std::unique_ptr<FILE, FileCloser>;
-
-enum class Want { kGrey16, kRgb8 };
-
-struct Decoded {
-  int width = 0, height = 0, channels = 0, bit_depth = 0, colour_type = 0;
-  std::vector<png_byte> bytes;
-};
-
-// Returns an empty string on success, else the reason.
-std::string decode(FILE* fp, Want want, Decoded* out) {
-  ErrorSink sink;
-  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &sink, onError, onWarning);
-  if (!png) return "out of memory";
-  png_infop info = png_create_info_struct(png);
-  if (!info) {
-    png_destroy_read_struct(&png, nullptr, nullptr);
-    return "out of memory";
-  }
-  std::vector<png_bytep>* rows = new std::vector<png_bytep>();  // freed on both paths
-  if (setjmp(png_jmpbuf(png))) {
-    png_destroy_read_struct(&png, &info, nullptr);
-    delete rows;
-    return std::string("corrupt or truncated PNG (") + sink.message + ")";
-  }
-  // Any size the format allows is read from the header, so that too large a frame is
-  // reported as that (libpng's own limit reads as a corrupt file), before any pixel is.
-  png_set_user_limits(png, 0x7fffffff, 0x7fffffff);
-  png_init_io(png, fp);
-  png_read_info(png, info);
-  const png_uint_32 w = png_get_image_width(png, info), h = png_get_image_height(png, info);
-  if (w > static_cast<png_uint_32>(kMaxFrameSide) || h > static_cast<png_uint_32>(kMaxFrameSide) ||
-      static_cast<long long>(w) * h > kMaxFramePixels) {
-    png_destroy_read_struct(&png, &info, nullptr);
-    delete rows;
-    return "the image is " + std::to_string(w) + "x" + std::to_string(h) + " pixels, larger than mobmap reads (at most " +
-           std::to_string(kMaxFrameSide) + " pixels a side and " + std::to_string(kMaxFramePixels) + " pixels in all)";
-  }
-  out->width = static_cast<int>(w);
-  out->height = static_cast<int>(h);
-  out->bit_depth = png_get_bit_depth(png, info);
-  out->colour_type = png_get_color_type(png, info);
-  if (want == Want::kGrey16) {
-    if (out->bit_depth != 16 || out->colour_type != PNG_COLOR_TYPE_GRAY) {
-      png_destroy_read_struct(&png, &info, nullptr);
-      delete rows;
-      return "not a 16-bit greyscale PNG (bit depth " + std::to_string(out->bit_depth) +
-             ", colour type " + std::to_string(out->colour_type) + ")";
-    }
-    out->channels = 1;
-  } else {
-    if (out->bit_depth == 16) png_set_strip_16(png);
-    if (out->colour_type == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
-    if (out->colour_type == PNG_COLOR_TYPE_GRAY && out->bit_depth < 8) png_set_expand_gray_1_2_4_to_8(png);
-    if (out->colour_type == PNG_COLOR_TYPE_GRAY || out->colour_type == PNG_COLOR_TYPE_GRAY_ALPHA) png_set_gray_to_rgb(png);
-    if (png_get_valid(png, info, PNG_INFO_tRNS)) png_set_tRNS_to_alpha(png);
-    png_set_strip_alpha(png);
-    out->channels = 3;
-  }
-  png_read_update_info(png, info);
-  const std::size_t stride = png_get_rowbytes(png, info);
-  out->bytes.resize(stride * static_cast<std::size_t>(out->height));
-  rows->resize(static_cast<std::size_t>(out->height));
-  for (int y = 0; y < out->height; ++y) (*rows)[static_cast<std::size_t>(y)] = out->bytes.data() + stride * static_cast<std::size_t>(y);
-  png_read_image(png, rows->data());
-  png_read_end(png, nullptr);
-  png_destroy_read_struct(&png, &info, nullptr);
-  delete rows;
-  return {};
-}
-
-FilePtr openForReading(const std::string& path) {
-  FilePtr fp(std::fopen(path.c_str(), "rb"));
-  if (!fp) throw IoError(path, std::string("cannot open: ") + std::strerror(errno));
-  unsigned char sig[8] = {0};
-  const std::size_t n = std::fread(sig, 1, 8, fp.get());
-  if (n < 8 || png_sig_cmp(sig, 0, 8) != 0) throw IoError(path, "not a PNG file");
-  std::rewind(fp.get());
-  return fp;
-}
 
 std::string encode(FILE* fp, int width, int height, int bit_depth, int colour_type,
                    const std::vector<png_bytep>& rows) {
@@ -161,51 +81,6 @@ void writeRaw(const std::string& path, int width, int height, int bit_depth, int
 }
 
 }  // namespace
-
-void checkPngComplete(const std::string& path) {
-  const FilePtr fp = openForReading(path);
-  // The IEND chunk is the last 12 bytes; a little slack for writers that append padding.
-  long size = -1;
-  if (std::fseek(fp.get(), 0, SEEK_END) == 0) size = std::ftell(fp.get());
-  if (size < 0) throw IoError(path, std::string("cannot read: ") + std::strerror(errno));
-  const long tail = std::min(size, 4096L);
-  std::string bytes(static_cast<std::size_t>(tail), '\0');
-  if (std::fseek(fp.get(), size - tail, SEEK_SET) != 0 || std::fread(bytes.data(), 1, bytes.size(), fp.get()) != bytes.size()) {
-    throw IoError(path, std::string("cannot read: ") + std::strerror(errno));
-  }
-  const std::size_t iend = bytes.rfind("IEND");  // the chunk type, then its 4-byte CRC
-  if (iend == std::string::npos || bytes.size() - iend < 8) {
-    throw IoError(path, "truncated PNG: " + std::to_string(size) + " bytes, and no complete IEND chunk at its end");
-  }
-}
-
-Image16 readPng16(const std::string& path) {
-  FilePtr fp = openForReading(path);
-  Decoded d;
-  const std::string err = decode(fp.get(), Want::kGrey16, &d);
-  if (!err.empty()) throw IoError(path, err);
-  Image16 img;
-  img.width = d.width;
-  img.height = d.height;
-  img.pixels.resize(static_cast<std::size_t>(d.width) * d.height);
-  for (std::size_t i = 0; i < img.pixels.size(); ++i) {
-    img.pixels[i] = static_cast<std::uint16_t>((d.bytes[2 * i] << 8) | d.bytes[2 * i + 1]);  // PNG is big-endian
-  }
-  return img;
-}
-
-ImageRgb readPngRgb(const std::string& path) {
-  FilePtr fp = openForReading(path);
-  Decoded d;
-  const std::string err = decode(fp.get(), Want::kRgb8, &d);
-  if (!err.empty()) throw IoError(path, err);
-  ImageRgb img;
-  img.width = d.width;
-  img.height = d.height;
-  img.pixels.resize(static_cast<std::size_t>(d.width) * d.height);
-  std::memcpy(img.pixels.data(), d.bytes.data(), img.pixels.size() * 3);
-  return img;
-}
 
 void writePng16(const std::string& path, const Image16& image) {
   if (image.pixels.size() != static_cast<std::size_t>(image.width) * image.height) {

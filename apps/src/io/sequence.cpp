@@ -5,6 +5,7 @@
 #include "io/io_error.hpp"
 #include "io/pcd.hpp"
 #include "io/png_io.hpp"
+#include "io/recording_sequence.hpp"
 #include "io/trajectory_files.hpp"
 
 #include "mobmap/mapping/gravity.hpp"
@@ -380,6 +381,8 @@ class ScaledSequence : public Sequence {
   [[nodiscard]] const perception::PinholeIntrinsics& intrinsics() const override { return inner_->intrinsics(); }
   [[nodiscard]] bool hasDepth() const override { return inner_->hasDepth(); }
   [[nodiscard]] std::optional<Eigen::Vector3d> gravityDown() const override { return inner_->gravityDown(); }
+  [[nodiscard]] std::string gravitySource() const override { return inner_->gravitySource(); }
+  [[nodiscard]] const sources::Recording* recording() const override { return inner_->recording(); }
   [[nodiscard]] bool posed() const override { return inner_->posed(); }
   [[nodiscard]] const std::vector<int>& frames() const override { return inner_->frames(); }
   void check(int n) const override { inner_->check(n); }
@@ -416,8 +419,12 @@ std::unique_ptr<Sequence> withDepthScale(std::unique_ptr<Sequence> seq, double u
 }
 
 std::unique_ptr<Sequence> openSequence(const std::string& input, const std::string& intrinsics_spec, double max_pose_gap_s,
-                                       const std::string& poses_path) {
+                                       const std::string& poses_path, const RecordingChoice& choice) {
   std::error_code ec;
+  if (sources::isRecording(input)) {
+    if (!poses_path.empty()) throw IoError(poses_path, "a ROS 2 bag's poses come from its TF tree; --poses is not read for it");
+    return openRecordingSequence(input, choice, intrinsics_spec, max_pose_gap_s);
+  }
   if (!fs::is_directory(input, ec)) {
     const fs::path ext = fs::path(input).extension();
     if (ext == ".pcd" && !poses_path.empty()) {

@@ -8,6 +8,7 @@
 #include "io/png_io.hpp"
 
 #include "mobmap/perception/camera.hpp"
+#include "mobmap/sources/recording.hpp"
 
 #include <Eigen/Geometry>
 
@@ -17,6 +18,14 @@
 #include <vector>
 
 namespace mobmap::app {
+
+/// The topic and frame choices for a robot's recording, as the command line gives them
+/// (empty: the recording's own).
+struct RecordingChoice {
+  std::string depth_topic;
+  std::string camera_info_topic;
+  std::string world_frame;
+};
 
 /// A sequence of depth frames with camera-to-world poses (none for a single file).
 /// load() may run on several threads at once.
@@ -29,6 +38,8 @@ class Sequence {
   /// Whether frames come as depth images (free space can then be projected).
   [[nodiscard]] virtual bool hasDepth() const { return true; }
   [[nodiscard]] virtual std::optional<Eigen::Vector3d> gravityDown() const = 0;
+  /// Where gravityDown() comes from, for the user and MAP.json.
+  [[nodiscard]] virtual std::string gravitySource() const { return "gravity-direction.txt"; }
   /// Whether its frames come with poses (false for a single file).
   [[nodiscard]] virtual bool posed() const { return true; }
   /// Numbers of the frames that have a pose, ascending.
@@ -55,6 +66,8 @@ class Sequence {
   /// The unit load() gives depth in, as the input is read: a depth image's values per
   /// metre (1000 for 7-Scenes and OpenNI2, 5000 for TUM), 1 for clouds in metres.
   [[nodiscard]] virtual DepthUnit depthUnit() const { return {}; }
+  /// The robot recording it reads (its topics, TF tree and choices), or null.
+  [[nodiscard]] virtual const sources::Recording* recording() const { return nullptr; }
 };
 
 /// `f`'s depth (or cloud coordinates, and the camera offset of a cloud in another frame)
@@ -77,7 +90,9 @@ std::unique_ptr<Sequence> withDepthScale(std::unique_ptr<Sequence> seq, double u
 /// organized .pcd frames get intrinsics fitted to their first frame.
 /// `max_pose_gap_s`: frames whose neighbouring timestamped poses are farther apart in
 /// time are skipped.
+/// A ROS 2 bag (sources::isRecording) is opened with `choice` (recording_sequence.hpp).
 std::unique_ptr<Sequence> openSequence(const std::string& input, const std::string& intrinsics_spec,
-                                       double max_pose_gap_s, const std::string& poses_path = "");
+                                       double max_pose_gap_s, const std::string& poses_path = "",
+                                       const RecordingChoice& choice = {});
 
 }  // namespace mobmap::app

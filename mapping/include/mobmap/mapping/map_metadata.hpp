@@ -66,6 +66,9 @@ struct MapRun {
   std::optional<DepthCameraRecord> depth_intrinsics;
   std::optional<std::string> poses;      ///< the trajectory file, absolute
   std::optional<double> max_pose_gap_s;
+  /// A recording's choices: the depth and camera_info topics read, the TF frame the
+  /// poses are in.
+  std::optional<std::string> depth_topic, camera_info_topic, world_frame;
   std::optional<long long> frames_without_pose;
   std::vector<std::string> unreadable;   ///< frames left out as unreadable ("frames_unreadable" counts them)
   std::optional<std::array<long long, 2>> frame_numbers;  ///< first and last frame fused

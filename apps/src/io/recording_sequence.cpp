@@ -1,0 +1,65 @@
+#include "io/recording_sequence.hpp"
+
+#include "io/dataset.hpp"
+
+namespace mobmap::app {
+namespace {
+
+class RecordingSequence : public Sequence {
+ public:
+  explicit RecordingSequence(std::unique_ptr<sources::Recording> r) : r_(std::move(r)) {}
+
+  std::string describe() const override {
+    std::string text = r_->path() + " (" + r_->format() + ": depth " + r_->depthTopic() + ", " +
+                       std::to_string(r_->frames().size()) + " of " + std::to_string(r_->imageCount()) + " images posed in " +
+                       r_->worldFrame() + " through TF";
+    if (!r_->cameraInfoTopic().empty()) text += ", intrinsics from " + r_->cameraInfoTopic();
+    if (!r_->distortionNote().empty()) text += ", " + r_->distortionNote();
+    return text + ")";
+  }
+  const perception::PinholeIntrinsics& intrinsics() const override { return r_->intrinsics(); }
+  std::optional<Eigen::Vector3d> gravityDown() const override { return r_->gravityDown(); }
+  std::string gravitySource() const override { return r_->gravitySource(); }
+  const std::vector<int>& frames() const override { return r_->frames(); }
+  void check(int /*n*/) const override {}  // the first image was decoded at open; each is checked as it is read
+  Frame load(int n) const override {
+    sources::RecordingFrame rf = r_->load(n);
+    Frame f;
+    f.number = n;
+    f.depth = std::move(rf.depth);
+    f.T_world_camera = rf.T_world_camera;
+    return f;
+  }
+  std::optional<Eigen::Isometry3d> pose(int n) const override { return r_->pose(n); }
+  std::vector<std::string> files(int /*n*/) const override { return r_->files(); }
+  std::string skipped() const override {
+    std::string text = r_->skipped();
+    if (!r_->fault().empty()) {
+      text += std::string(text.empty() ? "" : "; ") + "the recording ends early (" + r_->fault() +
+              "); the images stored before that point are used";
+    }
+    return text;
+  }
+  DepthUnit depthUnit() const override { return {r_->depthUnitsPerMetre(), false}; }
+  const sources::Recording* recording() const override { return r_.get(); }
+
+ private:
+  std::unique_ptr<sources::Recording> r_;
+};
+
+}  // namespace
+
+std::unique_ptr<Sequence> openRecordingSequence(const std::string& path, const RecordingChoice& choice,
+                                                const std::string& intrinsics_spec, double max_pose_gap_s) {
+  sources::RecordingOptions o;
+  o.depth_topic = choice.depth_topic;
+  o.camera_info_topic = choice.camera_info_topic;
+  o.world_frame = choice.world_frame;
+  o.max_pose_gap_s = max_pose_gap_s;
+  if (!intrinsics_spec.empty()) {
+    o.intrinsics = [intrinsics_spec](int width, int height) { return parseIntrinsics(intrinsics_spec, width, height); };
+  }
+  return std::make_unique<RecordingSequence>(sources::Recording::open(path, o));
+}
+
+}  // namespace mobmap::app

@@ -1,0 +1,67 @@
+#pragma once
+// What every recording container (an MCAP file, a ROS 2 .db3, a ROS 1 .bag) gives the
+// recording reader: its topics, one pass over its messages in the order they are
+// stored, and a stored message read again by the reference that pass gave.
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "ros_messages.hpp"
+
+namespace mobmap::sources {
+
+/// Where a message lies in its container, to read it again (meaning is the container's).
+struct MessageRef {
+  std::uint32_t file = 0;
+  std::uint64_t a = 0, b = 0, c = 0;
+};
+
+struct ContainerTopic {
+  std::string name;
+  std::string type;      ///< "sensor_msgs/Image" (ROS 2's "/msg/" dropped)
+  std::string encoding;  ///< "cdr", "ros1", or what the container says when neither
+};
+
+struct RawMessage {
+  int topic = 0;  ///< index into topics()
+  std::int64_t log_time_ns = 0;
+  const std::uint8_t* data = nullptr;
+  std::size_t size = 0;
+  MessageRef ref;
+};
+
+/// The stored bytes end early or fail their check: the pass stops there.
+struct ContainerFault {
+  std::string what;  ///< "cut short at byte 123456", "chunk at byte N fails its CRC"
+};
+
+class Container {
+ public:
+  virtual ~Container() = default;
+  /// Every message in stored order; topics() may grow during the pass (an MCAP channel
+  /// is declared before its first message). Returns the fault that ended the pass early,
+  /// if any. IoError when the file is not of the format at all.
+  virtual std::optional<ContainerFault> scan(const std::function<void(const RawMessage&)>& visit) = 0;
+  [[nodiscard]] virtual const std::vector<ContainerTopic>& topics() const = 0;
+  /// The message at `ref` again; may run on several threads at once.
+  [[nodiscard]] virtual std::vector<std::uint8_t> read(const MessageRef& ref) const = 0;
+  /// The files it reads (for commands that must not write over them).
+  [[nodiscard]] virtual std::vector<std::string> files() const = 0;
+};
+
+/// "sensor_msgs/msg/Image" -> "sensor_msgs/Image".
+std::string normaliseType(const std::string& type);
+/// The wire of a container topic's encoding; false when mobmap does not decode it.
+bool wireOf(const std::string& encoding, ros::Wire* wire);
+
+std::unique_ptr<Container> openMcap(const std::string& path);
+std::unique_ptr<Container> openDb3(const std::string& path);
+/// Several files of one ROS 2 bag (metadata.yaml's relative_file_paths), in order.
+std::unique_ptr<Container> openChain(std::vector<std::unique_ptr<Container>> parts);
+
+}  // namespace mobmap::sources

@@ -1,0 +1,517 @@
+#include "mobmap/sources/recording.hpp"
+
+#include "container.hpp"
+#include "depth_decode.hpp"
+#include "ros_messages.hpp"
+
+#include "mobmap/sources/io_error.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <set>
+
+namespace mobmap::sources {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr const char* kImage = "sensor_msgs/Image";
+constexpr const char* kCompressed = "sensor_msgs/CompressedImage";
+constexpr const char* kCameraInfo = "sensor_msgs/CameraInfo";
+constexpr const char* kTf = "tf2_msgs/TFMessage";
+
+std::string seconds(std::int64_t ns) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%.3f s", static_cast<double>(ns) * 1e-9);
+  return buf;
+}
+
+std::string namespaceOf(const std::string& topic) {
+  const auto slash = topic.find_last_of('/');
+  return slash == std::string::npos ? std::string() : topic.substr(0, slash);
+}
+
+std::string listed(const std::vector<std::string>& names) {
+  std::string out;
+  for (const auto& n : names) out += (out.empty() ? "" : ", ") + n;
+  return out.empty() ? "none" : out;
+}
+
+// A ROS 2 bag folder: its files in metadata.yaml's order (every .db3 / .mcap in it
+// when metadata.yaml does not list them).
+std::unique_ptr<Container> openFolder(const std::string& dir) {
+  const fs::path meta = fs::path(dir) / "metadata.yaml";
+  std::vector<std::string> names;
+  try {
+    const YAML::Node root = YAML::LoadFile(meta.string());
+    const YAML::Node info = root["rosbag2_bagfile_information"];
+    if (!info) throw IoError(meta.string(), "has no rosbag2_bagfile_information: not a ROS 2 bag's metadata");
+    if (const YAML::Node files = info["relative_file_paths"]) {
+      for (const auto& f : files) names.push_back(f.as<std::string>());
+    }
+  } catch (const YAML::Exception& e) {
+    throw IoError(meta.string(), std::string("cannot be read as YAML: ") + e.what());
+  }
+  if (names.empty()) {
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(dir, ec)) {
+      const auto ext = e.path().extension();
+      if (ext == ".db3" || ext == ".mcap") names.push_back(e.path().filename().string());
+    }
+    std::sort(names.begin(), names.end());
+  }
+  if (names.empty()) throw IoError(dir, "a ROS 2 bag folder without .db3 or .mcap files");
+  std::vector<std::unique_ptr<Container>> parts;
+  for (const auto& name : names) {
+    const fs::path p = fs::path(dir) / name;
+    const fs::path rel(name);
+    if (rel.is_absolute() || rel.empty() || std::any_of(rel.begin(), rel.end(), [](const fs::path& c) { return c == ".."; })) {
+      throw IoError(meta.string(), "lists \"" + name + "\", which is not a file inside the bag folder");
+    }
+    const auto ext = p.extension();
+    if (ext == ".db3") {
+      parts.push_back(openDb3(p.string()));
+    } else if (ext == ".mcap") {
+      parts.push_back(openMcap(p.string()));
+    } else {
+      throw IoError(p.string(), "a bag file mobmap does not read (ROS 2 bags store .db3 or .mcap files)");
+    }
+  }
+  return openChain(std::move(parts));
+}
+
+// Undoes plumb_bob distortion: each pixel of the undistorted image takes the depth of
+// the nearest pixel of the distorted one (depth is not interpolated across edges).
+class Undistorter {
+ public:
+  Undistorter(const perception::PinholeIntrinsics& k, const std::vector<double>& d) : width_(k.width), height_(k.height) {
+    const double k1 = d[0], k2 = d[1], p1 = d[2], p2 = d[3], k3 = d.size() > 4 ? d[4] : 0.0;
+    source_.resize(static_cast<std::size_t>(k.width) * k.height, -1);
+    for (int v = 0; v < k.height; ++v) {
+      for (int u = 0; u < k.width; ++u) {
+        const double x = (u - k.cx) / k.fx, y = (v - k.cy) / k.fy;
+        const double r2 = x * x + y * y;
+        const double radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+        const double xd = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
+        const double yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
+        const long us = std::lround(k.fx * xd + k.cx), vs = std::lround(k.fy * yd + k.cy);
+        if (us >= 0 && vs >= 0 && us < k.width && vs < k.height) {
+          source_[static_cast<std::size_t>(v) * k.width + u] = static_cast<int>(vs * k.width + us);
+        }
+      }
+    }
+  }
+  perception::DepthImage apply(const perception::DepthImage& in) const {
+    perception::DepthImage out(width_, height_);
+    for (std::size_t i = 0; i < source_.size(); ++i) {
+      if (source_[i] >= 0) out.depth_m[i] = in.depth_m[static_cast<std::size_t>(source_[i])];
+    }
+    return out;
+  }
+
+ private:
+  int width_, height_;
+  std::vector<int> source_;
+};
+
+struct TopicStats {
+  std::size_t count = 0;
+  std::int64_t first = 0, last = 0;
+  std::string first_encoding;  // an Image topic's first encoding, a CompressedImage topic's first format
+};
+
+struct IndexedImage {
+  std::int64_t stamp_ns;
+  std::size_t order;  // stored order, to keep equal stamps stable
+  MessageRef ref;
+  std::uint32_t frame_id;
+};
+
+class BagRecording : public Recording {
+ public:
+  BagRecording(const std::string& path, const RecordingOptions& options) : path_(path), options_(options) {
+    std::error_code ec;
+    const fs::path p(path);
+    if (fs::is_directory(p, ec)) {
+      if (!fs::exists(p / "metadata.yaml", ec)) throw IoError(path, "a folder without metadata.yaml is not a ROS 2 bag");
+      container_ = openFolder(path);
+    } else if (p.extension() == ".mcap") {
+      container_ = openMcap(path);
+    } else if (p.extension() == ".db3") {
+      container_ = openDb3(path);
+    } else {
+      throw IoError(path, "not a recording mobmap reads (a ROS 2 bag folder, .db3 or .mcap)");
+    }
+    format_ = "ROS 2 bag";
+    index();
+    chooseTopics();
+    poseImages();
+  }
+
+  const std::string& path() const override { return path_; }
+  std::string format() const override { return format_; }
+  const std::vector<TopicSummary>& topics() const override { return summaries_; }
+  const TfTree& tf() const override { return tf_; }
+  const std::string& depthTopic() const override { return depth_topic_; }
+  const std::string& cameraInfoTopic() const override { return camera_info_topic_; }
+  const std::string& worldFrame() const override { return world_frame_; }
+  const std::string& cameraFrame() const override { return camera_frame_; }
+  const perception::PinholeIntrinsics& intrinsics() const override { return intrinsics_; }
+  const std::string& distortionNote() const override { return distortion_note_; }
+  double depthUnitsPerMetre() const override { return units_per_m_; }
+  std::optional<Eigen::Vector3d> gravityDown() const override {
+    if (world_frame_ == "map" || world_frame_ == "odom") return Eigen::Vector3d(0, 0, -1);
+    return std::nullopt;
+  }
+  std::string gravitySource() const override {
+    return gravityDown() ? "the world frame " + world_frame_ + "'s -z (REP 105)" : std::string();
+  }
+  int imageCount() const override { return static_cast<int>(images_.size()); }
+  const std::vector<int>& frames() const override { return posed_; }
+  std::optional<Eigen::Isometry3d> pose(int n) const override { return poses_.at(static_cast<std::size_t>(n)); }
+  std::int64_t stamp(int n) const override { return images_.at(static_cast<std::size_t>(n)).stamp_ns; }
+  std::string skipped() const override { return skipped_; }
+  const std::string& fault() const override { return fault_; }
+  std::vector<std::string> files() const override { return container_->files(); }
+  std::size_t memoryBytes() const override {
+    return images_.capacity() * sizeof(IndexedImage) + poses_.capacity() * sizeof(std::optional<Eigen::Isometry3d>) +
+           tf_.memoryBytes() + posed_.capacity() * sizeof(int);
+  }
+
+  RecordingFrame load(int n) const override {
+    const IndexedImage& img = images_.at(static_cast<std::size_t>(n));
+    RecordingFrame f;
+    f.number = n;
+    f.stamp_ns = img.stamp_ns;
+    f.frame_id = frame_ids_[img.frame_id];
+    f.depth = decodeDepth(n);
+    checkSize(f.depth, n);
+    if (undistort_) f.depth = undistort_->apply(f.depth);
+    f.T_world_camera = poses_[static_cast<std::size_t>(n)];
+    return f;
+  }
+
+ private:
+  std::string imageLabel(int n) const {
+    return path_ + ": depth image " + std::to_string(n) + " on " + depth_topic_ + " (stamp " +
+           seconds(images_[static_cast<std::size_t>(n)].stamp_ns) + ")";
+  }
+
+  // One pass: topic counts, the TF tree, every camera_info's first message, and where
+  // each image of every image topic lies with its stamp (the depth topic is chosen after).
+  void index() {
+    std::map<int, std::vector<IndexedImage>> images;  // by container topic
+    std::map<int, ros::CameraInfo> infos;
+    std::map<std::string, std::uint32_t> frame_ids;
+    std::vector<TopicStats> stats;
+    std::size_t order = 0;
+    auto fault = container_->scan([&](const RawMessage& m) {
+      const auto& topics = container_->topics();
+      if (stats.size() < topics.size()) stats.resize(topics.size());
+      const ContainerTopic& topic = topics[static_cast<std::size_t>(m.topic)];
+      TopicStats& s = stats[static_cast<std::size_t>(m.topic)];
+      if (s.count == 0) s.first = m.log_time_ns;
+      s.last = m.log_time_ns;
+      ++s.count;
+      ros::Wire wire;
+      if (!wireOf(topic.encoding, &wire)) return;
+      try {
+        if (topic.type == kTf || (topic.type == "tf2_msgs/TFMessage")) {
+          const bool is_static = topic.name == "/tf_static";
+          for (const auto& t : ros::decodeTfMessage(m.data, m.size, wire)) {
+            const Eigen::Quaterniond q(t.rotation_xyzw[3], t.rotation_xyzw[0], t.rotation_xyzw[1], t.rotation_xyzw[2]);
+            tf_.add(strip(t.header.frame_id), strip(t.child_frame_id), t.header.stamp_ns,
+                    Eigen::Vector3d(t.translation[0], t.translation[1], t.translation[2]), q, is_static);
+          }
+        } else if (topic.type == kCameraInfo) {
+          if (!infos.count(m.topic)) infos[m.topic] = ros::decodeCameraInfo(m.data, m.size, wire);
+        } else if (topic.type == kImage || topic.type == kCompressed) {
+          IndexedImage img;
+          if (s.count == 1) {
+            s.first_encoding = topic.type == kImage ? ros::decodeImage(m.data, m.size, wire).encoding
+                                                    : ros::decodeCompressedImage(m.data, m.size, wire).format;
+          }
+          const ros::Header h = ros::decodeHeader(m.data, m.size, wire);
+          img.stamp_ns = h.stamp_ns;
+          img.order = order++;
+          img.ref = m.ref;
+          const auto id = frame_ids.emplace(strip(h.frame_id), static_cast<std::uint32_t>(frame_ids.size()));
+          img.frame_id = id.first->second;
+          images[m.topic].push_back(img);
+        }
+      } catch (const ros::MessageError& e) {
+        throw IoError(path_, "a " + topic.type + " message on " + topic.name + " cannot be decoded: " + e.what());
+      } catch (const TfError& e) {
+        throw IoError(path_, e.what());
+      }
+    });
+    if (fault) fault_ = fault->what;
+    const auto& topics = container_->topics();
+    stats.resize(topics.size());
+    frame_ids_.resize(frame_ids.size());
+    for (const auto& [name, id] : frame_ids) frame_ids_[id] = name;
+    for (std::size_t i = 0; i < topics.size(); ++i) {
+      TopicSummary t{topics[i].name, topics[i].type, stats[i].count, 0.0};
+      if (stats[i].count > 1 && stats[i].last > stats[i].first) {
+        t.rate_hz = static_cast<double>(stats[i].count - 1) / (static_cast<double>(stats[i].last - stats[i].first) * 1e-9);
+      }
+      summaries_.push_back(t);
+    }
+    all_images_ = std::move(images);
+    infos_ = std::move(infos);
+    stats_ = std::move(stats);
+  }
+
+  // tf2 frame names carry no leading slash; ROS 1 recordings sometimes do.
+  static std::string strip(const std::string& frame) { return !frame.empty() && frame[0] == '/' ? frame.substr(1) : frame; }
+
+  bool isDepthTopic(int t) const {
+    const auto& topic = container_->topics()[static_cast<std::size_t>(t)];
+    const std::string& first = stats_[static_cast<std::size_t>(t)].first_encoding;
+    if (topic.type == kImage) return isDepthEncoding(first);
+    return !compressedDepthEncoding(first).empty();
+  }
+
+  void chooseTopics() {
+    const auto& topics = container_->topics();
+    int depth = -1;
+    if (!options_.depth_topic.empty()) {
+      std::vector<std::string> images;
+      for (const auto& [t, list] : all_images_) images.push_back(topics[static_cast<std::size_t>(t)].name);
+      for (const auto& [t, list] : all_images_) {
+        if (topics[static_cast<std::size_t>(t)].name == options_.depth_topic) depth = t;
+      }
+      if (depth < 0) {
+        throw IoError(path_, "has no image topic " + options_.depth_topic + " (its image topics: " + listed(images) + ")");
+      }
+      if (!isDepthTopic(depth)) {
+        const auto& s = stats_[static_cast<std::size_t>(depth)];
+        throw IoError(path_, options_.depth_topic + " holds " +
+                                 (topics[static_cast<std::size_t>(depth)].type == kImage ? "\"" + s.first_encoding + "\" images"
+                                                                                       : "\"" + s.first_encoding + "\" compressed images") +
+                                 ", not depth (mobmap reads 16UC1 millimetres, 32FC1 metres, or either as compressedDepth)");
+      }
+    } else {
+      std::vector<int> candidates;
+      std::vector<std::string> names, others;
+      for (const auto& [t, list] : all_images_) {
+        if (isDepthTopic(t)) {
+          candidates.push_back(t);
+          names.push_back(topics[static_cast<std::size_t>(t)].name);
+        } else {
+          others.push_back(topics[static_cast<std::size_t>(t)].name + " (" + stats_[static_cast<std::size_t>(t)].first_encoding + ")");
+        }
+      }
+      // A camera's raw depth and its compressedDepth republication are one camera: the raw one is read.
+      if (candidates.size() == 2) {
+        const auto& a = topics[static_cast<std::size_t>(candidates[0])];
+        const auto& b = topics[static_cast<std::size_t>(candidates[1])];
+        if (b.name == a.name + "/compressedDepth" && a.type == kImage) candidates.pop_back();
+        else if (a.name == b.name + "/compressedDepth" && b.type == kImage) candidates.erase(candidates.begin());
+      }
+      if (candidates.empty()) {
+        throw IoError(path_, "has no depth image topic (16UC1 or 32FC1 sensor_msgs/Image, or compressedDepth); its other image topics: " +
+                                 listed(others));
+      }
+      if (candidates.size() > 1) {
+        throw IoError(path_, "has " + std::to_string(candidates.size()) + " depth image topics; choose one with --depth-topic: " + listed(names));
+      }
+      depth = candidates.front();
+    }
+    const ContainerTopic& dt = topics[static_cast<std::size_t>(depth)];
+    depth_topic_ = dt.name;
+    depth_compressed_ = dt.type == kCompressed;
+    wireOf(dt.encoding, &depth_wire_);
+    images_ = std::move(all_images_[depth]);
+    all_images_.clear();
+    std::stable_sort(images_.begin(), images_.end(), [](const IndexedImage& a, const IndexedImage& b) {
+      return a.stamp_ns != b.stamp_ns ? a.stamp_ns < b.stamp_ns : a.order < b.order;
+    });
+    if (images_.empty()) throw IoError(path_, depth_topic_ + " holds no images");
+    camera_frame_ = frame_ids_[images_.front().frame_id];
+
+    // The first image, decoded now: a wrong encoding or size stops the run before it starts.
+    const perception::DepthImage first = decodeDepth(0, &units_per_m_);
+    if (options_.intrinsics) {
+      intrinsics_ = options_.intrinsics(first.width, first.height);
+    } else {
+      chooseCameraInfo(depth);
+    }
+    checkSize(first, 0);
+  }
+
+  perception::DepthImage decodeDepth(int n, double* units_per_m = nullptr) const {
+    const IndexedImage& img = images_.at(static_cast<std::size_t>(n));
+    const std::string what = imageLabel(n);
+    const std::vector<std::uint8_t> bytes = container_->read(img.ref);
+    try {
+      if (depth_compressed_) {
+        const auto m = ros::decodeCompressedImage(bytes.data(), bytes.size(), depth_wire_);
+        if (units_per_m) *units_per_m = compressedDepthEncoding(m.format) == "32FC1" ? 1.0 : 1000.0;
+        return depthFromCompressed(m, what);
+      }
+      const auto m = ros::decodeImage(bytes.data(), bytes.size(), depth_wire_);
+      if (units_per_m) *units_per_m = m.encoding == "32FC1" ? 1.0 : 1000.0;
+      return depthFromImage(m, what);
+    } catch (const ros::MessageError& e) {
+      throw IoError(what, std::string("cannot be decoded: ") + e.what());
+    }
+  }
+
+  void checkSize(const perception::DepthImage& d, int n) const {
+    if (d.width != intrinsics_.width || d.height != intrinsics_.height) {
+      throw IoError(imageLabel(n), "the image is " + std::to_string(d.width) + "x" + std::to_string(d.height) + " but " +
+                                       (camera_info_topic_.empty() ? std::string("the intrinsics given are for ")
+                                                                   : "its camera_info (" + camera_info_topic_ + ") is for ") +
+                                       std::to_string(intrinsics_.width) + "x" + std::to_string(intrinsics_.height));
+    }
+  }
+
+  void chooseCameraInfo(int depth) {
+    const auto& topics = container_->topics();
+    std::vector<std::string> all;
+    int chosen = -1;
+    std::size_t best = 0;
+    // The depth topic's own namespace, with a transport's suffix taken off.
+    std::string ns = namespaceOf(depth_topic_);
+    if (depth_compressed_ && depth_topic_.size() > 16 && depth_topic_.substr(depth_topic_.size() - 16) == "/compressedDepth") {
+      ns = namespaceOf(depth_topic_.substr(0, depth_topic_.size() - 16));
+    }
+    for (std::size_t t = 0; t < topics.size(); ++t) {
+      if (topics[t].type != kCameraInfo) continue;
+      all.push_back(topics[t].name);
+      if (!options_.camera_info_topic.empty()) {
+        if (topics[t].name == options_.camera_info_topic) chosen = static_cast<int>(t);
+        continue;
+      }
+      // The camera_info whose namespace is the depth topic's, or the nearest one above it.
+      const std::string its = namespaceOf(topics[t].name);
+      if ((ns == its || ns.rfind(its + "/", 0) == 0) && (chosen < 0 || its.size() > best)) {
+        chosen = static_cast<int>(t);
+        best = its.size();
+      }
+    }
+    (void)depth;
+    if (chosen < 0) {
+      if (!options_.camera_info_topic.empty()) {
+        throw IoError(path_, "has no camera_info topic " + options_.camera_info_topic + " (its camera_info topics: " + listed(all) + ")");
+      }
+      throw IoError(path_, "has no camera_info in " + (ns.empty() ? std::string("/") : ns) + " for " + depth_topic_ +
+                               "; choose one with --camera-info-topic (its camera_info topics: " + listed(all) +
+                               ") or give --intrinsics");
+    }
+    camera_info_topic_ = topics[static_cast<std::size_t>(chosen)].name;
+    const auto info = infos_.find(chosen);
+    if (info == infos_.end()) throw IoError(path_, camera_info_topic_ + " holds no message");
+    const ros::CameraInfo& ci = info->second;
+    const std::string what = path_ + ": " + camera_info_topic_;
+    perception::PinholeIntrinsics k;
+    k.width = static_cast<int>(std::min<std::uint32_t>(ci.width, 1u << 30));
+    k.height = static_cast<int>(std::min<std::uint32_t>(ci.height, 1u << 30));
+    k.fx = ci.k[0];
+    k.fy = ci.k[4];
+    k.cx = ci.k[2];
+    k.cy = ci.k[5];
+    try {
+      perception::validate(k);
+    } catch (const std::invalid_argument& e) {
+      throw IoError(what, std::string("its K does not describe a camera: ") + e.what());
+    }
+    intrinsics_ = k;
+    const bool distorted = std::any_of(ci.d.begin(), ci.d.end(), [](double x) { return x != 0.0; });
+    if (!distorted) return;
+    if (ci.distortion_model != "plumb_bob" || ci.d.size() < 4) {
+      throw IoError(what, "its distortion model \"" + ci.distortion_model + "\" has non-zero coefficients; mobmap undoes plumb_bob "
+                          "only (give --intrinsics to read the images as they are)");
+    }
+    undistort_ = std::make_unique<Undistorter>(k, ci.d);
+    char note[200];
+    std::snprintf(note, sizeof note, "plumb_bob distortion (k1 %.4g, k2 %.4g, p1 %.4g, p2 %.4g, k3 %.4g) undone", ci.d[0], ci.d[1], ci.d[2],
+                  ci.d[3], ci.d.size() > 4 ? ci.d[4] : 0.0);
+    distortion_note_ = note;
+  }
+
+  void poseImages() {
+    if (!options_.world_frame.empty()) {
+      world_frame_ = options_.world_frame;
+    } else if (tf_.has("map")) {
+      world_frame_ = "map";
+    } else if (tf_.has("odom")) {
+      world_frame_ = "odom";
+    } else {
+      throw IoError(path_, "its TF tree has neither map nor odom; choose the world frame with --world-frame (its frames: " +
+                               listed(tf_.frames()) + ")");
+    }
+    if (!tf_.has(world_frame_)) {
+      throw IoError(path_, "--world-frame " + world_frame_ + " is not in the TF tree (its frames: " + listed(tf_.frames()) + ")");
+    }
+    const auto gap = static_cast<std::int64_t>(std::llround(options_.max_pose_gap_s * 1e9));
+    poses_.resize(images_.size());
+    std::size_t unposed = 0;
+    std::string first_why;
+    for (std::size_t i = 0; i < images_.size(); ++i) {
+      std::string why;
+      try {
+        poses_[i] = tf_.lookup(world_frame_, frame_ids_[images_[i].frame_id], images_[i].stamp_ns, gap, &why);
+      } catch (const TfError& e) {
+        const bool statics = std::any_of(summaries_.begin(), summaries_.end(), [](const TopicSummary& t) { return t.name == "/tf_static"; });
+        throw IoError(path_, std::string(e.what()) + (statics ? "" : "; the recording has no /tf_static, where a robot's fixed transforms (its camera's mounting) are published"));
+      }
+      if (poses_[i]) {
+        posed_.push_back(static_cast<int>(i));
+      } else {
+        ++unposed;
+        if (first_why.empty()) first_why = "image " + std::to_string(i) + ": " + why;
+      }
+    }
+    if (unposed > 0) {
+      char gap_text[32];
+      std::snprintf(gap_text, sizeof gap_text, "%g", options_.max_pose_gap_s);
+      skipped_ = std::to_string(unposed) + " of " + std::to_string(images_.size()) + " depth images without a pose in " + world_frame_ +
+                 " within --max-pose-gap " + gap_text + " s (" + first_why + ")";
+    }
+  }
+
+  std::string path_;
+  RecordingOptions options_;
+  std::unique_ptr<Container> container_;
+  std::string format_;
+  TfTree tf_;
+  std::vector<TopicSummary> summaries_;
+  std::vector<TopicStats> stats_;
+  std::map<int, std::vector<IndexedImage>> all_images_;
+  std::map<int, ros::CameraInfo> infos_;
+  std::vector<std::string> frame_ids_;
+  std::vector<IndexedImage> images_;
+  std::vector<std::optional<Eigen::Isometry3d>> poses_;
+  std::vector<int> posed_;
+  std::string depth_topic_, camera_info_topic_, world_frame_, camera_frame_;
+  bool depth_compressed_ = false;
+  ros::Wire depth_wire_ = ros::Wire::kCdr;
+  perception::PinholeIntrinsics intrinsics_;
+  std::unique_ptr<Undistorter> undistort_;
+  std::string distortion_note_;
+  double units_per_m_ = 1000.0;  // the first image's; every image of a topic has its encoding
+  std::string skipped_;
+  std::string fault_;
+};
+
+}  // namespace
+
+bool isRecording(const std::string& path) {
+  std::error_code ec;
+  const fs::path p(path);
+  if (fs::is_directory(p, ec)) return fs::exists(p / "metadata.yaml", ec);
+  const auto ext = p.extension();
+  return ext == ".mcap" || ext == ".db3";
+}
+
+std::unique_ptr<Recording> Recording::open(const std::string& path, const RecordingOptions& options) {
+  return std::make_unique<BagRecording>(path, options);
+}
+
+}  // namespace mobmap::sources

@@ -1,0 +1,161 @@
+#include "mobmap/sources/tf_tree.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+namespace mobmap::sources {
+namespace {
+
+std::string seconds(std::int64_t ns) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%.3f s", static_cast<double>(ns) * 1e-9);
+  return buf;
+}
+
+}  // namespace
+
+void TfTree::add(const std::string& parent, const std::string& child, std::int64_t stamp_ns, const Eigen::Vector3d& t,
+                 const Eigen::Quaterniond& q, bool is_static) {
+  if (parent.empty() || child.empty()) throw TfError("a transform with an empty frame name (parent \"" + parent + "\", child \"" + child + "\")");
+  if (parent == child) throw TfError("frame \"" + child + "\" is given as its own parent");
+  if (!t.allFinite() || !q.coeffs().allFinite()) throw TfError("the transform " + parent + " -> " + child + " holds a value that is not finite");
+  if (std::abs(q.norm() - 1.0) > 1e-3) {
+    throw TfError("the rotation of " + parent + " -> " + child + " is not a unit quaternion (norm " + std::to_string(q.norm()) + ")");
+  }
+  auto [it, fresh] = links_.try_emplace(child);
+  Link& link = it->second;
+  if (!fresh && link.parent != parent) {
+    throw TfError("frame \"" + child + "\" has two parents, \"" + link.parent + "\" and \"" + parent + "\"");
+  }
+  if (!fresh && link.is_static != is_static) {
+    throw TfError("the transform " + parent + " -> " + child + " is published both on /tf_static and on /tf");
+  }
+  link.parent = parent;
+  link.is_static = is_static;
+  const Sample s{stamp_ns, t, q.normalized()};
+  if (is_static) {
+    link.samples.assign(1, s);
+    return;
+  }
+  // Kept sorted: samples come nearly in order, so the place is found near the end.
+  auto& v = link.samples;
+  if (v.empty() || v.back().stamp_ns <= stamp_ns) {
+    v.push_back(s);
+  } else {
+    v.insert(std::upper_bound(v.begin(), v.end(), stamp_ns, [](std::int64_t when, const Sample& x) { return when < x.stamp_ns; }), s);
+  }
+}
+
+bool TfTree::has(const std::string& frame) const {
+  if (links_.count(frame)) return true;
+  return std::any_of(links_.begin(), links_.end(), [&](const auto& l) { return l.second.parent == frame; });
+}
+
+std::vector<std::string> TfTree::frames() const {
+  std::set<std::string> all;
+  for (const auto& [child, link] : links_) {
+    all.insert(child);
+    all.insert(link.parent);
+  }
+  return {all.begin(), all.end()};
+}
+
+std::vector<TfEdge> TfTree::edges() const {
+  std::vector<TfEdge> out;
+  for (const auto& [child, link] : links_) out.push_back({link.parent, child, link.is_static, link.samples.size()});
+  return out;
+}
+
+std::size_t TfTree::memoryBytes() const {
+  std::size_t bytes = 0;
+  for (const auto& [child, link] : links_) bytes += link.samples.capacity() * sizeof(Sample) + child.size() + link.parent.size() + 96;
+  return bytes;
+}
+
+std::vector<std::string> TfTree::chainToRoot(const std::string& frame) const {
+  std::vector<std::string> chain{frame};
+  std::set<std::string> seen{frame};
+  for (auto it = links_.find(frame); it != links_.end(); it = links_.find(chain.back())) {
+    const std::string& parent = it->second.parent;
+    if (!seen.insert(parent).second) {
+      std::string cycle = parent;
+      for (auto c = std::find(chain.begin(), chain.end(), parent); c != chain.end(); ++c) {
+        if (*c != parent) cycle += " -> " + *c;
+      }
+      throw TfError("the TF tree has a cycle: " + cycle + " -> " + parent);
+    }
+    chain.push_back(parent);
+  }
+  return chain;
+}
+
+std::optional<Eigen::Isometry3d> TfTree::linkAt(const std::string& child, const Link& link, std::int64_t stamp_ns,
+                                                std::int64_t max_gap_ns, std::string* why) const {
+  auto pose = [](const Sample& s) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = s.q.toRotationMatrix();
+    T.translation() = s.t;
+    return T;
+  };
+  if (link.is_static) return pose(link.samples.front());
+  const auto& s = link.samples;
+  const auto after = std::lower_bound(s.begin(), s.end(), stamp_ns, [](const Sample& a, std::int64_t t) { return a.stamp_ns < t; });
+  if (after != s.end() && after->stamp_ns == stamp_ns) return pose(*after);
+  if (after == s.begin() || after == s.end()) {
+    if (why) {
+      *why = link.parent + " -> " + child + " has no sample " + (after == s.begin() ? "before" : "after") + " the stamp";
+    }
+    return std::nullopt;
+  }
+  const Sample& a = *(after - 1);
+  const Sample& b = *after;
+  if (b.stamp_ns - a.stamp_ns > max_gap_ns) {
+    if (why) *why = link.parent + " -> " + child + "'s samples around the stamp are " + seconds(b.stamp_ns - a.stamp_ns) + " apart";
+    return std::nullopt;
+  }
+  const double w = static_cast<double>(stamp_ns - a.stamp_ns) / static_cast<double>(b.stamp_ns - a.stamp_ns);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = a.q.slerp(w, b.q).toRotationMatrix();
+  T.translation() = (1.0 - w) * a.t + w * b.t;
+  return T;
+}
+
+std::optional<Eigen::Isometry3d> TfTree::lookup(const std::string& target, const std::string& source, std::int64_t stamp_ns,
+                                                std::int64_t max_gap_ns, std::string* why) const {
+  for (const std::string* f : {&target, &source}) {
+    if (!has(*f)) {
+      std::string list;
+      for (const auto& name : frames()) list += (list.empty() ? "" : ", ") + name;
+      throw TfError("frame \"" + *f + "\" is not in the TF tree (its frames: " + (list.empty() ? "none" : list) + ")");
+    }
+  }
+  const auto up_source = chainToRoot(source);
+  const auto up_target = chainToRoot(target);
+  if (up_source.back() != up_target.back()) {
+    throw TfError("frames \"" + source + "\" and \"" + target + "\" are not connected: their roots are \"" + up_source.back() +
+                  "\" and \"" + up_target.back() + "\" (is /tf_static missing from the recording?)");
+  }
+  // The common ancestor: the first frame up from the source that is on the target's way up.
+  const std::set<std::string> on_target(up_target.begin(), up_target.end());
+  std::size_t meet = 0;
+  while (!on_target.count(up_source[meet])) ++meet;
+  const std::string& ancestor = up_source[meet];
+  // T_ancestor_frame composed up a chain.
+  auto upTo = [&](const std::vector<std::string>& chain) -> std::optional<Eigen::Isometry3d> {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    for (std::size_t i = 0; chain[i] != ancestor; ++i) {
+      const auto step = linkAt(chain[i], links_.at(chain[i]), stamp_ns, max_gap_ns, why);
+      if (!step) return std::nullopt;
+      T = *step * T;
+    }
+    return T;
+  };
+  const auto T_ancestor_source = upTo(up_source);
+  if (!T_ancestor_source) return std::nullopt;
+  const auto T_ancestor_target = upTo(up_target);
+  if (!T_ancestor_target) return std::nullopt;
+  return T_ancestor_target->inverse() * *T_ancestor_source;
+}
+
+}  // namespace mobmap::sources

@@ -1,0 +1,258 @@
+// `mobmap build` on ROS 2 bags written by implementations other than mobmap's: MCAP by
+// the npm registry's @mcap/core, CDR by @foxglove/rosmsg2-serialization, .db3 by
+// Python's sqlite3 (tests/recordings). Each must give the map the same frames give in
+// the 7-Scenes layout, and each kind of broken recording a clear error or warning.
+#include "cli_support.hpp"
+
+#include "mobmap/mapping/mobility_map.hpp"
+#include "mobmap/mapping/mobility_octree.hpp"
+
+#include <set>
+
+namespace mobmap::cli_test {
+namespace {
+
+const std::string kFixtures = std::string(MOBMAP_SOURCE_DIR) + "/tests/recordings";
+constexpr const char* kBuild = " --voxel 0.02 -q";
+
+class Bags : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    if (!fs::exists(kFixtures + "/node_modules/@mcap/core")) {
+      skip_ = "the bag writers are not installed: run `npm ci --prefix tests/recordings` (scripts/setup.sh does)";
+      return;
+    }
+    dir_ = tempDir("bags");
+    fs::create_directories(dir_);
+    const Result sim = run("simulate --out " + dir_ + "/seq --frames 12 -q");
+    ASSERT_EQ(sim.code, 0) << sim.out;
+    const Result ref = run("build " + dir_ + "/seq --out " + dir_ + "/ref.ot" + kBuild);
+    ASSERT_EQ(ref.code, 0) << ref.out;
+  }
+  static void TearDownTestSuite() {
+    if (!dir_.empty()) fs::remove_all(dir_);
+  }
+  void SetUp() override {
+    if (!skip_.empty()) GTEST_SKIP() << skip_;
+  }
+
+  // Writes dir_/NAME.mcap (or, with --feed, the messages for make_db3.py) with write_bag.mjs.
+  static std::string writeBag(const std::string& name, const std::string& options) {
+    const std::string out = dir_ + "/" + name;
+    const Result r = runShell("node " + kFixtures + "/write_bag.mjs --seq " + dir_ + "/seq " +
+                              (options.find("--feed") == std::string::npos ? "--out " + out + " " : "") + options);
+    EXPECT_EQ(r.code, 0) << r.out;
+    return out;
+  }
+  // A ROS 2 bag folder in sqlite3 storage.
+  static std::string writeDb3(const std::string& name, const std::string& options) {
+    const std::string feed = dir_ + "/" + name + ".jsonl";
+    writeBag(name, "--feed " + feed + " " + options);
+    const Result r = runShell("python3 " + kFixtures + "/make_db3.py " + feed + " " + dir_ + "/" + name);
+    EXPECT_EQ(r.code, 0) << r.out;
+    return dir_ + "/" + name;
+  }
+  static Result build(const std::string& input, const std::string& out, const std::string& options = "") {
+    return run("build " + input + " --out " + out + kBuild + " " + options);
+  }
+  static std::string ref() { return dir_ + "/ref.ot"; }
+
+  static std::string dir_;
+  static std::string skip_;
+};
+std::string Bags::dir_;
+std::string Bags::skip_;
+
+TEST_F(Bags, McapInEveryLayoutGivesTheSevenScenesMapByteForByte) {
+  const std::vector<std::pair<std::string, std::string>> variants = {
+      {"zstd", "--chunks zstd"},
+      {"lz4", "--chunks lz4"},
+      {"plain-no-summary", "--chunks plain --summary no"},
+      {"unchunked", "--chunks none"},
+      {"unchunked-no-summary", "--chunks none --summary no"},
+      {"compressed-depth", "--depth compressed16"},
+      {"colour-beside", "--colour"},
+  };
+  for (const auto& [name, options] : variants) {
+    SCOPED_TRACE(name);
+    const std::string bag = writeBag(name + ".mcap", options);
+    const Result r = build(bag, dir_ + "/" + name + ".ot");
+    ASSERT_EQ(r.code, 0) << r.out;
+    EXPECT_EQ(fileBytes(dir_ + "/" + name + ".ot"), fileBytes(ref())) << "the map differs from the 7-Scenes layout's";
+  }
+}
+
+TEST_F(Bags, SqliteBagFolderAndFileGiveTheSameMap) {
+  const std::string bag = writeDb3("db3bag", "--layout camera");
+  for (const std::string& input : {bag, bag + "/db3bag_0.db3"}) {
+    SCOPED_TRACE(input);
+    const Result r = build(input, dir_ + "/db3.ot", "--force");
+    ASSERT_EQ(r.code, 0) << r.out;
+    EXPECT_EQ(fileBytes(dir_ + "/db3.ot"), fileBytes(ref()));
+  }
+}
+
+// The camera on a moving base: map -> odom (turned and shifted), odom -> base_link
+// sampled 5 ms either side of each image (interpolating to its true pose), and the
+// static mounting base_link -> camera_link -> optical frame on /tf_static.
+TEST_F(Bags, CameraOnAMovingBaseIsPosedThroughTheTfChain) {
+  for (const std::string world : {"map", "odom"}) {
+    SCOPED_TRACE(world);
+    const std::string bag = writeBag("base-" + world + ".mcap", "--layout base --world " + world);
+    const std::string out = dir_ + "/base-" + world + ".ot";
+    const Result r = build(bag, out);
+    ASSERT_EQ(r.code, 0) << r.out;
+    EXPECT_EQ(fileBytes(out), fileBytes(ref()));
+    const auto meta = nlohmann::json::parse(fileBytes(dir_ + "/base-" + world + ".json"));
+    EXPECT_EQ(meta["world_frame"], world);
+    EXPECT_EQ(meta["depth_topic"], "/camera/depth/image_raw");
+    EXPECT_EQ(meta["camera_info_topic"], "/camera/depth/camera_info");
+    EXPECT_NE(meta["gravity_source"].get<std::string>().find("REP 105"), std::string::npos) << meta["gravity_source"];
+  }
+  const std::string bag = writeDb3("base-db3", "--layout base");
+  const Result r = build(bag, dir_ + "/base-db3.ot");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(fileBytes(dir_ + "/base-db3.ot"), fileBytes(ref()));
+}
+
+// Leaves (key -> mobility) of a map file.
+std::map<std::array<double, 3>, double> leaves(const std::string& path) {
+  std::map<std::array<double, 3>, double> out;
+  const auto tree = mapping::loadMobilityMap(path);
+  for (auto it = tree->begin_leafs(), end = tree->end_leafs(); it != end; ++it) {
+    if (tree->isNodeOccupied(*it) && it->hasMobility()) out[{it.getX(), it.getY(), it.getZ()}] = it->mobility();
+  }
+  return out;
+}
+
+// Depth in metres (32FC1, and compressedDepth's quantised inverse depth) is not the
+// millimetres of the PNGs to the last bit: the same voxels, nearly, with the same mobility.
+TEST_F(Bags, DepthInMetresGivesTheSameVoxels) {
+  const auto reference = leaves(ref());
+  ASSERT_GT(reference.size(), 1000u);
+  for (const std::string depth : {"32FC1", "compressed32"}) {
+    SCOPED_TRACE(depth);
+    const std::string bag = writeBag(depth + ".mcap", "--depth " + depth);
+    const Result r = build(bag, dir_ + "/" + depth + ".ot");
+    ASSERT_EQ(r.code, 0) << r.out;
+    const auto got = leaves(dir_ + "/" + depth + ".ot");
+    std::size_t common = 0;
+    double diff = 0.0;
+    for (const auto& [key, m] : got) {
+      const auto it = reference.find(key);
+      if (it == reference.end()) continue;
+      ++common;
+      diff += std::abs(it->second - m);
+    }
+    const double share = static_cast<double>(common) / static_cast<double>(std::max(reference.size(), got.size()));
+    EXPECT_GT(share, 0.97) << common << " voxels in common of " << reference.size() << " and " << got.size();
+    EXPECT_LT(diff / static_cast<double>(common), 0.02);
+  }
+}
+
+TEST_F(Bags, TopicsAreChosenOrAskedFor) {
+  const std::string bag = writeBag("two-cameras.mcap", "--second-camera --colour");
+  Result r = build(bag, dir_ + "/two.ot");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("2 depth image topics"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("/camera/depth/image_raw, /camera2/depth/image_raw"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("--depth-topic"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(dir_ + "/two.ot"));
+  // The second camera's own camera_info (its namespace) is taken with it: the same
+  // frames and poses, its intrinsics are the first camera's, so the same map.
+  r = build(bag, dir_ + "/two.ot", "--depth-topic /camera2/depth/image_raw");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(fileBytes(dir_ + "/two.ot"), fileBytes(ref()));
+  EXPECT_EQ(nlohmann::json::parse(fileBytes(dir_ + "/two.json"))["camera_info_topic"], "/camera2/depth/camera_info");
+  // A colour topic is not depth.
+  r = build(bag, dir_ + "/colour.ot", "--depth-topic /camera/color/image_raw");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("\"rgb8\" images, not depth"), std::string::npos) << r.out;
+  r = build(bag, dir_ + "/colour.ot", "--depth-topic /nothing");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("has no image topic /nothing (its image topics: "), std::string::npos) << r.out;
+  r = build(bag, dir_ + "/colour.ot", "--depth-topic /camera/depth/image_raw --camera-info-topic /none");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("has no camera_info topic /none (its camera_info topics: "), std::string::npos) << r.out;
+  r = build(bag, dir_ + "/colour.ot", "--depth-topic /camera/depth/image_raw --world-frame base");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("--world-frame base is not in the TF tree (its frames: camera_depth_optical_frame, map)"), std::string::npos)
+      << r.out;
+  EXPECT_FALSE(fs::exists(dir_ + "/colour.ot"));
+}
+
+TEST_F(Bags, WrongRecordingsAreRefusedNamingTheFileAndTheProblem) {
+  const std::vector<std::array<std::string, 3>> cases = {
+      {"bigendian", "", "its pixels are big-endian"},
+      {"step", "", "its step is 1278 bytes, less than a row of 640 16UC1 pixels (1280)"},
+      {"size", "", "the image is 640x480 but its camera_info (/camera/depth/camera_info) is for 320x240"},
+      {"cycle", "--layout base --world odom", "the TF tree has a cycle: "},
+      {"no-static", "--layout base --world odom", "the recording has no /tf_static"},
+      {"two-parents", "--layout base", "frame \"camera_link\" has two parents, \"base_link\" and \"odom\""},
+  };
+  for (const auto& [fault, options, message] : cases) {
+    SCOPED_TRACE(fault);
+    const std::string bag = writeBag("fault-" + fault + ".mcap", "--frames 3 --fault " + fault + " " + options);
+    const Result r = build(bag, dir_ + "/fault.ot");
+    EXPECT_EQ(r.code, 1) << r.out;
+    EXPECT_NE(r.out.find("error: " + bag + ": "), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find(message), std::string::npos) << r.out;
+    EXPECT_FALSE(fs::exists(dir_ + "/fault.ot"));
+  }
+}
+
+// A recording whose bytes end early or fail a check is read up to that point: the
+// frames before it are mapped, and a warning (and MAP.json) says where it ended.
+TEST_F(Bags, DamagedBytesEndTheRecordingWhereTheyAre) {
+  const std::string bag = writeBag("plain.mcap", "--chunks plain --summary no");
+  const std::string bytes = fileBytes(bag);
+  struct Damage {
+    std::string name, expect;
+    std::function<std::string(std::string)> apply;
+  };
+  const std::vector<Damage> damages = {
+      {"cut", "cut short", [](std::string b) { return b.substr(0, b.size() / 2); }},
+      {"crc", "fail their CRC", [](std::string b) { b[b.size() / 2] = static_cast<char>(b[b.size() / 2] ^ 0x5a); return b; }},
+  };
+  for (const auto& d : damages) {
+    SCOPED_TRACE(d.name);
+    const std::string damaged = dir_ + "/damaged-" + d.name + ".mcap";
+    std::ofstream(damaged, std::ios::binary) << d.apply(bytes);
+    const std::string out = dir_ + "/damaged-" + d.name + ".ot";
+    const Result r = build(damaged, out);
+    ASSERT_EQ(r.code, 0) << r.out;
+    EXPECT_NE(r.out.find("warning: the recording ends early (" + damaged + ": "), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find(d.expect), std::string::npos) << r.out;
+    const auto meta = nlohmann::json::parse(fileBytes(dir_ + "/damaged-" + d.name + ".json"));
+    EXPECT_GT(meta["frames"].get<int>(), 0);
+    EXPECT_LT(meta["frames"].get<int>(), 12);
+    EXPECT_NE(meta["skipped"].get<std::string>().find("ends early"), std::string::npos);
+  }
+  // Damage in a compressed chunk fails its decompression or its CRC.
+  std::string zstd = fileBytes(writeBag("zstd-damaged.mcap", "--chunks zstd"));
+  zstd[zstd.size() / 3] = static_cast<char>(zstd[zstd.size() / 3] ^ 0xff);
+  std::ofstream(dir_ + "/zstd-damaged.mcap", std::ios::binary) << zstd;
+  const Result r = build(dir_ + "/zstd-damaged.mcap", dir_ + "/zstd-damaged.ot");
+  EXPECT_NE(r.out.find("is unreadable: "), std::string::npos) << r.out;
+}
+
+TEST_F(Bags, NotARecordingIsRefused) {
+  const std::string fake = dir_ + "/fake.mcap";
+  std::ofstream(fake) << "not an mcap file";
+  Result r = build(fake, dir_ + "/fake.ot");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find(fake + ": not an MCAP file"), std::string::npos) << r.out;
+  const std::string db = dir_ + "/fake.db3";
+  std::ofstream(db) << "SQLite format 3";
+  r = build(db, dir_ + "/fake.ot");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find(db + ": "), std::string::npos) << r.out;
+  fs::create_directories(dir_ + "/emptybag");
+  std::ofstream(dir_ + "/emptybag/metadata.yaml") << "rosbag2_bagfile_information:\n  relative_file_paths:\n    - ../../etc/passwd\n";
+  r = build(dir_ + "/emptybag", dir_ + "/fake.ot");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("which is not a file inside the bag folder"), std::string::npos) << r.out;
+}
+
+}  // namespace
+}  // namespace mobmap::cli_test
