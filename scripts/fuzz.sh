@@ -2,19 +2,19 @@
 # Builds the libFuzzer targets with clang (ASan + UBSan) into ./build-fuzz and runs each
 # for SECONDS (default 30) on its corpus in tests/fuzz/corpus/TARGET, which it grows.
 # Exits non-zero if any target finds a crash (the input is saved as build-fuzz/crash-*).
-#   bash scripts/fuzz.sh [SECONDS] [TARGET...]      targets: map_reader config poses pipeline api
+#   bash scripts/fuzz.sh [SECONDS] [TARGET...]      targets: map_reader config poses pipeline api mcap cdr db3
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${1:-30}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -eq 0 ] && targets=(map_reader config poses pipeline api)
+[ ${#targets[@]} -eq 0 ] && targets=(map_reader config poses pipeline api mcap cdr db3)
 bash scripts/setup.sh fuzz
 mkdir -p build-fuzz/obj
 # -ffp-contract=off as perception/CMakeLists.txt sets it (its vector kernels match the
 # portable loops bit for bit only without fused multiply-adds).
 flags=(-std=c++17 -O1 -g -ffp-contract=off -fsanitize=address,undefined -fno-sanitize-recover=undefined
-       -Igp/include -Iperception/include -Iperception/src -Imapping/include -Iapps/src -I/usr/include/eigen3 -I/usr/include/openni2 -Ibuild-fuzz)
+       -Igp/include -Iperception/include -Iperception/src -Imapping/include -Isources/include -Isources/src -Iapps/src -I/usr/include/eigen3 -I/usr/include/openni2 -Ibuild-fuzz)
 for d in /usr/include/mrpt/*/include; do flags+=("-I$d"); done
 cmake -DIN=apps/default.yaml -DOUT=build-fuzz/default_yaml.inc -P apps/embed.cmake
 # The viewer's files (serve's API hands them out), as apps/CMakeLists.txt embeds them.
@@ -26,7 +26,7 @@ done
 
 # Each source is compiled once, again when it or any first-party header is newer than
 # its object (a header change can change a struct's layout under an old object).
-newest_header=$(ls -t $(find gp perception mapping apps sim tests/fuzz -name '*.hpp') | head -n 1)
+newest_header=$(ls -t $(find gp perception mapping sources apps sim tests/fuzz -name '*.hpp') | head -n 1)
 objects() {
   for src in "$@"; do
     local o="build-fuzz/obj/${src//\//_}.o"
@@ -44,6 +44,7 @@ module_sources() {
 mapfile -t gp < <(module_sources gp)
 mapfile -t perception < <(module_sources perception)
 mapfile -t mapping < <(module_sources mapping)
+mapfile -t sources < <(module_sources sources)
 mrpt=(-lmrpt-poses -lmrpt-math -lmrpt-serialization -lmrpt-core)
 link() {  # link TARGET SOURCES... -- LIBS...
   local target=$1; shift
@@ -63,11 +64,13 @@ for target in "${targets[@]}"; do
               mapping/src/mobility_map.cpp mapping/src/mobility_octree.cpp mapping/src/gravity.cpp \
               -- -lyaml-cpp -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;
     poses) link poses tests/fuzz/fuzz_poses.cpp apps/src/io/trajectory_files.cpp apps/src/io/dataset.cpp apps/src/io/files.cpp \
-             apps/src/io/png_io.cpp perception/src/camera.cpp mapping/src/gravity.cpp -- -lpng -lyaml-cpp "${mrpt[@]}" ;;
+             apps/src/io/png_io.cpp sources/src/png.cpp perception/src/camera.cpp mapping/src/gravity.cpp -- -lpng -lyaml-cpp "${mrpt[@]}" ;;
     pipeline) link pipeline tests/fuzz/fuzz_pipeline.cpp "${gp[@]}" "${perception[@]}" -- -lgmp -lmpfr ;;
     api) link api tests/fuzz/fuzz_api.cpp apps/src/serve/api.cpp apps/src/serve/viewer_assets.cpp apps/src/answers/answers.cpp \
            apps/src/commands/levels.cpp "${mapping[@]}" "${perception[@]}" "${gp[@]}" \
            -- -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;
+    mcap|cdr|db3) link "$target" "tests/fuzz/fuzz_$target.cpp" "${sources[@]}" perception/src/camera.cpp \
+                    -- -lpng -lz -lyaml-cpp -lsqlite3 -llz4 -lzstd ;;
     *) echo "fuzz.sh: unknown target $target" >&2; exit 2 ;;
   esac
 done

@@ -11,6 +11,8 @@ packages=(
   libcli11-dev libpng-dev nlohmann-json3-dev libyaml-cpp-dev
   pybind11-dev python3-dev python3-numpy python3-pytest
   libcpp-httplib-dev libjs-three
+  # ROS 2 bags: sqlite3 storage, MCAP chunks compressed with lz4 or zstd
+  libsqlite3-dev liblz4-dev libzstd-dev
   # the viewer's test draws the page in headless Chromium
   chromium
 )
@@ -18,6 +20,21 @@ packages=(
 if [ "${1:-}" = fuzz ]; then
   packages+=(clang libclang-rt-14-dev)
 fi
+
+# The tests' bag writers (tests/recordings) run on Node.js; Debian's when the machine has none.
+if ! command -v npm >/dev/null 2>&1; then
+  packages+=(nodejs npm)
+fi
+
+# The npm packages that write the tests' bags, as package-lock.json pins them.
+npm_fixtures() {
+  local dir
+  dir="$(cd "$(dirname "$0")/.." && pwd)/tests/recordings"
+  if [ ! -d "$dir/node_modules" ] || [ "$dir/package-lock.json" -nt "$dir/node_modules" ]; then
+    echo "setup: installing the bag writers of $dir (npm ci)"
+    (cd "$dir" && npm ci --no-audit --no-fund --loglevel=error) && touch "$dir/node_modules"
+  fi
+}
 
 missing=()
 for p in "${packages[@]}"; do
@@ -28,6 +45,7 @@ done
 
 if [ ${#missing[@]} -eq 0 ]; then
   echo "setup: all ${#packages[@]} packages are installed"
+  npm_fixtures
   exit 0
 fi
 
@@ -43,3 +61,4 @@ fi
 export DEBIAN_FRONTEND=noninteractive
 "${as_root[@]}" apt-get update -q
 "${as_root[@]}" apt-get install -y -q --no-install-recommends "${missing[@]}"
+npm_fixtures

@@ -19,6 +19,9 @@ struct StatementCloser {
   void operator()(sqlite3_stmt* s) const { sqlite3_finalize(s); }
 };
 using Statement = std::unique_ptr<sqlite3_stmt, StatementCloser>;
+struct DatabaseCloser {
+  void operator()(sqlite3* db) const { sqlite3_close(db); }
+};
 
 class Db3Container : public Container {
  public:
@@ -30,11 +33,11 @@ class Db3Container : public Container {
     std::fclose(probe);
     if (n < 16 || std::string(magic, 15) != "SQLite format 3") throw IoError(path, "not an SQLite database (a ROS 2 .db3 is one)");
     const std::string uri = "file:" + uriEscape(path) + "?mode=ro&immutable=1";
-    if (sqlite3_open_v2(uri.c_str(), &db_, SQLITE_OPEN_READONLY | SQLITE_OPEN_URI | SQLITE_OPEN_FULLMUTEX, nullptr) != SQLITE_OK) {
-      const std::string why = db_ ? sqlite3_errmsg(db_) : "out of memory";
-      sqlite3_close(db_);
-      throw IoError(path, "cannot open as SQLite: " + why);
-    }
+    sqlite3* db = nullptr;
+    const int opened = sqlite3_open_v2(uri.c_str(), &db, SQLITE_OPEN_READONLY | SQLITE_OPEN_URI | SQLITE_OPEN_FULLMUTEX, nullptr);
+    database_.reset(db);  // closed on every path, an error's too
+    db_ = db;
+    if (opened != SQLITE_OK) throw IoError(path, std::string("cannot open as SQLite: ") + (db ? sqlite3_errmsg(db) : "out of memory"));
     // Bounds for a hostile file: no huge blobs or strings, no runaway statement.
     sqlite3_limit(db_, SQLITE_LIMIT_LENGTH, 1 << 30);
     sqlite3_limit(db_, SQLITE_LIMIT_SQL_LENGTH, 1 << 16);
@@ -47,7 +50,6 @@ class Db3Container : public Container {
     }
     if (rc != SQLITE_DONE) throw IoError(path_, std::string("cannot read its topics table: ") + sqlite3_errmsg(db_));
   }
-  ~Db3Container() override { sqlite3_close(db_); }
 
   std::optional<ContainerFault> scan(const std::function<void(const RawMessage&)>& visit) override {
     Statement s = prepare("SELECT id, topic_id, timestamp, data FROM messages ORDER BY id");
@@ -115,7 +117,8 @@ class Db3Container : public Container {
   }
 
   std::string path_;
-  sqlite3* db_ = nullptr;
+  std::unique_ptr<sqlite3, DatabaseCloser> database_;
+  sqlite3* db_ = nullptr;  // database_'s
   std::map<sqlite3_int64, int> ids_;
   std::vector<ContainerTopic> topics_;
   mutable std::mutex mutex_;

@@ -180,10 +180,21 @@ class McapContainer : public Container {
     if (stored > f.left()) return "its records run past its end";
     if (size > kMaxRecordBytes) return "it claims " + std::to_string(size) + " bytes uncompressed (at most 1 GiB read)";
     const std::uint8_t* in = f.here();
+    // What the declared size is checked against before it is allocated.
+    if (compression.empty() && stored != size) {
+      return "its uncompressed records are " + std::to_string(stored) + " bytes, not the " + std::to_string(size) + " it declares";
+    }
+    if (compression == "zstd") {
+      const unsigned long long content = ZSTD_getFrameContentSize(in, static_cast<std::size_t>(stored));
+      if (content == ZSTD_CONTENTSIZE_ERROR) return "its records are not a zstd frame";
+      if (content != ZSTD_CONTENTSIZE_UNKNOWN && content != size) {
+        return "its zstd frame holds " + std::to_string(content) + " bytes, not the " + std::to_string(size) + " it declares";
+      }
+    }
+    if (compression == "lz4" && size > stored * 256 + 65536) return "it claims more bytes than lz4 can expand its records to";
     records->resize(static_cast<std::size_t>(size));
     if (compression.empty()) {
-      if (stored != size) return "its uncompressed records are " + std::to_string(stored) + " bytes, not the " + std::to_string(size) + " it declares";
-      std::memcpy(records->data(), in, static_cast<std::size_t>(size));
+      if (size > 0) std::memcpy(records->data(), in, static_cast<std::size_t>(size));
     } else if (compression == "zstd") {
       const std::size_t got = ZSTD_decompress(records->data(), records->size(), in, static_cast<std::size_t>(stored));
       if (ZSTD_isError(got)) return std::string("zstd cannot decompress it (") + ZSTD_getErrorName(got) + ")";

@@ -257,7 +257,7 @@ class BagRecording : public Recording {
     for (std::size_t i = 0; i < topics.size(); ++i) {
       TopicSummary t{topics[i].name, topics[i].type, stats[i].count, 0.0};
       if (stats[i].count > 1 && stats[i].last > stats[i].first) {
-        t.rate_hz = static_cast<double>(stats[i].count - 1) / (static_cast<double>(stats[i].last - stats[i].first) * 1e-9);
+        t.rate_hz = static_cast<double>(stats[i].count - 1) / ((static_cast<double>(stats[i].last) - static_cast<double>(stats[i].first)) * 1e-9);
       }
       summaries_.push_back(t);
     }

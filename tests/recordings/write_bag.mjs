@@ -19,6 +19,7 @@
 //   --second-camera        the depth and camera_info again, under /camera2
 //   --distortion K1,K2,P1,P2,K3  plumb_bob coefficients in the camera_info (zeros)
 //   --frames N             only the first N frames
+//   --crop WxH             only the top-left W x H pixels of each image (small fuzzing seeds)
 //   --fault bigendian|step|size|cycle|no-static|two-parents
 //                          a recording that is wrong in one way: big-endian depth, a step
 //                          shorter than a row, a camera_info of another size, a TF cycle
@@ -87,6 +88,14 @@ function readPng16(file) {
     prev = line;
   }
   return { width, height, pixels: out };
+}
+
+function crop(img) {
+  if (!args.crop) return img;
+  const [w, h] = args.crop.split("x").map(Number);
+  const pixels = new Uint16Array(w * h);
+  for (let y = 0; y < h; ++y) for (let x = 0; x < w; ++x) pixels[y * w + x] = img.pixels[y * img.width + x];
+  return { width: w, height: h, pixels };
 }
 
 // ---- rigid transforms as { R: 3x3 row-major array, t: [x, y, z] } ------------------------
@@ -193,7 +202,7 @@ numbers.forEach((n, i) => {
       add("/tf", "tf2_msgs/msg/TFMessage", ts, { transforms: tf });
     }
   }
-  const img = readPng16(name(n, "depth.png"));
+  const img = crop(readPng16(name(n, "depth.png")));
   const hdr = header(t, OPTICAL);
   add("/camera/depth/camera_info", "sensor_msgs/msg/CameraInfo", t, {
     header: hdr, height: args.fault === "size" ? img.height / 2 : img.height, width: args.fault === "size" ? img.width / 2 : img.width,
@@ -216,7 +225,7 @@ numbers.forEach((n, i) => {
   } else {
     // image_transport's compressedDepth: format (int32), two quantisation floats, a PNG.
     const f32 = args.depth === "compressed32";
-    let png = fs.readFileSync(name(n, "depth.png"));
+    let png = args.crop ? encodePng16(img.width, img.height, img.pixels) : fs.readFileSync(name(n, "depth.png"));
     const head = Buffer.alloc(12);
     if (f32) {
       // Inverse depth quantised as the plugin does: value = A / depth + B.
