@@ -1,0 +1,117 @@
+// TfTree against exact answers: composed chains, interpolation between samples of a
+// motion it reproduces exactly (constant velocity and turn rate), no extrapolation, and
+// the broken trees it refuses.
+#include "mobmap/sources/tf_tree.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace mobmap::sources {
+namespace {
+
+Eigen::Isometry3d pose(const Eigen::Vector3d& axis, double angle, const Eigen::Vector3d& t) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix();
+  T.translation() = t;
+  return T;
+}
+
+void add(TfTree& tree, const std::string& parent, const std::string& child, std::int64_t ns, const Eigen::Isometry3d& T,
+         bool is_static) {
+  tree.add(parent, child, ns, T.translation(), Eigen::Quaterniond(T.linear()), is_static);
+}
+
+void expectNear(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double tol = 1e-12) {
+  EXPECT_LT((a.matrix() - b.matrix()).cwiseAbs().maxCoeff(), tol) << a.matrix() << "\n vs\n" << b.matrix();
+}
+
+constexpr std::int64_t kSecond = 1000000000;
+
+// The base moves at constant velocity and turns at a constant rate about one axis:
+// slerp and lerp between any two samples give its pose exactly.
+Eigen::Isometry3d baseAt(double t) {
+  return pose(Eigen::Vector3d(0.1, 0.2, 1.0), 0.3 * t, Eigen::Vector3d(1.0 + 0.5 * t, -2.0 + 0.25 * t, 0.1));
+}
+
+TEST(TfTree, ComposesStaticAndSampledLinksThroughTheCommonAncestor) {
+  TfTree tree;
+  const Eigen::Isometry3d T_map_odom = pose(Eigen::Vector3d::UnitZ(), 0.7, Eigen::Vector3d(3, -1, 0));
+  const Eigen::Isometry3d T_base_link = pose(Eigen::Vector3d::UnitY(), 0.3, Eigen::Vector3d(0.2, 0, 0.9));
+  const Eigen::Isometry3d T_link_optical = pose(Eigen::Vector3d(1, -1, 1), 2.0943951023931953, Eigen::Vector3d(0, 0.02, 0));
+  add(tree, "map", "odom", 0, T_map_odom, true);
+  add(tree, "base_link", "camera_link", 0, T_base_link, true);
+  add(tree, "camera_link", "optical", 0, T_link_optical, true);
+  add(tree, "base_link", "imu", 0, pose(Eigen::Vector3d::UnitX(), 0.1, Eigen::Vector3d(0, 0, 0.3)), true);
+  for (int i = 0; i <= 10; ++i) add(tree, "odom", "base_link", i * kSecond / 10, baseAt(i * 0.1), false);
+
+  // Between samples, at a sample, and from one branch to another.
+  for (const double t : {0.0, 0.05, 0.1, 0.37, 0.999, 1.0}) {
+    SCOPED_TRACE(t);
+    const auto ns = static_cast<std::int64_t>(std::llround(t * 1e9));
+    const auto got = tree.lookup("map", "optical", ns, kSecond);
+    ASSERT_TRUE(got);
+    expectNear(*got, T_map_odom * baseAt(t) * T_base_link * T_link_optical, 1e-9);
+  }
+  const auto imu_in_optical = tree.lookup("optical", "imu", 0, 0);
+  ASSERT_TRUE(imu_in_optical);
+  expectNear(*imu_in_optical, (T_base_link * T_link_optical).inverse() * pose(Eigen::Vector3d::UnitX(), 0.1, Eigen::Vector3d(0, 0, 0.3)));
+  expectNear(*tree.lookup("optical", "optical", 5, 0), Eigen::Isometry3d::Identity());
+}
+
+TEST(TfTree, NeverExtrapolatesAndHonoursTheGap) {
+  TfTree tree;
+  add(tree, "odom", "base", kSecond, baseAt(1.0), false);
+  add(tree, "odom", "base", 3 * kSecond, baseAt(3.0), false);
+  std::string why;
+  EXPECT_FALSE(tree.lookup("odom", "base", kSecond / 2, 10 * kSecond, &why));
+  EXPECT_NE(why.find("no sample before"), std::string::npos) << why;
+  EXPECT_FALSE(tree.lookup("odom", "base", 4 * kSecond, 10 * kSecond, &why));
+  EXPECT_NE(why.find("no sample after"), std::string::npos) << why;
+  // 2 s apart: too far for a 1 s gap, fine for 2 s; a sample's own stamp needs no neighbour.
+  EXPECT_FALSE(tree.lookup("odom", "base", 2 * kSecond, kSecond, &why));
+  EXPECT_NE(why.find("2.000 s apart"), std::string::npos) << why;
+  ASSERT_TRUE(tree.lookup("odom", "base", 2 * kSecond, 2 * kSecond));
+  expectNear(*tree.lookup("odom", "base", 2 * kSecond, 2 * kSecond), baseAt(2.0), 1e-9);
+  ASSERT_TRUE(tree.lookup("odom", "base", 3 * kSecond, 0));
+  // Samples out of order are kept in order.
+  add(tree, "odom", "base", 2 * kSecond, baseAt(2.0), false);
+  expectNear(*tree.lookup("odom", "base", 2500 * kSecond / 1000, kSecond), baseAt(2.5), 1e-9);
+}
+
+TEST(TfTree, RefusesBrokenTrees) {
+  TfTree tree;
+  add(tree, "a", "b", 0, Eigen::Isometry3d::Identity(), true);
+  EXPECT_THROW(add(tree, "c", "b", 0, Eigen::Isometry3d::Identity(), true), TfError);  // two parents
+  EXPECT_THROW(add(tree, "a", "a", 0, Eigen::Isometry3d::Identity(), true), TfError);  // its own parent
+  EXPECT_THROW(add(tree, "a", "b", 0, Eigen::Isometry3d::Identity(), false), TfError);  // static and sampled
+  EXPECT_THROW(tree.add("a", "x", 0, Eigen::Vector3d(NAN, 0, 0), Eigen::Quaterniond::Identity(), true), TfError);
+  EXPECT_THROW(tree.add("a", "x", 0, Eigen::Vector3d::Zero(), Eigen::Quaterniond(2, 0, 0, 0), true), TfError);
+  add(tree, "b", "c", 0, Eigen::Isometry3d::Identity(), true);
+  add(tree, "c", "a", 0, Eigen::Isometry3d::Identity(), true);
+  try {
+    (void)tree.lookup("a", "c", 0, 0);
+    FAIL() << "a cycle was not found";
+  } catch (const TfError& e) {
+    EXPECT_NE(std::string(e.what()).find("cycle"), std::string::npos) << e.what();
+  }
+  TfTree two;
+  add(two, "map", "odom", 0, Eigen::Isometry3d::Identity(), true);
+  add(two, "base", "camera", 0, Eigen::Isometry3d::Identity(), true);
+  try {
+    (void)two.lookup("map", "camera", 0, 0);
+    FAIL();
+  } catch (const TfError& e) {
+    EXPECT_NE(std::string(e.what()).find("not connected: their roots are \"base\" and \"map\""), std::string::npos) << e.what();
+  }
+  try {
+    (void)two.lookup("map", "lidar", 0, 0);
+    FAIL();
+  } catch (const TfError& e) {
+    EXPECT_NE(std::string(e.what()).find("\"lidar\" is not in the TF tree (its frames: base, camera, map, odom)"), std::string::npos)
+        << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace mobmap::sources
