@@ -115,6 +115,29 @@ TEST_F(Bags, CameraOnAMovingBaseIsPosedThroughTheTfChain) {
   EXPECT_EQ(fileBytes(dir_ + "/base-db3.ot"), fileBytes(ref()));
 }
 
+// analyze and overlay read a bag's frame N as build numbers it: the same answers as the
+// 7-Scenes layout's frame N (the bag has no colour images: the overlays are drawn on depth).
+TEST_F(Bags, AnalyzeAndOverlayReadTheBagsFrames) {
+  const std::string bag = writeBag("analyze.mcap", "--layout base");
+  auto withoutTimes = [](nlohmann::json j) {
+    j.erase("input");
+    j.erase("total_ms");
+    for (auto& stage : j["stages"]) stage.erase("ms");
+    return j;
+  };
+  const Result a = run("analyze " + bag + " --frame 4 --json");
+  const Result b = run("analyze " + dir_ + "/seq --frame 4 --json");
+  ASSERT_EQ(a.code, 0) << a.out;
+  ASSERT_EQ(b.code, 0) << b.out;
+  EXPECT_EQ(withoutTimes(jsonLine(a.out)), withoutTimes(jsonLine(b.out)));
+  ASSERT_EQ(build(bag, dir_ + "/analyze.ot").code, 0);
+  const Result o1 = run("overlay " + dir_ + "/analyze.ot --frame 4 --background depth --out " + dir_ + "/bag-overlay.png");
+  const Result o2 = run("overlay " + ref() + " --frame 4 --background depth --out " + dir_ + "/ref-overlay.png");
+  ASSERT_EQ(o1.code, 0) << o1.out;
+  ASSERT_EQ(o2.code, 0) << o2.out;
+  EXPECT_EQ(fileBytes(dir_ + "/bag-overlay.png"), fileBytes(dir_ + "/ref-overlay.png"));
+}
+
 // Leaves (key -> mobility) of a map file.
 std::map<std::array<double, 3>, double> leaves(const std::string& path) {
   std::map<std::array<double, 3>, double> out;

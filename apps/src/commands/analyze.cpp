@@ -133,14 +133,16 @@ Command addAnalyzeCommand(CLI::App& app) {
     double depth_scale = 0;
     double voxel = 0;
     std::string config;
+    RecordingChoice choice;
   };
   auto o = std::make_shared<Options>();
-  cmd->add_option("INPUT", o->input, "A .pcd, a 16-bit depth .png (millimetres), a 7-Scenes layout directory or a TUM RGB-D directory")->required();
+  cmd->add_option("INPUT", o->input, "A .pcd, a 16-bit depth .png (millimetres), a 7-Scenes layout directory, a TUM RGB-D directory or a ROS 2 bag (folder, .db3 or .mcap)")->required();
   cmd->add_option("--frame", o->frame, "Frame number in a directory, as build numbers them (default: the first)");
   cmd->add_option("--gravity", o->gravity, "Gravity (down) in the frame of the input's points (the camera's, unless an organized cloud is in another frame), X,Y,Z (default: from the pose and gravity-direction.txt if present; without gravity the largest plane is the ground, or, if it leans more than ground_upright_prior_deg from the image's up axis, the largest floor within that cone; 0,1,0 for a level camera)");
   auto* intrinsics = cmd->add_option("--intrinsics", o->intrinsics, kIntrinsicsHelp);
   auto* fov = cmd->add_option("--fov", o->fov, kFovHelp)->excludes(intrinsics);
   cmd->add_option("--max-range", o->max_range, "Maximum range in metres (default 3)");
+  addRecordingOptions(*cmd, o->choice.depth_topic, o->choice.camera_info_topic, o->choice.world_frame);
   auto* depth_scale = cmd->add_option("--depth-scale", o->depth_scale, kDepthScaleHelp)->check(CLI::PositiveNumber);
   cmd->add_option("--config", o->config, "YAML file with any of the parameters of `mobmap config --print-default`");
   auto* voxel = cmd->add_option("--voxel", o->voxel, kVoxelHelp);
@@ -160,7 +162,7 @@ Command addAnalyzeCommand(CLI::App& app) {
       if (o->intrinsics.empty() && std::filesystem::is_regular_file(beside, ec)) inputs.push_back({"the intrinsics", beside.string()});
       refuseToOverwriteInputs({{"--segments", o->segments}, {"--overlay", o->overlay}}, inputs);
     }
-    Frame f = loadSingleFrame(o->input, o->frame, o->intrinsics);
+    Frame f = loadSingleFrame(o->input, o->frame, o->intrinsics, o->choice);
     {
       std::vector<NamedPath> inputs;  // a directory's frame: its depth image and pose file
       for (const std::string& file : f.sources) inputs.push_back({"the frame's file", file});

@@ -104,6 +104,7 @@ Command addOverlayCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand("overlay", "Project a map's surface voxels into a frame of its input, coloured by mobility");
   struct Options {
     std::string map, frame, out, poses, intrinsics;
+    RecordingChoice choice;
     double max_pose_gap = 0.05;
     std::string background = "colour";
   };
@@ -111,7 +112,7 @@ Command addOverlayCommand(CLI::App& app) {
   cmd->add_option("MAP", o->map, "A .ot map")->required();
   cmd->add_option("--frame", o->frame,
                   "INPUT:N: frame N of a posed input as `build` reads it and numbers it with --frames (a 7-Scenes / "
-                  "3DMatch directory, a TUM RGB-D directory, .pcd frames with --poses, an .oni recording); N alone: "
+                  "3DMatch directory, a TUM RGB-D directory, .pcd frames with --poses, an .oni recording, a ROS 2 bag); N alone: "
                   "of the input the map was built from")
       ->required();
   cmd->add_option("--out", o->out, "PNG to write")->required();
@@ -121,6 +122,7 @@ Command addOverlayCommand(CLI::App& app) {
   cmd->add_option("--background", o->background, kBackgroundHelp)
       ->check(CLI::IsMember({"colour", "depth"}))
       ->capture_default_str();
+  addRecordingOptions(*cmd, o->choice.depth_topic, o->choice.camera_info_topic, o->choice.world_frame);
   auto* gap = cmd->add_option("--max-pose-gap", o->max_pose_gap,
                               "TUM / timestamped --poses: as for build, which numbers the frames by it (default: the "
                               "map's, else 0.05)")
@@ -155,11 +157,17 @@ Command addOverlayCommand(CLI::App& app) {
     std::error_code ec;
     if (!std::filesystem::exists(input, ec)) throw IoError(input, "no such file or directory");
     std::string intrinsics = o->intrinsics, poses = o->poses;
+    RecordingChoice choice = o->choice;
     double max_pose_gap = o->max_pose_gap;
     std::optional<double> depth_units_per_m;  // the run's --depth-scale
     if (const mapping::MapRun* run = runOfInput(metadata, input)) {
       depth_units_per_m = run->depth_units_per_m;
-      if (intrinsics.empty() && run->depth_intrinsics) {
+      // A recording's run names its topics and world frame; its camera_info (and the
+      // distortion it undoes) is read again rather than replaced by the numbers.
+      if (choice.depth_topic.empty() && run->depth_topic) choice.depth_topic = *run->depth_topic;
+      if (choice.camera_info_topic.empty() && run->camera_info_topic) choice.camera_info_topic = *run->camera_info_topic;
+      if (choice.world_frame.empty() && run->world_frame) choice.world_frame = *run->world_frame;
+      if (intrinsics.empty() && run->depth_intrinsics && !run->camera_info_topic) {
         const mapping::DepthCameraRecord& k = *run->depth_intrinsics;
         if (!(k.fx > 0 && k.fy > 0)) {
           char got[200];
@@ -177,7 +185,8 @@ Command addOverlayCommand(CLI::App& app) {
     // One .pcd or .png frame mapped in its own camera frame has no pose to read it by.
     const std::string ext = std::filesystem::path(input).extension().string();
     const bool lone_pcd = ext == ".pcd" && poses.empty();
-    if (!std::filesystem::is_directory(input, ec) && ext != ".oni" && (ext != ".pcd" || lone_pcd)) {
+    const bool bag = sources::isRecording(input);
+    if (!bag && !std::filesystem::is_directory(input, ec) && ext != ".oni" && (ext != ".pcd" || lone_pcd)) {
       throw UsageError("--frame: overlay reads frames of a 7-Scenes / 3DMatch or TUM directory, of .pcd frames with "
                        "--poses or of an .oni recording; " + input +
                        " is none of these (for one frame on its own: mobmap analyze FILE --overlay OUT.png)");
@@ -202,7 +211,7 @@ Command addOverlayCommand(CLI::App& app) {
       on.first = on.last = n;
       seq = openOpenNi(on);
     } else {
-      seq = openSequence(input, intrinsics, max_pose_gap, poses);
+      seq = openSequence(input, intrinsics, max_pose_gap, poses, choice);
     }
     // The frames in the depth unit the map's run read them in.
     if (depth_units_per_m && *depth_units_per_m > 0 && std::isfinite(*depth_units_per_m)) {

@@ -106,7 +106,7 @@ Command addServeCommand(CLI::App& app) {
                   "`mobmap build` takes it (or --device)");
   auto* live = cmd->add_flag(
       "--live", o->live,
-      "Build the map from PATH (any input of `mobmap build`: a sequence, an .oni recording, --device) with the build "
+      "Build the map from PATH (any input of `mobmap build`: a sequence, an .oni recording, a ROS 2 bag, --device) with the build "
       "options below, and serve it as frames are fused; the map is saved to --out at the end or on Ctrl-C exactly as "
       "`mobmap build` saves it, and served until Ctrl-C");
   cmd->add_option("--port", o->port, "TCP port (0: a free one; the address is printed)")

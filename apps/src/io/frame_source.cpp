@@ -52,9 +52,16 @@ Frame loadSequenceFrame(const Sequence& seq, const std::string& input, int frame
   return f;
 }
 
-Frame loadSingleFrame(const std::string& input, int frame, const std::string& intrinsics_spec) {
+Frame loadSingleFrame(const std::string& input, int frame, const std::string& intrinsics_spec, const RecordingChoice& choice) {
   namespace fs = std::filesystem;
   std::error_code ec;
+  if (sources::isRecording(input)) {
+    const auto seq = openSequence(input, intrinsics_spec, 0.05, "", choice);
+    if (seq->frames().empty()) throw IoError(input, "none of its depth images has a pose (" + seq->skipped() + ")");
+    Frame f = loadSequenceFrame(*seq, input, frame < 0 ? seq->frames().front() : frame);
+    f.description = "depth image " + std::to_string(f.number) + " of " + seq->describe();
+    return f;
+  }
   const bool tum = fs::is_directory(input, ec) && fs::exists(fs::path(input) / "depth.txt", ec);
   const std::string ext = fs::path(input).extension().string();
   if (tum || (!fs::is_directory(input, ec) && (ext == ".pcd" || ext == ".png"))) {

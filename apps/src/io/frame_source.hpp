@@ -55,6 +55,9 @@ Frame loadSequenceFrame(const Sequence& seq, const std::string& input, int frame
 /// directory (-1: the first one), numbered as `build` numbers them. `intrinsics_spec`
 /// is required for a PNG unless a camera-intrinsics.txt lies beside it (then `note`
 /// says it was used).
-Frame loadSingleFrame(const std::string& input, int frame, const std::string& intrinsics_spec);
+/// A robot's recording (a ROS 2 bag) is read with `choice`; its frame N is its depth
+/// image N in stamp order.
+Frame loadSingleFrame(const std::string& input, int frame, const std::string& intrinsics_spec,
+                      const RecordingChoice& choice = {});
 
 }  // namespace mobmap::app
