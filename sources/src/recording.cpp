@@ -146,10 +146,20 @@ class BagRecording : public Recording {
     } else {
       throw IoError(path, "not a recording mobmap reads (a ROS 2 bag folder, .db3 or .mcap)");
     }
-    format_ = "ROS 2 bag";
+    const auto files = container_->files();
+    const bool mcap = std::all_of(files.begin(), files.end(), [](const std::string& f) { return fs::path(f).extension() == ".mcap"; });
+    format_ = mcap ? "ROS 2 bag (MCAP)" : "ROS 2 bag (sqlite3)";
     index();
-    chooseTopics();
-    poseImages();
+    try {
+      chooseTopics();
+      poseImages();
+    } catch (const IoError& e) {
+      if (!options_.describe_only) throw;
+      problem_ = e.reason();
+      images_.clear();
+      poses_.clear();
+      posed_.clear();
+    }
   }
 
   const std::string& path() const override { return path_; }
@@ -176,6 +186,7 @@ class BagRecording : public Recording {
   std::int64_t stamp(int n) const override { return images_.at(static_cast<std::size_t>(n)).stamp_ns; }
   std::string skipped() const override { return skipped_; }
   const std::string& fault() const override { return fault_; }
+  const std::string& problem() const override { return problem_; }
   std::vector<std::string> files() const override { return container_->files(); }
   std::size_t memoryBytes() const override {
     return images_.capacity() * sizeof(IndexedImage) + poses_.capacity() * sizeof(std::optional<Eigen::Isometry3d>) +
@@ -498,6 +509,7 @@ class BagRecording : public Recording {
   double units_per_m_ = 1000.0;  // the first image's; every image of a topic has its encoding
   std::string skipped_;
   std::string fault_;
+  std::string problem_;
 };
 
 }  // namespace

@@ -138,6 +138,37 @@ TEST_F(Bags, AnalyzeAndOverlayReadTheBagsFrames) {
   EXPECT_EQ(fileBytes(dir_ + "/bag-overlay.png"), fileBytes(dir_ + "/ref-overlay.png"));
 }
 
+// `info RECORDING` lists the topics and the TF tree, and what build would choose.
+TEST_F(Bags, InfoDescribesTheRecordingAndWhatBuildWouldRead) {
+  const std::string bag = writeBag("info.mcap", "--layout base --colour");
+  Result r = run("info " + bag + " --json");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto j = jsonLine(r.out);
+  EXPECT_EQ(j["format"], "ROS 2 bag (MCAP)");
+  std::map<std::string, std::pair<std::string, int>> topics;
+  for (const auto& t : j["topics"]) topics[t["name"]] = {t["type"], t["count"]};
+  EXPECT_EQ(topics["/camera/depth/image_raw"], std::make_pair(std::string("sensor_msgs/Image"), 12));
+  EXPECT_EQ(topics["/camera/color/image_raw"], std::make_pair(std::string("sensor_msgs/Image"), 12));
+  EXPECT_EQ(topics["/tf"], std::make_pair(std::string("tf2_msgs/TFMessage"), 24));
+  EXPECT_EQ(topics["/tf_static"].second, 1);
+  std::set<std::string> links;
+  for (const auto& e : j["tf"]) links.insert(e["parent"].get<std::string>() + (e["static"] ? " => " : " -> ") + e["child"].get<std::string>());
+  EXPECT_EQ(links, (std::set<std::string>{"map -> odom", "odom -> base_link", "base_link => camera_link",
+                                          "camera_link => camera_depth_optical_frame"}));
+  EXPECT_EQ(j["depth_topic"], "/camera/depth/image_raw");
+  EXPECT_EQ(j["camera_info_topic"], "/camera/depth/camera_info");
+  EXPECT_EQ(j["world_frame"], "map");
+  EXPECT_EQ(j["camera_frame"], "camera_depth_optical_frame");
+  EXPECT_EQ(j["frames"], 12);
+  // What build cannot choose is said, not refused: the recording itself was read.
+  r = run("info " + writeBag("info-two.mcap", "--second-camera") + " --json");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(jsonLine(r.out)["problem"].get<std::string>().find("2 depth image topics"), std::string::npos) << r.out;
+  r = run("info " + bag);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("frames             12 of 12 depth images have a pose"), std::string::npos) << r.out;
+}
+
 // Leaves (key -> mobility) of a map file.
 std::map<std::array<double, 3>, double> leaves(const std::string& path) {
   std::map<std::array<double, 3>, double> out;

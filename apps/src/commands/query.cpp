@@ -4,6 +4,7 @@
 #include "commands/levels.hpp"
 #include "io/map_files.hpp"
 #include "commands/reach_options.hpp"
+#include "commands/recording_info.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -280,15 +281,22 @@ void printMetadataSummary(const mapping::MapMetadata& meta) {
 }  // namespace
 
 Command addInfoCommand(CLI::App& app) {
-  auto* cmd = app.add_subcommand("info", "Describe a map: resolution, bounds, nodes, memory, mobility histogram, walkable levels, how it was built");
+  auto* cmd = app.add_subcommand("info", "Describe a map: resolution, bounds, nodes, memory, mobility histogram, walkable "
+                                         "levels, how it was built; or a robot's recording: its topics, its TF tree and what "
+                                         "build would read from it");
   struct Options {
     std::string map;
     bool json = false;
+    RecordingChoice choice;
+    double max_pose_gap = 0.05;
   };
   auto o = std::make_shared<Options>();
-  cmd->add_option("MAP", o->map, "A .ot map")->required();
+  cmd->add_option("MAP", o->map, "A .ot map, or a ROS 2 bag (folder, .db3 or .mcap)")->required();
   cmd->add_flag("--json", o->json, "One JSON object: the figures above and the whole metadata file (camera path included)");
+  addRecordingOptions(*cmd, o->choice.depth_topic, o->choice.camera_info_topic, o->choice.world_frame);
+  cmd->add_option("--max-pose-gap", o->max_pose_gap, "A ROS 2 bag: as for build (s)")->check(finiteNonNegative())->capture_default_str();
   return [o]() {
+    if (sources::isRecording(o->map)) return describeRecording(o->map, o->choice, o->max_pose_gap, o->json);
     const OpenedMap opened = openMapFiles(o->map);
     const mapping::MapMetadata& metadata = opened.metadata;
     const mapping::MobilityMap& map = opened.map;

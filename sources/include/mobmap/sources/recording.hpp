@@ -31,6 +31,9 @@ struct RecordingOptions {
   /// An image whose transforms on the way to the world frame have no samples around its
   /// stamp within this many seconds of each other is skipped.
   double max_pose_gap_s = 0.05;
+  /// To describe a recording (`mobmap info`): a recording whose topics or frames cannot be
+  /// chosen still opens, with problem() saying why; its frames are then empty.
+  bool describe_only = false;
 };
 
 struct TopicSummary {
@@ -93,6 +96,8 @@ class Recording {
   [[nodiscard]] virtual std::string skipped() const = 0;
   /// Where the recording's bytes ended early or failed a check, or "".
   [[nodiscard]] virtual const std::string& fault() const = 0;
+  /// With RecordingOptions::describe_only: why no frames could be chosen, or "".
+  [[nodiscard]] virtual const std::string& problem() const = 0;
   [[nodiscard]] virtual std::vector<std::string> files() const = 0;
   /// Bytes held by the index, the TF tree and the readings kept.
   [[nodiscard]] virtual std::size_t memoryBytes() const = 0;
