@@ -13,6 +13,9 @@ packages=(
   libcpp-httplib-dev libjs-three
   # ROS 2 bags: sqlite3 storage, MCAP chunks compressed with lz4 or zstd
   libsqlite3-dev liblz4-dev libzstd-dev
+  # ROS 1 bags: Debian's rosbag_storage (catkin: its CMake configuration needs it); the
+  # message types for the tests' bag writer
+  librosbag-storage-dev catkin libsensor-msgs-dev libtf2-msgs-dev
   # the viewer's test draws the page in headless Chromium
   chromium
 )

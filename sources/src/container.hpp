@@ -61,6 +61,8 @@ bool wireOf(const std::string& encoding, ros::Wire* wire);
 
 std::unique_ptr<Container> openMcap(const std::string& path);
 std::unique_ptr<Container> openDb3(const std::string& path);
+/// A ROS 1 .bag (IoError when this build has no ROS 1 libraries).
+std::unique_ptr<Container> openRos1Bag(const std::string& path);
 /// Several files of one ROS 2 bag (metadata.yaml's relative_file_paths), in order.
 std::unique_ptr<Container> openChain(std::vector<std::unique_ptr<Container>> parts);
 

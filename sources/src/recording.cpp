@@ -143,12 +143,15 @@ class BagRecording : public Recording {
       container_ = openMcap(path);
     } else if (p.extension() == ".db3") {
       container_ = openDb3(path);
+    } else if (p.extension() == ".bag") {
+      container_ = openRos1Bag(path);
     } else {
-      throw IoError(path, "not a recording mobmap reads (a ROS 2 bag folder, .db3 or .mcap)");
+      throw IoError(path, "not a recording mobmap reads (a ROS 2 bag folder, .db3 or .mcap, or a ROS 1 .bag)");
     }
     const auto files = container_->files();
     const bool mcap = std::all_of(files.begin(), files.end(), [](const std::string& f) { return fs::path(f).extension() == ".mcap"; });
-    format_ = mcap ? "ROS 2 bag (MCAP)" : "ROS 2 bag (sqlite3)";
+    const bool ros1 = p.extension() == ".bag";
+    format_ = ros1 ? "ROS 1 bag" : mcap ? "ROS 2 bag (MCAP)" : "ROS 2 bag (sqlite3)";
     index();
     try {
       chooseTopics();
@@ -519,7 +522,7 @@ bool isRecording(const std::string& path) {
   const fs::path p(path);
   if (fs::is_directory(p, ec)) return fs::exists(p / "metadata.yaml", ec);
   const auto ext = p.extension();
-  return ext == ".mcap" || ext == ".db3";
+  return ext == ".mcap" || ext == ".db3" || ext == ".bag";
 }
 
 std::unique_ptr<Recording> Recording::open(const std::string& path, const RecordingOptions& options) {
