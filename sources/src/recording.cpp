@@ -23,6 +23,14 @@ constexpr const char* kImage = "sensor_msgs/Image";
 constexpr const char* kCompressed = "sensor_msgs/CompressedImage";
 constexpr const char* kCameraInfo = "sensor_msgs/CameraInfo";
 constexpr const char* kTf = "tf2_msgs/TFMessage";
+constexpr const char* kImu = "sensor_msgs/Imu";
+constexpr double kGravity = 9.80665;
+
+struct ImuReading {
+  std::int64_t stamp_ns;
+  std::uint32_t frame_id;
+  Eigen::Vector3d acceleration;
+};
 
 std::string seconds(std::int64_t ns) {
   char buf[48];
@@ -156,6 +164,7 @@ class BagRecording : public Recording {
     try {
       chooseTopics();
       poseImages();
+      imuGravity();
     } catch (const IoError& e) {
       if (!options_.describe_only) throw;
       problem_ = e.reason();
@@ -177,10 +186,12 @@ class BagRecording : public Recording {
   const std::string& distortionNote() const override { return distortion_note_; }
   double depthUnitsPerMetre() const override { return units_per_m_; }
   std::optional<Eigen::Vector3d> gravityDown() const override {
+    if (imu_down_) return imu_down_;
     if (world_frame_ == "map" || world_frame_ == "odom") return Eigen::Vector3d(0, 0, -1);
     return std::nullopt;
   }
   std::string gravitySource() const override {
+    if (imu_down_) return imu_source_;
     return gravityDown() ? "the world frame " + world_frame_ + "'s -z (REP 105)" : std::string();
   }
   int imageCount() const override { return static_cast<int>(images_.size()); }
@@ -241,6 +252,11 @@ class BagRecording : public Recording {
             tf_.add(strip(t.header.frame_id), strip(t.child_frame_id), t.header.stamp_ns,
                     Eigen::Vector3d(t.translation[0], t.translation[1], t.translation[2]), q, is_static);
           }
+        } else if (topic.type == kImu) {
+          const ros::Imu imu = ros::decodeImu(m.data, m.size, wire);
+          const auto id = frame_ids.emplace(strip(imu.header.frame_id), static_cast<std::uint32_t>(frame_ids.size()));
+          imus_[m.topic].push_back({imu.header.stamp_ns, id.first->second,
+                                    Eigen::Vector3d(imu.linear_acceleration[0], imu.linear_acceleration[1], imu.linear_acceleration[2])});
         } else if (topic.type == kCameraInfo) {
           if (!infos.count(m.topic)) infos[m.topic] = ros::decodeCameraInfo(m.data, m.size, wire);
         } else if (topic.type == kImage || topic.type == kCompressed) {
@@ -449,6 +465,62 @@ class BagRecording : public Recording {
     distortion_note_ = note;
   }
 
+  // Gravity from the accelerometer: at rest it reads the reaction to gravity, so down is
+  // -a / |a| in the IMU's frame. Readings are kept while the robot is still (|a| within
+  // 2 % of g), each taken to the world frame at its stamp, and averaged.
+  void imuGravity() {
+    const auto& topics = container_->topics();
+    int chosen = -1;
+    std::vector<std::string> names;
+    for (const auto& [t, readings] : imus_) names.push_back(topics[static_cast<std::size_t>(t)].name);
+    if (!options_.imu_topic.empty()) {
+      for (const auto& [t, readings] : imus_) {
+        if (topics[static_cast<std::size_t>(t)].name == options_.imu_topic) chosen = t;
+      }
+      if (chosen < 0) throw IoError(path_, "has no Imu topic " + options_.imu_topic + " (its Imu topics: " + listed(names) + ")");
+    } else {
+      if (world_frame_ == "map" || world_frame_ == "odom" || imus_.empty()) return;
+      if (imus_.size() > 1) {
+        throw IoError(path_, "the world frame " + world_frame_ + " does not say where down is and the recording has " +
+                                 std::to_string(imus_.size()) + " Imu topics; choose one with --imu-topic: " + listed(names));
+      }
+      chosen = imus_.begin()->first;
+    }
+    imu_topic_ = topics[static_cast<std::size_t>(chosen)].name;
+    const auto gap = static_cast<std::int64_t>(std::llround(options_.max_pose_gap_s * 1e9));
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    std::vector<Eigen::Vector3d> downs;
+    const auto& readings = imus_.at(chosen);
+    for (const ImuReading& r : readings) {
+      const double g = r.acceleration.norm();
+      if (!std::isfinite(g) || std::abs(g - kGravity) > 0.02 * kGravity) continue;
+      std::optional<Eigen::Isometry3d> T;
+      try {
+        T = tf_.lookup(world_frame_, frame_ids_[r.frame_id], r.stamp_ns, gap);
+      } catch (const TfError& e) {
+        throw IoError(path_, std::string(imu_topic_ + "'s frame cannot be placed in " + world_frame_ + ": ") + e.what());
+      }
+      if (!T) continue;
+      const Eigen::Vector3d down = T->linear() * (-r.acceleration / g);
+      downs.push_back(down);
+      sum += down;
+    }
+    if (downs.size() < 10 || sum.norm() < 1e-9) {
+      throw IoError(path_, imu_topic_ + " has " + std::to_string(downs.size()) + " of " + std::to_string(readings.size()) +
+                               " readings taken while still (|a| within 2 % of g) and placed in " + world_frame_ +
+                               " through TF; at least 10 are needed to find gravity (or give --gravity)");
+    }
+    const Eigen::Vector3d mean = sum.normalized();
+    double spread = 0.0;
+    for (const auto& d : downs) spread = std::max(spread, std::acos(std::clamp(d.dot(mean), -1.0, 1.0)) * 180.0 / M_PI);
+    imu_down_ = mean;
+    char text[300];
+    std::snprintf(text, sizeof text, "the IMU on %s (%zu of %zu readings taken while still, within %.2f degrees of their mean)",
+                  imu_topic_.c_str(), downs.size(), readings.size(), spread);
+    imu_source_ = text;
+    imus_.clear();
+  }
+
   void poseImages() {
     if (!options_.world_frame.empty()) {
       world_frame_ = options_.world_frame;
@@ -456,8 +528,14 @@ class BagRecording : public Recording {
       world_frame_ = "map";
     } else if (tf_.has("odom")) {
       world_frame_ = "odom";
+    } else if (tf_.has(camera_frame_)) {
+      try {
+        world_frame_ = tf_.chainToRoot(camera_frame_).back();  // the root of the camera's tree
+      } catch (const TfError& e) {
+        throw IoError(path_, e.what());
+      }
     } else {
-      throw IoError(path_, "its TF tree has neither map nor odom; choose the world frame with --world-frame (its frames: " +
+      throw IoError(path_, "the depth images' frame \"" + camera_frame_ + "\" is not in the TF tree (its frames: " +
                                listed(tf_.frames()) + ")");
     }
     if (!tf_.has(world_frame_)) {
@@ -503,7 +581,7 @@ class BagRecording : public Recording {
   std::vector<IndexedImage> images_;
   std::vector<std::optional<Eigen::Isometry3d>> poses_;
   std::vector<int> posed_;
-  std::string depth_topic_, camera_info_topic_, world_frame_, camera_frame_;
+  std::string depth_topic_, camera_info_topic_, world_frame_, camera_frame_, imu_topic_;
   bool depth_compressed_ = false;
   ros::Wire depth_wire_ = ros::Wire::kCdr;
   perception::PinholeIntrinsics intrinsics_;
@@ -513,6 +591,9 @@ class BagRecording : public Recording {
   std::string skipped_;
   std::string fault_;
   std::string problem_;
+  std::map<int, std::vector<ImuReading>> imus_;  // by container topic
+  std::optional<Eigen::Vector3d> imu_down_;
+  std::string imu_source_;
 };
 
 }  // namespace

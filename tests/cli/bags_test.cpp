@@ -63,6 +63,23 @@ class Bags : public ::testing::Test {
 std::string Bags::dir_;
 std::string Bags::skip_;
 
+std::size_t leafCount(const std::string& path) {
+  const auto tree = mapping::loadMobilityMap(path);
+  std::size_t n = 0;
+  for (auto it = tree->begin_leafs(), end = tree->end_leafs(); it != end; ++it) n += tree->isNodeOccupied(*it) ? 1 : 0;
+  return n;
+}
+
+// Leaves (key -> mobility) of a map file.
+std::map<std::array<double, 3>, double> leaves(const std::string& path) {
+  std::map<std::array<double, 3>, double> out;
+  const auto tree = mapping::loadMobilityMap(path);
+  for (auto it = tree->begin_leafs(), end = tree->end_leafs(); it != end; ++it) {
+    if (tree->isNodeOccupied(*it) && it->hasMobility()) out[{it.getX(), it.getY(), it.getZ()}] = it->mobility();
+  }
+  return out;
+}
+
 TEST_F(Bags, McapInEveryLayoutGivesTheSevenScenesMapByteForByte) {
   const std::vector<std::pair<std::string, std::string>> variants = {
       {"zstd", "--chunks zstd"},
@@ -167,6 +184,33 @@ TEST_F(Bags, Ros1BagsInEveryCompressionGiveTheSameMap) {
 #endif
 }
 
+// A world frame that is not z up: gravity from the IMU's still readings, taken to the
+// world frame through TF; moving readings (3 m/s^2 more than g) are left out.
+TEST_F(Bags, ImuGivesGravityWhenTheWorldFrameDoesNot) {
+  const std::string bag = writeBag("imu.mcap", "--world tilted --tilt 20 --imu");
+  const Result r = build(bag, dir_ + "/imu.ot");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto meta = nlohmann::json::parse(fileBytes(dir_ + "/imu.json"));
+  EXPECT_EQ(meta["world_frame"], "tilted");  // the root of the camera's tree
+  const double a = 20.0 * M_PI / 180.0;
+  const auto& down = meta["gravity_down_world"];
+  EXPECT_NEAR(down[0].get<double>(), 0.0, 1e-6);
+  EXPECT_NEAR(down[1].get<double>(), std::sin(a), 1e-6);
+  EXPECT_NEAR(down[2].get<double>(), -std::cos(a), 1e-6);
+  EXPECT_NE(meta["gravity_source"].get<std::string>().find("the IMU on /camera/imu (12 of 24 readings taken while still"),
+            std::string::npos)
+      << meta["gravity_source"];
+  // The same map as the 7-Scenes layout's, leaf for leaf: the map frame is z up either way.
+  EXPECT_EQ(leafCount(dir_ + "/imu.ot"), leafCount(ref()));
+  // Asked for by name where the world frame would have given it.
+  const Result named = run("info " + writeBag("imu-map.mcap", "--imu") + " --imu-topic /camera/imu --json");
+  ASSERT_EQ(named.code, 0) << named.out;
+  EXPECT_NE(jsonLine(named.out)["gravity_source"].get<std::string>().find("the IMU on /camera/imu"), std::string::npos);
+  const Result missing = build(dir_ + "/imu-map.mcap", dir_ + "/none.ot", "--imu-topic /imu/data");
+  EXPECT_EQ(missing.code, 1) << missing.out;
+  EXPECT_NE(missing.out.find("has no Imu topic /imu/data (its Imu topics: /camera/imu)"), std::string::npos) << missing.out;
+}
+
 // `info RECORDING` lists the topics and the TF tree, and what build would choose.
 TEST_F(Bags, InfoDescribesTheRecordingAndWhatBuildWouldRead) {
   const std::string bag = writeBag("info.mcap", "--layout base --colour");
@@ -196,16 +240,6 @@ TEST_F(Bags, InfoDescribesTheRecordingAndWhatBuildWouldRead) {
   r = run("info " + bag);
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("frames             12 of 12 depth images have a pose"), std::string::npos) << r.out;
-}
-
-// Leaves (key -> mobility) of a map file.
-std::map<std::array<double, 3>, double> leaves(const std::string& path) {
-  std::map<std::array<double, 3>, double> out;
-  const auto tree = mapping::loadMobilityMap(path);
-  for (auto it = tree->begin_leafs(), end = tree->end_leafs(); it != end; ++it) {
-    if (tree->isNodeOccupied(*it) && it->hasMobility()) out[{it.getX(), it.getY(), it.getZ()}] = it->mobility();
-  }
-  return out;
 }
 
 // Depth in metres (32FC1, and compressedDepth's quantised inverse depth) is not the

@@ -17,6 +17,10 @@
 //   --summary yes|no       MCAP summary section (yes)
 //   --colour               also a colour image topic and its camera_info
 //   --second-camera        the depth and camera_info again, under /camera2
+//   --tilt DEG             the world frame turned DEG about its x axis (camera layout): its
+//                          -z is no longer down
+//   --imu                  an Imu on the camera (/camera/imu, the optical frame): still
+//                          readings at each image, moving ones (3 m/s^2 more) between
 //   --distortion K1,K2,P1,P2,K3  plumb_bob coefficients in the camera_info (zeros)
 //   --frames N             only the first N frames
 //   --crop WxH             only the top-left W x H pixels of each image (small fuzzing seeds)
@@ -41,7 +45,7 @@ const zstd = require("@foxglove/wasm-zstd");
 const args = { depth: "16UC1", layout: "camera", world: "map", chunks: "zstd", summary: "yes", colour: false, fault: "" };
 for (let i = 2; i < process.argv.length; ++i) {
   const key = process.argv[i].replace(/^--/, "");
-  if (key === "colour" || key === "second-camera") args[key] = true;
+  if (key === "colour" || key === "second-camera" || key === "imu") args[key] = true;
   else args[key] = process.argv[++i];
 }
 if (!args.seq || (!args.out && !args.feed)) {
@@ -187,7 +191,8 @@ numbers.forEach((n, i) => {
   const t = stampOf(i);
   const T_world_camera = readPose(n);
   if (args.layout === "camera") {
-    add("/tf", "tf2_msgs/msg/TFMessage", t, { transforms: [tfOf(t, root, OPTICAL, T_world_camera)] });
+    const T_root_camera = args.tilt ? mul(pose(rotOf([1, 0, 0], (Number(args.tilt) * Math.PI) / 180), [0, 0, 0]), T_world_camera) : T_world_camera;
+    add("/tf", "tf2_msgs/msg/TFMessage", t, { transforms: [tfOf(t, root, OPTICAL, T_root_camera)] });
   } else {
     // odom -> base_link, sampled 5 ms before and after the image: turned and moved by
     // equal and opposite amounts about the true pose, so interpolating at the image's
@@ -201,6 +206,18 @@ numbers.forEach((n, i) => {
       if (root === "map") tf.push(tfOf(ts, "map", "odom", T_map_odom));
       add("/tf", "tf2_msgs/msg/TFMessage", ts, { transforms: tf });
     }
+  }
+  if (args.imu) {
+    // At rest an accelerometer reads the reaction to gravity: +g along the world's up.
+    const R = T_world_camera.R, g = 9.80665;
+    const up = [R[6] * g, R[7] * g, R[8] * g];  // R^T (0, 0, g)
+    const imu = (ts, a) => add("/camera/imu", "sensor_msgs/msg/Imu", ts, {
+      header: header(ts, OPTICAL), orientation: { x: 0, y: 0, z: 0, w: 1 }, orientation_covariance: Array(9).fill(0),
+      angular_velocity: { x: 0, y: 0, z: 0 }, angular_velocity_covariance: Array(9).fill(0),
+      linear_acceleration: { x: a[0], y: a[1], z: a[2] }, linear_acceleration_covariance: Array(9).fill(0),
+    });
+    imu(t, up);
+    imu(t + 10000000n, [up[0] + 3, up[1], up[2]]);
   }
   const img = crop(readPng16(name(n, "depth.png")));
   const hdr = header(t, OPTICAL);

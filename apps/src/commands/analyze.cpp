@@ -142,7 +142,7 @@ Command addAnalyzeCommand(CLI::App& app) {
   auto* intrinsics = cmd->add_option("--intrinsics", o->intrinsics, kIntrinsicsHelp);
   auto* fov = cmd->add_option("--fov", o->fov, kFovHelp)->excludes(intrinsics);
   cmd->add_option("--max-range", o->max_range, "Maximum range in metres (default 3)");
-  addRecordingOptions(*cmd, o->choice.depth_topic, o->choice.camera_info_topic, o->choice.world_frame);
+  addRecordingOptions(*cmd, o->choice);
   auto* depth_scale = cmd->add_option("--depth-scale", o->depth_scale, kDepthScaleHelp)->check(CLI::PositiveNumber);
   cmd->add_option("--config", o->config, "YAML file with any of the parameters of `mobmap config --print-default`");
   auto* voxel = cmd->add_option("--voxel", o->voxel, kVoxelHelp);

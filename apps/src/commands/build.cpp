@@ -165,7 +165,7 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
     dir = openOpenNi(on);
   }
   if (is_dir) {
-    if (!dir) dir = openSequence(o->input, o->intrinsics, o->max_pose_gap, o->poses, {o->depth_topic, o->camera_info_topic, o->world_frame});
+    if (!dir) dir = openSequence(o->input, o->intrinsics, o->max_pose_gap, o->poses, o->recording);
     if (given.depth_scale->count() > 0) dir = withDepthScale(std::move(dir), o->depth_scale);
     const FrameRange range = parseRange(o->frames);
     for (int f : dir->frames()) {

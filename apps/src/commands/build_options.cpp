@@ -32,7 +32,7 @@ void addBuildRunOptions(CLI::App& cmd_ref, BuildOptions& o_ref) {
   cmd->add_option("--max-pose-gap", o->max_pose_gap, "TUM / timestamped --poses: skip frames whose neighbouring poses are farther apart in time (s)")
       ->check(finiteNonNegative())
       ->capture_default_str();
-  addRecordingOptions(*cmd, o->depth_topic, o->camera_info_topic, o->world_frame);
+  addRecordingOptions(*cmd, o->recording);
   o->given.out = cmd->add_option("--out", o->out, "Map file to write (MAP.ot; MAP.bt, MAP.octovis.ot and MAP.json go beside it)");
   cmd->add_option("--frames", o->frames, "FIRST:LAST:STEP of the frame numbers to use (default: all; a live sensor: 0:299; OpenNI2 frames are numbered as they arrive)");
   o->given.max_range = cmd->add_option("--max-range", o->max_range, "Maximum range of points, metres")->capture_default_str();

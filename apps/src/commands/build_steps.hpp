@@ -53,7 +53,7 @@ struct BuildOptions {
   double max_pose_gap = 0.05;
   std::string poses;
   std::string device;
-  std::string depth_topic, camera_info_topic, world_frame;  // a recording's choices
+  RecordingChoice recording;  // a robot recording's topics and world frame
   /// The options whose presence (not only value) matters, as CLI11 registered them.
   struct Given {
     CLI::Option* max_range = nullptr;

@@ -3,6 +3,7 @@
 // the function that runs it (exit code).
 
 #include "io/files.hpp"
+#include "io/sequence.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -46,19 +47,22 @@ inline std::string fovSpec(double degrees) {
   return text;
 }
 
-/// The options that choose what a ROS 2 bag is read for (build, serve --live, analyze,
-/// overlay): its depth topic, its camera_info topic and the TF frame its poses are in.
-inline void addRecordingOptions(CLI::App& cmd, std::string& depth_topic, std::string& camera_info_topic,
-                                std::string& world_frame) {
-  cmd.add_option("--depth-topic", depth_topic,
-                 "A ROS 2 bag: the depth image topic to read (default: its only depth topic, 16UC1 / 32FC1 "
+/// The options that choose what a robot's recording (a ROS 1 or ROS 2 bag) is read for
+/// (build, serve --live, analyze, overlay, info): its depth and camera_info topics, the TF
+/// frame its poses are in, the IMU that gives gravity.
+inline void addRecordingOptions(CLI::App& cmd, RecordingChoice& choice) {
+  cmd.add_option("--depth-topic", choice.depth_topic,
+                 "A bag: the depth image topic to read (default: its only depth topic, 16UC1 / 32FC1 "
                  "sensor_msgs/Image or compressedDepth; several are an error listing them)");
-  cmd.add_option("--camera-info-topic", camera_info_topic,
-                 "A ROS 2 bag: the camera_info giving the depth camera's intrinsics (default: the one in the depth "
+  cmd.add_option("--camera-info-topic", choice.camera_info_topic,
+                 "A bag: the camera_info giving the depth camera's intrinsics (default: the one in the depth "
                  "topic's namespace; --intrinsics replaces it)");
-  cmd.add_option("--world-frame", world_frame,
-                 "A ROS 2 bag: the TF frame the camera poses are in (default: map if the TF tree has it, else odom; "
-                 "gravity is its -z for map and odom, REP 105)");
+  cmd.add_option("--world-frame", choice.world_frame,
+                 "A bag: the TF frame the camera poses are in (default: map if the TF tree has it, else odom, else the "
+                 "root of the camera's tree; gravity is map's and odom's -z, REP 105)");
+  cmd.add_option("--imu-topic", choice.imu_topic,
+                 "A bag: the sensor_msgs/Imu topic whose accelerometer, while the robot is still, gives gravity "
+                 "through the TF tree (default: the only Imu topic when the world frame is neither map nor odom)");
 }
 
 /// `--background` of overlay and analyze --overlay.

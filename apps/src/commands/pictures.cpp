@@ -122,7 +122,7 @@ Command addOverlayCommand(CLI::App& app) {
   cmd->add_option("--background", o->background, kBackgroundHelp)
       ->check(CLI::IsMember({"colour", "depth"}))
       ->capture_default_str();
-  addRecordingOptions(*cmd, o->choice.depth_topic, o->choice.camera_info_topic, o->choice.world_frame);
+  addRecordingOptions(*cmd, o->choice);
   auto* gap = cmd->add_option("--max-pose-gap", o->max_pose_gap,
                               "TUM / timestamped --poses: as for build, which numbers the frames by it (default: the "
                               "map's, else 0.05)")

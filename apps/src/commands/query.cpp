@@ -293,7 +293,7 @@ Command addInfoCommand(CLI::App& app) {
   auto o = std::make_shared<Options>();
   cmd->add_option("MAP", o->map, "A .ot map, or a ROS 2 bag (folder, .db3 or .mcap)")->required();
   cmd->add_flag("--json", o->json, "One JSON object: the figures above and the whole metadata file (camera path included)");
-  addRecordingOptions(*cmd, o->choice.depth_topic, o->choice.camera_info_topic, o->choice.world_frame);
+  addRecordingOptions(*cmd, o->choice);
   cmd->add_option("--max-pose-gap", o->max_pose_gap, "A ROS 2 bag: as for build (s)")->check(finiteNonNegative())->capture_default_str();
   return [o]() {
     if (sources::isRecording(o->map)) return describeRecording(o->map, o->choice, o->max_pose_gap, o->json);

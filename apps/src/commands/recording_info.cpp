@@ -13,6 +13,7 @@ int describeRecording(const std::string& path, const RecordingChoice& choice, do
   o.depth_topic = choice.depth_topic;
   o.camera_info_topic = choice.camera_info_topic;
   o.world_frame = choice.world_frame;
+  o.imu_topic = choice.imu_topic;
   o.max_pose_gap_s = max_pose_gap_s;
   o.describe_only = true;
   const auto rec = sources::Recording::open(path, o);

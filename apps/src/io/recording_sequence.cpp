@@ -55,6 +55,7 @@ std::unique_ptr<Sequence> openRecordingSequence(const std::string& path, const R
   o.depth_topic = choice.depth_topic;
   o.camera_info_topic = choice.camera_info_topic;
   o.world_frame = choice.world_frame;
+  o.imu_topic = choice.imu_topic;
   o.max_pose_gap_s = max_pose_gap_s;
   if (!intrinsics_spec.empty()) {
     o.intrinsics = [intrinsics_spec](int width, int height) { return parseIntrinsics(intrinsics_spec, width, height); };

@@ -25,6 +25,7 @@ struct RecordingChoice {
   std::string depth_topic;
   std::string camera_info_topic;
   std::string world_frame;
+  std::string imu_topic;
 };
 
 /// A sequence of depth frames with camera-to-world poses (none for a single file).

@@ -24,7 +24,10 @@ namespace mobmap::sources {
 struct RecordingOptions {
   std::string depth_topic;        ///< empty: the recording's only depth image topic
   std::string camera_info_topic;  ///< empty: the camera_info in the depth topic's namespace
-  std::string world_frame;        ///< empty: "map" when the tree has it, else "odom"
+  std::string world_frame;        ///< empty: "map" when the tree has it, else "odom", else the camera's root
+  /// The sensor_msgs/Imu topic gravity is estimated from; empty: none when the world
+  /// frame is map or odom (z up, REP 105), else the recording's only Imu topic.
+  std::string imu_topic;
   /// Intrinsics given instead of a camera_info topic (none is needed then), from the
   /// size of the depth images.
   std::function<perception::PinholeIntrinsics(int width, int height)> intrinsics;
@@ -80,7 +83,9 @@ class Recording {
   [[nodiscard]] virtual double depthUnitsPerMetre() const = 0;
   /// How the camera_info's distortion was handled ("plumb_bob distortion undone"), or "".
   [[nodiscard]] virtual const std::string& distortionNote() const = 0;
-  /// Gravity (down) in the world frame when the world frame says it (REP 105: map and odom are z up).
+  /// Gravity (down) in the world frame: from the IMU's accelerometer while the robot was
+  /// still, taken to the world frame through the TF tree (when an Imu topic is chosen),
+  /// else from the world frame when it says it (REP 105: map and odom are z up).
   [[nodiscard]] virtual std::optional<Eigen::Vector3d> gravityDown() const = 0;
   [[nodiscard]] virtual std::string gravitySource() const = 0;
   /// Depth images on the depth topic, numbered 0.. in stamp order.
