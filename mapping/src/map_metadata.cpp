@@ -97,6 +97,7 @@ void fields(MapRun& r, V& v) {
   v("depth_topic", r.depth_topic);
   v("camera_info_topic", r.camera_info_topic);
   v("world_frame", r.world_frame);
+  v("extrinsics", r.extrinsics);
   v("frames_without_pose", r.frames_without_pose);
   v("unreadable", r.unreadable);
   v("frame_numbers", r.frame_numbers);

@@ -373,3 +373,68 @@ TEST_F(Bags, NotARecordingIsRefused) {
 
 }  // namespace
 }  // namespace mobmap::cli_test
+
+namespace mobmap::cli_test {
+namespace {
+
+// --extrinsics: a sequence whose poses are a base's (odometry, a motion-capture body) and
+// the camera's pose on the base give the map of the camera's own poses.
+TEST(Extrinsics, PosesOfABaseAndTheCamerasMountingGiveTheCamerasMap) {
+  const std::string dir = tempDir("extrinsics");
+  ASSERT_EQ(run("simulate --out " + dir + "/cam --frames 6 -q").code, 0);
+  ASSERT_EQ(run("build " + dir + "/cam --out " + dir + "/cam.ot --voxel 0.02 -q").code, 0);
+  Eigen::Isometry3d T_base_camera = Eigen::Isometry3d::Identity();
+  T_base_camera.linear() = Eigen::AngleAxisd(0.4, Eigen::Vector3d(0.2, 1.0, 0.3).normalized()).toRotationMatrix();
+  T_base_camera.translation() = Eigen::Vector3d(0.3, -0.05, 0.8);
+  fs::copy(dir + "/cam", dir + "/base");
+  for (const auto& e : fs::directory_iterator(dir + "/base")) {
+    const std::string name = e.path().string();
+    if (name.size() < 9 || name.substr(name.size() - 9) != ".pose.txt") continue;
+    std::ifstream in(name);
+    Eigen::Matrix4d m;
+    for (int i = 0; i < 16; ++i) in >> m(i / 4, i % 4);
+    const Eigen::Matrix4d base = m * T_base_camera.inverse().matrix();
+    std::ofstream out(name);
+    out.precision(17);
+    out << base << "\n";
+  }
+  const Eigen::Quaterniond q(T_base_camera.linear());
+  char numbers[300];
+  std::snprintf(numbers, sizeof numbers, "%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g", T_base_camera.translation().x(),
+                T_base_camera.translation().y(), T_base_camera.translation().z(), q.x(), q.y(), q.z(), q.w());
+  {
+    std::ofstream yaml(dir + "/mount.yaml");
+    yaml.precision(17);
+    yaml << "T_base_camera:\n  translation: {x: " << T_base_camera.translation().x() << ", y: " << T_base_camera.translation().y()
+         << ", z: " << T_base_camera.translation().z() << "}\n  rotation: {x: " << q.x() << ", y: " << q.y() << ", z: " << q.z()
+         << ", w: " << q.w() << "}\n";
+  }
+  const auto reference = mapping::loadMobilityMap(dir + "/cam.ot");
+  for (const std::string& spec : {std::string(numbers), dir + "/mount.yaml"}) {
+    SCOPED_TRACE(spec);
+    const Result r = run("build " + dir + "/base --out " + dir + "/base.ot --voxel 0.02 -q --force --extrinsics " + spec);
+    ASSERT_EQ(r.code, 0) << r.out;
+    const auto got = mapping::loadMobilityMap(dir + "/base.ot");
+    // The poses are composed again, so the last bits may differ: the same voxels, the same mobility.
+    std::size_t same = 0, total = 0;
+    for (auto it = reference->begin_leafs(), end = reference->end_leafs(); it != end; ++it) {
+      if (!reference->isNodeOccupied(*it) || !it->hasMobility()) continue;
+      ++total;
+      const auto* n = got->search(it.getKey());
+      if (n && got->isNodeOccupied(n) && n->hasMobility() && std::abs(n->mobility() - it->mobility()) < 0.02) ++same;
+    }
+    EXPECT_GT(static_cast<double>(same), 0.99 * static_cast<double>(total)) << same << " of " << total;
+    const auto meta = nlohmann::json::parse(fileBytes(dir + "/base.json"));
+    EXPECT_TRUE(meta.contains("extrinsics"));
+  }
+  // Without the mounting, the map is another.
+  ASSERT_EQ(run("build " + dir + "/base --out " + dir + "/plain.ot --voxel 0.02 -q").code, 0);
+  EXPECT_NE(fileBytes(dir + "/plain.ot"), fileBytes(dir + "/cam.ot"));
+  const Result bad = run("build " + dir + "/base --out " + dir + "/bad.ot --extrinsics 1,2,3");
+  EXPECT_EQ(bad.code, 2) << bad.out;
+  EXPECT_NE(bad.out.find("--extrinsics takes 7 numbers"), std::string::npos) << bad.out;
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace mobmap::cli_test

@@ -2,6 +2,7 @@
 #include "commands/build_steps.hpp"
 #include "io/config.hpp"
 #include "io/dataset.hpp"
+#include "io/extrinsics.hpp"
 #include "io/files.hpp"
 #include "io/frame_source.hpp"
 #include "io/io_error.hpp"
@@ -167,6 +168,10 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
   if (is_dir) {
     if (!dir) dir = openSequence(o->input, o->intrinsics, o->max_pose_gap, o->poses, o->recording);
     if (given.depth_scale->count() > 0) dir = withDepthScale(std::move(dir), o->depth_scale);
+    if (!o->extrinsics.empty()) {
+      if (dir->recording()) throw UsageError("--extrinsics: " + o->input + " is a bag, whose TF tree has its camera's mounting");
+      dir = withExtrinsics(std::move(dir), parseExtrinsics(o->extrinsics));
+    }
     const FrameRange range = parseRange(o->frames);
     for (int f : dir->frames()) {
       if (f >= range.first && (range.last < 0 || f <= range.last) && (f - range.first) % range.step == 0) frames.push_back(f);
@@ -416,6 +421,7 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
     if (depth_k) run.depth_intrinsics = mapping::DepthCameraRecord{depth_k->fx, depth_k->fy, depth_k->cx, depth_k->cy, depth_k->width, depth_k->height};
     if (!o->poses.empty()) run.poses = fs::absolute(o->poses, ec).lexically_normal().string();
     run.max_pose_gap_s = o->max_pose_gap;
+    if (!o->extrinsics.empty()) run.extrinsics = extrinsicsText(parseExtrinsics(o->extrinsics));
     if (const sources::Recording* rec = is_dir ? dir->recording() : nullptr) {
       run.depth_topic = rec->depthTopic();
       if (!rec->cameraInfoTopic().empty()) run.camera_info_topic = rec->cameraInfoTopic();

@@ -33,6 +33,7 @@ void addBuildRunOptions(CLI::App& cmd_ref, BuildOptions& o_ref) {
       ->check(finiteNonNegative())
       ->capture_default_str();
   addRecordingOptions(*cmd, o->recording);
+  cmd->add_option("--extrinsics", o->extrinsics, kExtrinsicsHelp);
   o->given.out = cmd->add_option("--out", o->out, "Map file to write (MAP.ot; MAP.bt, MAP.octovis.ot and MAP.json go beside it)");
   cmd->add_option("--frames", o->frames, "FIRST:LAST:STEP of the frame numbers to use (default: all; a live sensor: 0:299; OpenNI2 frames are numbered as they arrive)");
   o->given.max_range = cmd->add_option("--max-range", o->max_range, "Maximum range of points, metres")->capture_default_str();

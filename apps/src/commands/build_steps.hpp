@@ -54,6 +54,7 @@ struct BuildOptions {
   std::string poses;
   std::string device;
   RecordingChoice recording;  // a robot recording's topics and world frame
+  std::string extrinsics;     // the camera's pose in the posed frame
   /// The options whose presence (not only value) matters, as CLI11 registered them.
   struct Given {
     CLI::Option* max_range = nullptr;

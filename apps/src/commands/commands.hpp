@@ -65,6 +65,12 @@ inline void addRecordingOptions(CLI::App& cmd, RecordingChoice& choice) {
                  "through the TF tree (default: the only Imu topic when the world frame is neither map nor odom)");
 }
 
+/// `--extrinsics` of build and overlay.
+inline constexpr const char* kExtrinsicsHelp =
+    "The camera's pose in the frame the poses are given for (a robot's base from odometry, a motion-capture body): "
+    "x,y,z,qx,qy,qz,qw, or a YAML file (rtabmap's local_transform, translation + rotation, or data: 12 or 16 values). "
+    "Each camera pose is then the pose times it. For sequences of files; a bag's TF tree has its camera's mounting";
+
 /// `--background` of overlay and analyze --overlay.
 inline constexpr const char* kBackgroundHelp =
     "What the mobility colours are laid over, shown in grey: colour (the frame's colour image when the input has one "

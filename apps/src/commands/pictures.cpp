@@ -2,6 +2,7 @@
 // of the input (`overlay`, paper eq. 13 and Figs. 4 and 6).
 #include "pictures/canvas.hpp"
 #include "commands/commands.hpp"
+#include "io/extrinsics.hpp"
 #include "io/files.hpp"
 #include "io/frame_source.hpp"
 #include "io/io_error.hpp"
@@ -103,7 +104,7 @@ const mapping::MapRun* runOfInput(const mapping::MapMetadata& meta, const std::s
 Command addOverlayCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand("overlay", "Project a map's surface voxels into a frame of its input, coloured by mobility");
   struct Options {
-    std::string map, frame, out, poses, intrinsics;
+    std::string map, frame, out, poses, intrinsics, extrinsics;
     RecordingChoice choice;
     double max_pose_gap = 0.05;
     std::string background = "colour";
@@ -123,6 +124,7 @@ Command addOverlayCommand(CLI::App& app) {
       ->check(CLI::IsMember({"colour", "depth"}))
       ->capture_default_str();
   addRecordingOptions(*cmd, o->choice);
+  cmd->add_option("--extrinsics", o->extrinsics, std::string(kExtrinsicsHelp) + " (default: the map's run's)");
   auto* gap = cmd->add_option("--max-pose-gap", o->max_pose_gap,
                               "TUM / timestamped --poses: as for build, which numbers the frames by it (default: the "
                               "map's, else 0.05)")
@@ -158,12 +160,14 @@ Command addOverlayCommand(CLI::App& app) {
     if (!std::filesystem::exists(input, ec)) throw IoError(input, "no such file or directory");
     std::string intrinsics = o->intrinsics, poses = o->poses;
     RecordingChoice choice = o->choice;
+    std::string extrinsics = o->extrinsics;
     double max_pose_gap = o->max_pose_gap;
     std::optional<double> depth_units_per_m;  // the run's --depth-scale
     if (const mapping::MapRun* run = runOfInput(metadata, input)) {
       depth_units_per_m = run->depth_units_per_m;
       // A recording's run names its topics and world frame; its camera_info (and the
       // distortion it undoes) is read again rather than replaced by the numbers.
+      if (extrinsics.empty() && run->extrinsics) extrinsics = *run->extrinsics;
       if (choice.depth_topic.empty() && run->depth_topic) choice.depth_topic = *run->depth_topic;
       if (choice.camera_info_topic.empty() && run->camera_info_topic) choice.camera_info_topic = *run->camera_info_topic;
       if (choice.world_frame.empty() && run->world_frame) choice.world_frame = *run->world_frame;
@@ -213,6 +217,7 @@ Command addOverlayCommand(CLI::App& app) {
     } else {
       seq = openSequence(input, intrinsics, max_pose_gap, poses, choice);
     }
+    if (!extrinsics.empty() && !seq->recording()) seq = withExtrinsics(std::move(seq), parseExtrinsics(extrinsics));
     // The frames in the depth unit the map's run read them in.
     if (depth_units_per_m && *depth_units_per_m > 0 && std::isfinite(*depth_units_per_m)) {
       seq = withDepthScale(std::move(seq), *depth_units_per_m);

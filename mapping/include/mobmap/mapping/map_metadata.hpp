@@ -69,6 +69,8 @@ struct MapRun {
   /// A recording's choices: the depth and camera_info topics read, the TF frame the
   /// poses are in.
   std::optional<std::string> depth_topic, camera_info_topic, world_frame;
+  /// `--extrinsics`: the camera's pose in the posed frame, "x,y,z,qx,qy,qz,qw".
+  std::optional<std::string> extrinsics;
   std::optional<long long> frames_without_pose;
   std::vector<std::string> unreadable;   ///< frames left out as unreadable ("frames_unreadable" counts them)
   std::optional<std::array<long long, 2>> frame_numbers;  ///< first and last frame fused
