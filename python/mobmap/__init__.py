@@ -9,11 +9,15 @@ from ._mobmap import (  # noqa: F401
     Map,
     MapIoError,
     PlanInputError,
+    Recording,
+    RecordingError,
     analyze,
     open_map,
+    open_recording,
     plan,
     reachable,
 )
 
-__all__ = ["open_map", "Map", "plan", "reachable", "LiveMapper", "analyze", "MapIoError", "PlanInputError",
+__all__ = ["open_map", "Map", "plan", "reachable", "LiveMapper", "analyze", "open_recording", "Recording",
+           "MapIoError", "PlanInputError", "RecordingError",
            "UNKNOWN", "FREE", "SURFACE"]

@@ -24,5 +24,6 @@ struct MapHandle {
 void bindMap(pybind11::module_& m);
 void bindPlanning(pybind11::module_& m);
 void bindLive(pybind11::module_& m);
+void bindRecording(pybind11::module_& m);
 
 }  // namespace mobmap::python

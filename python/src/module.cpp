@@ -15,4 +15,5 @@ PYBIND11_MODULE(_mobmap, m) {
   mobmap::python::bindMap(m);
   mobmap::python::bindPlanning(m);
   mobmap::python::bindLive(m);
+  mobmap::python::bindRecording(m);
 }
