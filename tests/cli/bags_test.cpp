@@ -4,6 +4,8 @@
 // the 7-Scenes layout, and each kind of broken recording a clear error or warning.
 #include "cli_support.hpp"
 
+#include <sys/resource.h>
+
 #include "mobmap/mapping/mobility_map.hpp"
 #include "mobmap/mapping/mobility_octree.hpp"
 
@@ -209,6 +211,40 @@ TEST_F(Bags, ImuGivesGravityWhenTheWorldFrameDoesNot) {
   const Result missing = build(dir_ + "/imu-map.mcap", dir_ + "/none.ot", "--imu-topic /imu/data");
   EXPECT_EQ(missing.code, 1) << missing.out;
   EXPECT_NE(missing.out.find("has no Imu topic /imu/data (its Imu topics: /camera/imu)"), std::string::npos) << missing.out;
+}
+
+// Peak resident memory (KiB) of `mobmap ARGS`, from the kernel's accounting of that
+// process alone (wait4).
+long peakRssKib(const std::string& args) {
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::execl("/bin/sh", "sh", "-c", (std::string(MOBMAP_EXE) + " " + args + " > /dev/null 2>&1").c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  int status = 0;
+  struct rusage usage {};
+  if (::wait4(pid, &status, 0, &usage) != pid || !WIFEXITED(status) || WEXITSTATUS(status) != 0) return -1;
+  return usage.ru_maxrss;
+}
+
+// A bag is read as it is fused: memory does not grow with its length. The long bag holds
+// 20 times the images of the short one (over 80 MB more, more than the map takes).
+TEST_F(Bags, MemoryDoesNotGrowWithTheRecordingsLength) {
+  const std::string shorter = writeBag("short.mcap", "--chunks lz4");
+  const std::string longer = writeBag("long.mcap", "--chunks lz4 --repeat 20");
+  const auto extra_kib = static_cast<long>((fs::file_size(longer) - fs::file_size(shorter)) / 1024);
+  ASSERT_GT(extra_kib, 60 * 1024);
+  const long info_short = peakRssKib("info " + shorter), info_long = peakRssKib("info " + longer);
+  ASSERT_GT(info_short, 0);
+  ASSERT_GT(info_long, 0);
+  EXPECT_LT(info_long - info_short, 8 * 1024) << "info: " << info_short << " KiB for the short bag, " << info_long << " for the long";
+  // The same 4 images fused from either bag.
+  const long build_short = peakRssKib("build " + shorter + " --out " + dir_ + "/mem-short.ot --voxel 0.02 --frames 0:11:3");
+  const long build_long = peakRssKib("build " + longer + " --out " + dir_ + "/mem-long.ot --voxel 0.02 --frames 0:11:3");
+  ASSERT_GT(build_short, 0);
+  ASSERT_GT(build_long, 0);
+  EXPECT_LT(build_long - build_short, 8 * 1024) << "build: " << build_short << " KiB, " << build_long << " KiB";
+  EXPECT_EQ(fileBytes(dir_ + "/mem-short.ot"), fileBytes(dir_ + "/mem-long.ot"));
 }
 
 // `info RECORDING` lists the topics and the TF tree, and what build would choose.

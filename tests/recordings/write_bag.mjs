@@ -23,6 +23,7 @@
 //                          readings at each image, moving ones (3 m/s^2 more) between
 //   --distortion K1,K2,P1,P2,K3  plumb_bob coefficients in the camera_info (zeros)
 //   --frames N             only the first N frames
+//   --repeat K             the frames K times over, one after another (a long recording)
 //   --crop WxH             only the top-left W x H pixels of each image (small fuzzing seeds)
 //   --fault bigendian|step|size|cycle|no-static|two-parents
 //                          a recording that is wrong in one way: big-endian depth, a step
@@ -138,6 +139,7 @@ const pose = (R, t) => ({ R, t });
 const seq = args.seq;
 let numbers = fs.readdirSync(seq).filter((f) => /^frame-\d+\.depth\.png$/.test(f)).map((f) => parseInt(f.slice(6, 12), 10)).sort((a, b) => a - b);
 if (args.frames) numbers = numbers.slice(0, parseInt(args.frames, 10));
+if (args.repeat) numbers = Array.from({ length: parseInt(args.repeat, 10) }, () => numbers).flat();
 const name = (n, ext) => path.join(seq, `frame-${String(n).padStart(6, "0")}.${ext}`);
 const K = fs.readFileSync(path.join(seq, "camera-intrinsics.txt"), "utf8").trim().split(/\s+/).map(Number);
 const readPose = (n) => {
