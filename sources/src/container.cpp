@@ -1,7 +1,16 @@
 #include "container.hpp"
 
+#include "mobmap/sources/io_error.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <filesystem>
+
 namespace mobmap::sources {
 namespace {
+
+namespace fs = std::filesystem;
 
 // The files of one ROS 2 bag, one after another; a message's ref names its file.
 class Chain : public Container {
@@ -71,5 +80,49 @@ bool wireOf(const std::string& encoding, ros::Wire* wire) {
 std::unique_ptr<Container> openChain(std::vector<std::unique_ptr<Container>> parts) {
   return std::make_unique<Chain>(std::move(parts));
 }
+
+// A ROS 2 bag folder: its files in metadata.yaml's order (every .db3 / .mcap in it
+// when metadata.yaml does not list them).
+std::unique_ptr<Container> openBagFolder(const std::string& dir) {
+  const fs::path meta = fs::path(dir) / "metadata.yaml";
+  std::vector<std::string> names;
+  try {
+    const YAML::Node root = YAML::LoadFile(meta.string());
+    const YAML::Node info = root["rosbag2_bagfile_information"];
+    if (!info) throw IoError(meta.string(), "has no rosbag2_bagfile_information: not a ROS 2 bag's metadata");
+    if (const YAML::Node files = info["relative_file_paths"]) {
+      for (const auto& f : files) names.push_back(f.as<std::string>());
+    }
+  } catch (const YAML::Exception& e) {
+    throw IoError(meta.string(), std::string("cannot be read as YAML: ") + e.what());
+  }
+  if (names.empty()) {
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(dir, ec)) {
+      const auto ext = e.path().extension();
+      if (ext == ".db3" || ext == ".mcap") names.push_back(e.path().filename().string());
+    }
+    std::sort(names.begin(), names.end());
+  }
+  if (names.empty()) throw IoError(dir, "a ROS 2 bag folder without .db3 or .mcap files");
+  std::vector<std::unique_ptr<Container>> parts;
+  for (const auto& name : names) {
+    const fs::path p = fs::path(dir) / name;
+    const fs::path rel(name);
+    if (rel.is_absolute() || rel.empty() || std::any_of(rel.begin(), rel.end(), [](const fs::path& c) { return c == ".."; })) {
+      throw IoError(meta.string(), "lists \"" + name + "\", which is not a file inside the bag folder");
+    }
+    const auto ext = p.extension();
+    if (ext == ".db3") {
+      parts.push_back(openDb3(p.string()));
+    } else if (ext == ".mcap") {
+      parts.push_back(openMcap(p.string()));
+    } else {
+      throw IoError(p.string(), "a bag file mobmap does not read (ROS 2 bags store .db3 or .mcap files)");
+    }
+  }
+  return openChain(std::move(parts));
+}
+
 
 }  // namespace mobmap::sources

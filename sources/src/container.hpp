@@ -65,5 +65,8 @@ std::unique_ptr<Container> openDb3(const std::string& path);
 std::unique_ptr<Container> openRos1Bag(const std::string& path);
 /// Several files of one ROS 2 bag (metadata.yaml's relative_file_paths), in order.
 std::unique_ptr<Container> openChain(std::vector<std::unique_ptr<Container>> parts);
+/// A ROS 2 bag folder: its files in metadata.yaml's order (every .db3 / .mcap in it
+/// when metadata.yaml does not list them). IoError for a file outside the folder.
+std::unique_ptr<Container> openBagFolder(const std::string& dir);
 
 }  // namespace mobmap::sources

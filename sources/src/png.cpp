@@ -10,6 +10,8 @@
 #include <cstdio>
 #include <cstring>
 #include <memory>
+#include <new>
+#include <stdexcept>
 
 namespace mobmap::sources {
 namespace {
@@ -134,7 +136,67 @@ FilePtr openForReading(const std::string& path) {
   return fp;
 }
 
+// Appends what libpng writes to a byte vector.
+void writeToMemory(png_structp png, png_bytep data, png_size_t n) {
+  auto* out = static_cast<std::vector<std::uint8_t>*>(png_get_io_ptr(png));
+  out->insert(out->end(), data, data + n);
+}
+
+void flushNothing(png_structp) {}
+
+std::vector<std::uint8_t> encode(int width, int height, int bit_depth, int colour_type, std::vector<png_byte> bytes,
+                                 std::size_t stride) {
+  if (width <= 0 || height <= 0 || width > kMaxFrameSide || height > kMaxFrameSide) {
+    throw std::invalid_argument("cannot write a " + std::to_string(width) + "x" + std::to_string(height) + " image");
+  }
+  std::vector<png_bytep> rows(static_cast<std::size_t>(height));
+  for (int y = 0; y < height; ++y) rows[static_cast<std::size_t>(y)] = bytes.data() + stride * static_cast<std::size_t>(y);
+  std::vector<std::uint8_t> out;
+  ErrorSink sink;
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &sink, onError, onWarning);
+  if (!png) throw std::bad_alloc();
+  png_infop info = png_create_info_struct(png);
+  if (!info) {
+    png_destroy_write_struct(&png, nullptr);
+    throw std::bad_alloc();
+  }
+  if (setjmp(png_jmpbuf(png))) {
+    png_destroy_write_struct(&png, &info);
+    throw std::runtime_error(std::string("PNG encoding failed (") + sink.message + ")");
+  }
+  png_set_write_fn(png, &out, writeToMemory, flushNothing);
+  png_set_compression_level(png, 3);
+  png_set_IHDR(png, info, static_cast<png_uint_32>(width), static_cast<png_uint_32>(height), bit_depth, colour_type,
+               PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_write_info(png, info);
+  png_write_image(png, rows.data());
+  png_write_end(png, nullptr);
+  png_destroy_write_struct(&png, &info);
+  return out;
+}
+
 }  // namespace
+
+std::vector<std::uint8_t> encodePng16(const Image16& image) {
+  if (image.pixels.size() != static_cast<std::size_t>(image.width) * image.height) {
+    throw std::invalid_argument("the image buffer does not match its size");
+  }
+  std::vector<png_byte> bytes(image.pixels.size() * 2);
+  for (std::size_t i = 0; i < image.pixels.size(); ++i) {
+    bytes[2 * i] = static_cast<png_byte>(image.pixels[i] >> 8);
+    bytes[2 * i + 1] = static_cast<png_byte>(image.pixels[i] & 0xff);
+  }
+  return encode(image.width, image.height, 16, PNG_COLOR_TYPE_GRAY, std::move(bytes), static_cast<std::size_t>(image.width) * 2);
+}
+
+std::vector<std::uint8_t> encodePngRgb(const ImageRgb& image) {
+  if (image.pixels.size() != static_cast<std::size_t>(image.width) * image.height) {
+    throw std::invalid_argument("the image buffer does not match its size");
+  }
+  std::vector<png_byte> bytes(image.pixels.size() * 3);
+  if (!bytes.empty()) std::memcpy(bytes.data(), image.pixels.data(), bytes.size());
+  return encode(image.width, image.height, 8, PNG_COLOR_TYPE_RGB, std::move(bytes), static_cast<std::size_t>(image.width) * 3);
+}
 
 void checkPngComplete(const std::string& path) {
   const FilePtr fp = openForReading(path);

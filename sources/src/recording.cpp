@@ -3,10 +3,9 @@
 #include "container.hpp"
 #include "depth_decode.hpp"
 #include "ros_messages.hpp"
+#include "undistort.hpp"
 
 #include "mobmap/sources/io_error.hpp"
-
-#include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <cmath>
@@ -49,83 +48,6 @@ std::string listed(const std::vector<std::string>& names) {
   return out.empty() ? "none" : out;
 }
 
-// A ROS 2 bag folder: its files in metadata.yaml's order (every .db3 / .mcap in it
-// when metadata.yaml does not list them).
-std::unique_ptr<Container> openFolder(const std::string& dir) {
-  const fs::path meta = fs::path(dir) / "metadata.yaml";
-  std::vector<std::string> names;
-  try {
-    const YAML::Node root = YAML::LoadFile(meta.string());
-    const YAML::Node info = root["rosbag2_bagfile_information"];
-    if (!info) throw IoError(meta.string(), "has no rosbag2_bagfile_information: not a ROS 2 bag's metadata");
-    if (const YAML::Node files = info["relative_file_paths"]) {
-      for (const auto& f : files) names.push_back(f.as<std::string>());
-    }
-  } catch (const YAML::Exception& e) {
-    throw IoError(meta.string(), std::string("cannot be read as YAML: ") + e.what());
-  }
-  if (names.empty()) {
-    std::error_code ec;
-    for (const auto& e : fs::directory_iterator(dir, ec)) {
-      const auto ext = e.path().extension();
-      if (ext == ".db3" || ext == ".mcap") names.push_back(e.path().filename().string());
-    }
-    std::sort(names.begin(), names.end());
-  }
-  if (names.empty()) throw IoError(dir, "a ROS 2 bag folder without .db3 or .mcap files");
-  std::vector<std::unique_ptr<Container>> parts;
-  for (const auto& name : names) {
-    const fs::path p = fs::path(dir) / name;
-    const fs::path rel(name);
-    if (rel.is_absolute() || rel.empty() || std::any_of(rel.begin(), rel.end(), [](const fs::path& c) { return c == ".."; })) {
-      throw IoError(meta.string(), "lists \"" + name + "\", which is not a file inside the bag folder");
-    }
-    const auto ext = p.extension();
-    if (ext == ".db3") {
-      parts.push_back(openDb3(p.string()));
-    } else if (ext == ".mcap") {
-      parts.push_back(openMcap(p.string()));
-    } else {
-      throw IoError(p.string(), "a bag file mobmap does not read (ROS 2 bags store .db3 or .mcap files)");
-    }
-  }
-  return openChain(std::move(parts));
-}
-
-// Undoes plumb_bob distortion: each pixel of the undistorted image takes the depth of
-// the nearest pixel of the distorted one (depth is not interpolated across edges).
-class Undistorter {
- public:
-  Undistorter(const perception::PinholeIntrinsics& k, const std::vector<double>& d) : width_(k.width), height_(k.height) {
-    const double k1 = d[0], k2 = d[1], p1 = d[2], p2 = d[3], k3 = d.size() > 4 ? d[4] : 0.0;
-    source_.resize(static_cast<std::size_t>(k.width) * k.height, -1);
-    for (int v = 0; v < k.height; ++v) {
-      for (int u = 0; u < k.width; ++u) {
-        const double x = (u - k.cx) / k.fx, y = (v - k.cy) / k.fy;
-        const double r2 = x * x + y * y;
-        const double radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
-        const double xd = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
-        const double yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
-        const long us = std::lround(k.fx * xd + k.cx), vs = std::lround(k.fy * yd + k.cy);
-        if (us >= 0 && vs >= 0 && us < k.width && vs < k.height) {
-          source_[static_cast<std::size_t>(v) * k.width + u] = static_cast<int>(vs * k.width + us);
-        }
-      }
-    }
-  }
-  perception::DepthImage apply(const perception::DepthImage& in) const {
-    perception::DepthImage out(width_, height_);
-    for (std::size_t i = 0; i < source_.size(); ++i) {
-      if (source_[i] >= 0) out.depth_m[i] = in.depth_m[static_cast<std::size_t>(source_[i])];
-    }
-    return out;
-  }
-
- private:
-  int width_, height_;
-  std::vector<int> source_;
-};
-
 struct TopicStats {
   std::size_t count = 0;
   std::int64_t first = 0, last = 0;
@@ -146,7 +68,7 @@ class BagRecording : public Recording {
     const fs::path p(path);
     if (fs::is_directory(p, ec)) {
       if (!fs::exists(p / "metadata.yaml", ec)) throw IoError(path, "a folder without metadata.yaml is not a ROS 2 bag");
-      container_ = openFolder(path);
+      container_ = openBagFolder(path);
     } else if (p.extension() == ".mcap") {
       container_ = openMcap(path);
     } else if (p.extension() == ".db3") {
@@ -187,7 +109,7 @@ class BagRecording : public Recording {
   double depthUnitsPerMetre() const override { return units_per_m_; }
   std::optional<Eigen::Vector3d> gravityDown() const override {
     if (imu_down_) return imu_down_;
-    if (world_frame_ == "map" || world_frame_ == "odom") return Eigen::Vector3d(0, 0, -1);
+    if (!options_.poses && (world_frame_ == "map" || world_frame_ == "odom")) return Eigen::Vector3d(0, 0, -1);
     return std::nullopt;
   }
   std::string gravitySource() const override {
@@ -469,6 +391,12 @@ class BagRecording : public Recording {
   // -a / |a| in the IMU's frame. Readings are kept while the robot is still (|a| within
   // 2 % of g), each taken to the world frame at its stamp, and averaged.
   void imuGravity() {
+    if (options_.poses) {
+      if (!options_.imu_topic.empty()) {
+        throw IoError(path_, "--imu-topic places the IMU through the TF tree, whose world frame a trajectory given instead has not");
+      }
+      return;
+    }
     const auto& topics = container_->topics();
     int chosen = -1;
     std::vector<std::string> names;
@@ -522,6 +450,23 @@ class BagRecording : public Recording {
   }
 
   void poseImages() {
+    if (options_.poses) {
+      std::size_t unposed = 0;
+      poses_.resize(images_.size());
+      for (std::size_t i = 0; i < images_.size(); ++i) {
+        poses_[i] = options_.poses(images_[i].stamp_ns);
+        if (poses_[i]) {
+          posed_.push_back(static_cast<int>(i));
+        } else {
+          ++unposed;
+        }
+      }
+      if (unposed > 0) {
+        skipped_ = std::to_string(unposed) + " of " + std::to_string(images_.size()) +
+                   " depth images without a pose of the trajectory given near their stamp";
+      }
+      return;
+    }
     if (!options_.world_frame.empty()) {
       world_frame_ = options_.world_frame;
     } else if (tf_.has("map")) {

@@ -134,6 +134,35 @@ TEST_F(Bags, CameraOnAMovingBaseIsPosedThroughTheTfChain) {
   EXPECT_EQ(fileBytes(dir_ + "/base-db3.ot"), fileBytes(ref()));
 }
 
+// --poses replaces the TF tree: a TUM trajectory matched to the images' stamps.
+TEST_F(Bags, PosesGivenReplaceTheTfTree) {
+  const std::string bag = writeBag("poses.mcap", "--layout base --world tilted --tilt 30");
+  std::ofstream tum(dir_ + "/poses.txt");
+  tum.precision(17);
+  for (int i = 0; i < 12; ++i) {
+    char name[64];
+    std::snprintf(name, sizeof name, "/seq/frame-%06d.pose.txt", i);
+    std::ifstream in(dir_ + name);
+    Eigen::Matrix4d m;
+    for (int k = 0; k < 16; ++k) in >> m(k / 4, k % 4);
+    const Eigen::Quaterniond q(Eigen::Matrix3d(m.topLeftCorner<3, 3>()));
+    // The images' stamps (1700000000 s + i / 30 s in nanoseconds, as write_bag.mjs rounds
+    // them) in seconds, as the trajectory is looked up.
+    const auto ns = 1700000000LL * 1000000000LL + std::llround(i * 1e9 / 30.0);
+    tum << static_cast<double>(ns) * 1e-9 << " " << m(0, 3) << " " << m(1, 3) << " " << m(2, 3) << " " << q.x()
+        << " " << q.y() << " " << q.z() << " " << q.w() << "\n";
+  }
+  tum.close();
+  const Result r = build(bag, dir_ + "/poses.ot", "--poses " + dir_ + "/poses.txt --gravity 0,0,-1");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(leafCount(dir_ + "/poses.ot"), leafCount(ref()));
+  const auto meta = nlohmann::json::parse(fileBytes(dir_ + "/poses.json"));
+  EXPECT_EQ(meta["frames"], 12);
+  EXPECT_FALSE(meta.contains("skipped")) << meta["skipped"];
+  EXPECT_FALSE(meta.contains("world_frame"));
+  EXPECT_TRUE(meta.contains("poses"));
+}
+
 // analyze and overlay read a bag's frame N as build numbers it: the same answers as the
 // 7-Scenes layout's frame N (the bag has no colour images: the overlays are drawn on depth).
 TEST_F(Bags, AnalyzeAndOverlayReadTheBagsFrames) {

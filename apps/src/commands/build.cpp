@@ -425,7 +425,7 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
     if (const sources::Recording* rec = is_dir ? dir->recording() : nullptr) {
       run.depth_topic = rec->depthTopic();
       if (!rec->cameraInfoTopic().empty()) run.camera_info_topic = rec->cameraInfoTopic();
-      run.world_frame = rec->worldFrame();
+      if (!rec->worldFrame().empty()) run.world_frame = rec->worldFrame();
     }
     if (no_pose > 0) run.frames_without_pose = no_pose;
     run.unreadable = unreadable;

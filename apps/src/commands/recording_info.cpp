@@ -1,5 +1,7 @@
 #include "commands/recording_info.hpp"
 
+#include "io/recording_sequence.hpp"
+
 #include "mobmap/sources/recording.hpp"
 
 #include <nlohmann/json.hpp>
@@ -9,12 +11,7 @@
 namespace mobmap::app {
 
 int describeRecording(const std::string& path, const RecordingChoice& choice, double max_pose_gap_s, bool json) {
-  sources::RecordingOptions o;
-  o.depth_topic = choice.depth_topic;
-  o.camera_info_topic = choice.camera_info_topic;
-  o.world_frame = choice.world_frame;
-  o.imu_topic = choice.imu_topic;
-  o.max_pose_gap_s = max_pose_gap_s;
+  sources::RecordingOptions o = recordingOptions(choice, max_pose_gap_s);
   o.describe_only = true;
   const auto rec = sources::Recording::open(path, o);
   const bool chosen = rec->problem().empty();

@@ -1,6 +1,9 @@
 #include "io/recording_sequence.hpp"
 
 #include "io/dataset.hpp"
+#include "io/trajectory_files.hpp"
+
+#include "mobmap/mapping/trajectory.hpp"
 
 namespace mobmap::app {
 namespace {
@@ -11,8 +14,8 @@ class RecordingSequence : public Sequence {
 
   std::string describe() const override {
     std::string text = r_->path() + " (" + r_->format() + ": depth " + r_->depthTopic() + ", " +
-                       std::to_string(r_->frames().size()) + " of " + std::to_string(r_->imageCount()) + " images posed in " +
-                       r_->worldFrame() + " through TF";
+                       std::to_string(r_->frames().size()) + " of " + std::to_string(r_->imageCount()) + " images posed " +
+                       (r_->worldFrame().empty() ? std::string("by --poses") : "in " + r_->worldFrame() + " through TF");
     if (!r_->cameraInfoTopic().empty()) text += ", intrinsics from " + r_->cameraInfoTopic();
     if (!r_->distortionNote().empty()) text += ", " + r_->distortionNote();
     return text + ")";
@@ -49,16 +52,30 @@ class RecordingSequence : public Sequence {
 
 }  // namespace
 
-std::unique_ptr<Sequence> openRecordingSequence(const std::string& path, const RecordingChoice& choice,
-                                                const std::string& intrinsics_spec, double max_pose_gap_s) {
+sources::RecordingOptions recordingOptions(const RecordingChoice& choice, double max_pose_gap_s) {
   sources::RecordingOptions o;
   o.depth_topic = choice.depth_topic;
   o.camera_info_topic = choice.camera_info_topic;
   o.world_frame = choice.world_frame;
   o.imu_topic = choice.imu_topic;
   o.max_pose_gap_s = max_pose_gap_s;
+  return o;
+}
+
+std::unique_ptr<Sequence> openRecordingSequence(const std::string& path, const RecordingChoice& choice,
+                                                const std::string& intrinsics_spec, double max_pose_gap_s,
+                                                const std::string& poses_path) {
+  sources::RecordingOptions o = recordingOptions(choice, max_pose_gap_s);
   if (!intrinsics_spec.empty()) {
     o.intrinsics = [intrinsics_spec](int width, int height) { return parseIntrinsics(intrinsics_spec, width, height); };
+  }
+  if (!poses_path.empty()) {
+    // A TUM trajectory matched to the images' stamps, as for TUM sequences.
+    auto trajectory = std::make_shared<mapping::Trajectory>();
+    for (const auto& [t, T] : readTumPoses(poses_path)) trajectory->insert(t, T);
+    o.poses = [trajectory, max_pose_gap_s](std::int64_t stamp_ns) {
+      return trajectory->at(static_cast<double>(stamp_ns) * 1e-9, max_pose_gap_s);
+    };
   }
   return std::make_unique<RecordingSequence>(sources::Recording::open(path, o));
 }

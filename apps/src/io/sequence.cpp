@@ -422,8 +422,7 @@ std::unique_ptr<Sequence> openSequence(const std::string& input, const std::stri
                                        const std::string& poses_path, const RecordingChoice& choice) {
   std::error_code ec;
   if (sources::isRecording(input)) {
-    if (!poses_path.empty()) throw IoError(poses_path, "a ROS 2 bag's poses come from its TF tree; --poses is not read for it");
-    return openRecordingSequence(input, choice, intrinsics_spec, max_pose_gap_s);
+    return openRecordingSequence(input, choice, intrinsics_spec, max_pose_gap_s, poses_path);
   }
   if (!fs::is_directory(input, ec)) {
     const fs::path ext = fs::path(input).extension();

@@ -1,6 +1,6 @@
 #pragma once
-// PNG reading (libpng), for depth and colour images, from files and from memory (a
-// bag's compressed depth).
+// PNG (libpng) for depth and colour images: read from files and from memory (a bag's
+// compressed depth), written to memory (the apps write the bytes to files atomically).
 
 #include <array>
 #include <cstddef>
@@ -45,5 +45,11 @@ void checkPngComplete(const std::string& path);
 /// Decodes a 16-bit greyscale PNG held in memory; IoError naming `what` (a file and the
 /// message in it) on the problems readPng16 reports.
 Image16 decodePng16(const std::uint8_t* data, std::size_t size, const std::string& what);
+
+/// The PNG file's bytes of an image (compression level 3: depth images favour speed).
+/// std::invalid_argument when its pixels do not match its size or a side is not in
+/// 1..kMaxFrameSide.
+std::vector<std::uint8_t> encodePng16(const Image16& image);
+std::vector<std::uint8_t> encodePngRgb(const ImageRgb& image);
 
 }  // namespace mobmap::sources

@@ -31,6 +31,11 @@ struct RecordingOptions {
   /// Intrinsics given instead of a camera_info topic (none is needed then), from the
   /// size of the depth images.
   std::function<perception::PinholeIntrinsics(int width, int height)> intrinsics;
+  /// Camera poses from elsewhere (`--poses`: a trajectory matched by stamp) instead of
+  /// the TF tree: an image's pose is what this gives for its stamp (nullopt: skipped).
+  /// The world frame is then the trajectory's (worldFrame() is empty) and gravity is not
+  /// known from the recording.
+  std::function<std::optional<Eigen::Isometry3d>(std::int64_t stamp_ns)> poses;
   /// An image whose transforms on the way to the world frame have no samples around its
   /// stamp within this many seconds of each other is skipped.
   double max_pose_gap_s = 0.05;
@@ -76,7 +81,7 @@ class Recording {
   [[nodiscard]] virtual const TfTree& tf() const = 0;
   [[nodiscard]] virtual const std::string& depthTopic() const = 0;
   [[nodiscard]] virtual const std::string& cameraInfoTopic() const = 0;  ///< empty when intrinsics were given
-  [[nodiscard]] virtual const std::string& worldFrame() const = 0;
+  [[nodiscard]] virtual const std::string& worldFrame() const = 0;  ///< empty with RecordingOptions::poses
   [[nodiscard]] virtual const std::string& cameraFrame() const = 0;  ///< the first depth image's frame_id
   [[nodiscard]] virtual const perception::PinholeIntrinsics& intrinsics() const = 0;
   /// The depth images' values per metre as stored: 1000 for 16UC1, 1 for 32FC1.
