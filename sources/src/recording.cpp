@@ -87,7 +87,9 @@ class BagRecording : public Recording {
       chooseTopics();
       poseImages();
       imuGravity();
+      imus_.clear();  // what gravity needed of them is kept
     } catch (const IoError& e) {
+      imus_.clear();
       if (!options_.describe_only) throw;
       problem_ = e.reason();
       images_.clear();
@@ -167,8 +169,9 @@ class BagRecording : public Recording {
       ros::Wire wire;
       if (!wireOf(topic.encoding, &wire)) return;
       try {
-        if (topic.type == kTf || (topic.type == "tf2_msgs/TFMessage")) {
-          const bool is_static = topic.name == "/tf_static";
+        if (topic.type == kTf) {
+          // /tf_static, or a robot's namespaced one (/robot1/tf_static).
+          const bool is_static = topic.name.size() >= 10 && topic.name.compare(topic.name.size() - 10, 10, "/tf_static") == 0;
           for (const auto& t : ros::decodeTfMessage(m.data, m.size, wire)) {
             const Eigen::Quaterniond q(t.rotation_xyzw[3], t.rotation_xyzw[0], t.rotation_xyzw[1], t.rotation_xyzw[2]);
             tf_.add(strip(t.header.frame_id), strip(t.child_frame_id), t.header.stamp_ns,
