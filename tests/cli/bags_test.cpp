@@ -305,6 +305,10 @@ TEST_F(Bags, InfoDescribesTheRecordingAndWhatBuildWouldRead) {
   r = run("info " + bag);
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("frames             12 of 12 depth images have a pose"), std::string::npos) << r.out;
+  // A camera_info with distortion: undone (sources_test checks how), and said.
+  r = run("info " + writeBag("distorted.mcap", "--frames 2 --distortion -0.1,0.01,0,0,0") + " --json");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(jsonLine(r.out)["distortion"], "plumb_bob distortion (k1 -0.1, k2 0.01, p1 0, p2 0, k3 0) undone");
 }
 
 // Depth in metres (32FC1, and compressedDepth's quantised inverse depth) is not the
