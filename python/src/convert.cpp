@@ -80,9 +80,7 @@ perception::DepthImage depthImage(const py::handle& value) {
     // As a depth PNG is read: millimetres, 0 and 65535 meaning no measurement.
     const auto mm = py::array_t<std::uint16_t, py::array::c_style | py::array::forcecast>::ensure(depth);
     const std::uint16_t* v = mm.data();
-    for (std::size_t i = 0; i < image.depth_m.size(); ++i) {
-      image.depth_m[i] = (v[i] == 0 || v[i] == 65535) ? 0.f : static_cast<float>(v[i]) * 1e-3f;
-    }
+    for (std::size_t i = 0; i < image.depth_m.size(); ++i) image.depth_m[i] = perception::metresFromMillimetres(v[i]);
     return image;
   }
   if (py::isinstance<py::array_t<float>>(depth)) {

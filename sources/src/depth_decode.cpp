@@ -24,7 +24,6 @@ void checkSize(std::uint64_t width, std::uint64_t height, const std::string& wha
   }
 }
 
-float fromMillimetres(std::uint16_t mm) { return (mm == 0 || mm == 65535) ? 0.f : static_cast<float>(mm) * 1e-3f; }
 float fromMetres(float m) { return std::isfinite(m) && m > 0.f ? m : 0.f; }
 
 }  // namespace
@@ -61,7 +60,7 @@ perception::DepthImage depthFromImage(const ros::Image& m, const std::string& wh
     float* out = d.depth_m.data() + static_cast<std::size_t>(v) * m.width;
     for (std::uint32_t u = 0; u < m.width; ++u) {
       if (bpp == 2) {
-        out[u] = fromMillimetres(static_cast<std::uint16_t>(r[2 * u] | (r[2 * u + 1] << 8)));
+        out[u] = perception::metresFromMillimetres(static_cast<std::uint16_t>(r[2 * u] | (r[2 * u + 1] << 8)));
       } else {
         float x;
         std::memcpy(&x, r + 4 * static_cast<std::size_t>(u), 4);
@@ -91,7 +90,7 @@ perception::DepthImage depthFromCompressed(const ros::CompressedImage& m, const 
   for (std::size_t i = 0; i < png.pixels.size(); ++i) {
     const std::uint16_t v = png.pixels[i];
     if (encoding == "16UC1") {
-      d.depth_m[i] = fromMillimetres(v);
+      d.depth_m[i] = perception::metresFromMillimetres(v);
     } else {
       // PNG value = A / depth + B, 0 where invalid.
       d.depth_m[i] = v == 0 ? 0.f : fromMetres(quant[0] / (static_cast<float>(v) - quant[1]));

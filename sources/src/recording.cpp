@@ -4,6 +4,7 @@
 #include "depth_decode.hpp"
 #include "ros_messages.hpp"
 #include "undistort.hpp"
+#include "words.hpp"
 
 #include "mobmap/sources/io_error.hpp"
 
@@ -31,21 +32,9 @@ struct ImuReading {
   Eigen::Vector3d acceleration;
 };
 
-std::string seconds(std::int64_t ns) {
-  char buf[48];
-  std::snprintf(buf, sizeof buf, "%.3f s", static_cast<double>(ns) * 1e-9);
-  return buf;
-}
-
 std::string namespaceOf(const std::string& topic) {
   const auto slash = topic.find_last_of('/');
   return slash == std::string::npos ? std::string() : topic.substr(0, slash);
-}
-
-std::string listed(const std::vector<std::string>& names) {
-  std::string out;
-  for (const auto& n : names) out += (out.empty() ? "" : ", ") + n;
-  return out.empty() ? "none" : out;
 }
 
 struct TopicStats {
@@ -236,9 +225,9 @@ class BagRecording : public Recording {
     int depth = -1;
     if (!options_.depth_topic.empty()) {
       std::vector<std::string> images;
-      for (const auto& [t, list] : all_images_) images.push_back(topics[static_cast<std::size_t>(t)].name);
       for (const auto& [t, list] : all_images_) {
-        if (topics[static_cast<std::size_t>(t)].name == options_.depth_topic) depth = t;
+        images.push_back(topics[static_cast<std::size_t>(t)].name);
+        if (images.back() == options_.depth_topic) depth = t;
       }
       if (depth < 0) {
         throw IoError(path_, "has no image topic " + options_.depth_topic + " (its image topics: " + listed(images) + ")");
@@ -294,7 +283,7 @@ class BagRecording : public Recording {
     if (options_.intrinsics) {
       intrinsics_ = options_.intrinsics(first.width, first.height);
     } else {
-      chooseCameraInfo(depth);
+      chooseCameraInfo();
     }
     checkSize(first, 0);
   }
@@ -326,7 +315,7 @@ class BagRecording : public Recording {
     }
   }
 
-  void chooseCameraInfo(int depth) {
+  void chooseCameraInfo() {
     const auto& topics = container_->topics();
     std::vector<std::string> all;
     int chosen = -1;
@@ -350,7 +339,6 @@ class BagRecording : public Recording {
         best = its.size();
       }
     }
-    (void)depth;
     if (chosen < 0) {
       if (!options_.camera_info_topic.empty()) {
         throw IoError(path_, "has no camera_info topic " + options_.camera_info_topic + " (its camera_info topics: " + listed(all) + ")");

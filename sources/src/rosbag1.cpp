@@ -69,10 +69,7 @@ class Ros1Container : public Container {
         raw.ref = {0, static_cast<std::uint64_t>(t), static_cast<std::uint64_t>(topic), ordinal[{topic, t}]++};
         visit(raw);
       }
-    } catch (const rosbag::BagException& e) {
-      return ContainerFault{path_ + ": its messages after " + std::to_string(static_cast<double>(last) * 1e-9) +
-                            " s cannot be read (" + e.what() + ")"};
-    } catch (const ::ros::Exception& e) {
+    } catch (const ::ros::Exception& e) {  // rosbag's exceptions among them
       return ContainerFault{path_ + ": its messages after " + std::to_string(static_cast<double>(last) * 1e-9) +
                             " s cannot be read (" + e.what() + ")"};
     }

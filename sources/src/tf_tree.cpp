@@ -1,19 +1,12 @@
 #include "mobmap/sources/tf_tree.hpp"
 
+#include "words.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <set>
 
 namespace mobmap::sources {
-namespace {
-
-std::string seconds(std::int64_t ns) {
-  char buf[48];
-  std::snprintf(buf, sizeof buf, "%.3f s", static_cast<double>(ns) * 1e-9);
-  return buf;
-}
-
-}  // namespace
 
 void TfTree::add(const std::string& parent, const std::string& child, std::int64_t stamp_ns, const Eigen::Vector3d& t,
                  const Eigen::Quaterniond& q, bool is_static) {
@@ -125,9 +118,7 @@ std::optional<Eigen::Isometry3d> TfTree::lookup(const std::string& target, const
                                                 std::int64_t max_gap_ns, std::string* why) const {
   for (const std::string* f : {&target, &source}) {
     if (!has(*f)) {
-      std::string list;
-      for (const auto& name : frames()) list += (list.empty() ? "" : ", ") + name;
-      throw TfError("frame \"" + *f + "\" is not in the TF tree (its frames: " + (list.empty() ? "none" : list) + ")");
+      throw TfError("frame \"" + *f + "\" is not in the TF tree (its frames: " + listed(frames()) + ")");
     }
   }
   const auto up_source = chainToRoot(source);

@@ -165,12 +165,14 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
     on.interrupted = [] { return g_interrupted.load(); };
     dir = openOpenNi(on);
   }
+  std::optional<Eigen::Isometry3d> T_base_camera;  // --extrinsics, read once
   if (is_dir) {
     if (!dir) dir = openSequence(o->input, o->intrinsics, o->max_pose_gap, o->poses, o->recording);
     if (given.depth_scale->count() > 0) dir = withDepthScale(std::move(dir), o->depth_scale);
     if (!o->extrinsics.empty()) {
       if (dir->recording()) throw UsageError("--extrinsics: " + o->input + " is a bag, whose TF tree has its camera's mounting");
-      dir = withExtrinsics(std::move(dir), parseExtrinsics(o->extrinsics));
+      T_base_camera = parseExtrinsics(o->extrinsics);
+      dir = withExtrinsics(std::move(dir), *T_base_camera);
     }
     const FrameRange range = parseRange(o->frames);
     for (int f : dir->frames()) {
@@ -421,7 +423,7 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
     if (depth_k) run.depth_intrinsics = mapping::DepthCameraRecord{depth_k->fx, depth_k->fy, depth_k->cx, depth_k->cy, depth_k->width, depth_k->height};
     if (!o->poses.empty()) run.poses = fs::absolute(o->poses, ec).lexically_normal().string();
     run.max_pose_gap_s = o->max_pose_gap;
-    if (!o->extrinsics.empty()) run.extrinsics = extrinsicsText(parseExtrinsics(o->extrinsics));
+    if (T_base_camera) run.extrinsics = extrinsicsText(*T_base_camera);
     if (const sources::Recording* rec = is_dir ? dir->recording() : nullptr) {
       run.depth_topic = rec->depthTopic();
       if (!rec->cameraInfoTopic().empty()) run.camera_info_topic = rec->cameraInfoTopic();

@@ -228,8 +228,7 @@ perception::DepthImage readDepthPng(const std::string& path) {
   const Image16 img = readPng16(path);
   perception::DepthImage d(img.width, img.height);
   for (std::size_t i = 0; i < img.pixels.size(); ++i) {
-    const std::uint16_t mm = img.pixels[i];
-    d.depth_m[i] = (mm == 0 || mm == 65535) ? 0.f : static_cast<float>(mm) * 1e-3f;
+    d.depth_m[i] = perception::metresFromMillimetres(img.pixels[i]);
   }
   return d;
 }

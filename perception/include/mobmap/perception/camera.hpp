@@ -46,6 +46,12 @@ struct DepthImage {
   float& at(int u, int v) { return depth_m[static_cast<std::size_t>(v) * width + u]; }
 };
 
+/// A 16-bit depth value in millimetres (depth PNGs, 16UC1 images, OpenNI2) in metres;
+/// 0 and 65535 mean no measurement and give 0.
+inline float metresFromMillimetres(std::uint16_t mm) {
+  return (mm == 0 || mm == 65535) ? 0.f : static_cast<float>(mm) * 1e-3f;
+}
+
 /// The camera-frame point seen at pixel (u, v) at depth z (metres).
 inline Eigen::Vector3d backProject(const PinholeIntrinsics& k, double u, double v, double z) {
   return {(u - k.cx) / k.fx * z, (v - k.cy) / k.fy * z, z};
