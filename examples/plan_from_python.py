@@ -12,7 +12,6 @@ import subprocess
 from pathlib import Path
 
 import mobmap
-from mobmap.frames import read_gravity, read_intrinsics, seven_scenes_frames
 
 START = (1.0, -0.9, 0.1)  # on the floor in front of the ramp (map frame = world frame here)
 GOAL = (2.0, -0.9, 0.15)  # near the top of the 5-degree ramp, 4.4 cm up
@@ -32,10 +31,10 @@ def main():
                    check=True)
 
     # Frames go in while the map can be read: a planner could ask between pushes.
-    mapper = mobmap.LiveMapper(gravity_down_world=read_gravity(seq))
-    k = read_intrinsics(seq)
-    for number, depth, pose in seven_scenes_frames(seq):
-        mapper.push(depth, k, pose, stamp=number / 30.0)
+    frames = mobmap.open_recording(str(seq))  # read as `mobmap build` reads it
+    mapper = mobmap.LiveMapper(gravity_down_world=frames.gravity_down)
+    for frame in frames:
+        mapper.push(frame["depth"], frame["intrinsics"], frame["pose"], stamp=frame["number"] / 30.0)
     mapper.finish()
     corridor = mapper.snapshot()
     corridor.save(str(out / "corridor.ot"))

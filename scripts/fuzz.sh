@@ -44,7 +44,9 @@ module_sources() {
 mapfile -t gp < <(module_sources gp)
 mapfile -t perception < <(module_sources perception)
 mapfile -t mapping < <(module_sources mapping)
-mapfile -t sources < <(module_sources sources)
+# The bag readers: the sources module without the folder, PCD and OpenNI2 readers.
+mapfile -t bag_sources < <(module_sources sources |
+  grep -v -E '^sources/src/(dataset|trajectory_files|pcd|openni|sequence|recording_sequence)\.cpp$')
 mrpt=(-lmrpt-poses -lmrpt-math -lmrpt-serialization -lmrpt-core)
 link() {  # link TARGET SOURCES... -- LIBS...
   local target=$1; shift
@@ -60,16 +62,16 @@ for target in "${targets[@]}"; do
   case $target in
     map_reader) link map_reader tests/fuzz/fuzz_map_reader.cpp "${mapping[@]}" "${perception[@]}" "${gp[@]}" \
                   -- -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;
-    config) link config tests/fuzz/fuzz_config.cpp apps/src/io/config.cpp apps/src/io/files.cpp "${gp[@]}" "${perception[@]}" \
+    config) link config tests/fuzz/fuzz_config.cpp apps/src/io/config.cpp apps/src/io/files.cpp sources/src/text.cpp "${gp[@]}" "${perception[@]}" \
               mapping/src/mobility_map.cpp mapping/src/mobility_octree.cpp mapping/src/gravity.cpp \
               -- -lyaml-cpp -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;
-    poses) link poses tests/fuzz/fuzz_poses.cpp apps/src/io/trajectory_files.cpp apps/src/io/dataset.cpp apps/src/io/files.cpp \
-             apps/src/io/png_io.cpp sources/src/png.cpp perception/src/camera.cpp mapping/src/gravity.cpp -- -lpng -lyaml-cpp "${mrpt[@]}" ;;
+    poses) link poses tests/fuzz/fuzz_poses.cpp sources/src/trajectory_files.cpp sources/src/dataset.cpp sources/src/text.cpp \
+             sources/src/png.cpp perception/src/camera.cpp mapping/src/gravity.cpp -- -lpng -lyaml-cpp "${mrpt[@]}" ;;
     pipeline) link pipeline tests/fuzz/fuzz_pipeline.cpp "${gp[@]}" "${perception[@]}" -- -lgmp -lmpfr ;;
     api) link api tests/fuzz/fuzz_api.cpp apps/src/serve/api.cpp apps/src/serve/viewer_assets.cpp apps/src/answers/answers.cpp \
            apps/src/commands/levels.cpp "${mapping[@]}" "${perception[@]}" "${gp[@]}" \
            -- -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;
-    mcap|cdr|db3) link "$target" "tests/fuzz/fuzz_$target.cpp" "${sources[@]}" sources/src/rosbag1_missing.cpp perception/src/camera.cpp \
+    mcap|cdr|db3) link "$target" "tests/fuzz/fuzz_$target.cpp" "${bag_sources[@]}" sources/src/rosbag1_missing.cpp perception/src/camera.cpp \
                     -- -lpng -lz -lyaml-cpp -lsqlite3 -llz4 -lzstd ;;
     *) echo "fuzz.sh: unknown target $target" >&2; exit 2 ;;
   esac

@@ -119,8 +119,8 @@ TEST(Pcd, DeclaredSizesAreCheckedAgainstTheFileAndTheFrameLimitBeforeAnythingIsA
   std::string lines;
   for (int i = 0; i < 20000; ++i) lines += std::to_string(i % 100) + " " + std::to_string(i / 100) + " 1\n";
   const auto both = [&](const std::string& path) {
-    const std::string e = errorOf([&] { (void)loadPcd(path); });
-    const std::string checked = errorOf([&] { checkPcdComplete(path); });
+    const std::string e = errorOf([&] { (void)sources::loadPcd(path); });
+    const std::string checked = errorOf([&] { sources::checkPcdComplete(path); });
     EXPECT_EQ(checked, e) << "the check before a run and the loader disagree";
     return e;
   };
@@ -133,7 +133,7 @@ TEST(Pcd, DeclaredSizesAreCheckedAgainstTheFileAndTheFrameLimitBeforeAnythingIsA
   EXPECT_NE(both(dir.file("b.pcd")).find("b.pcd: PCD header declares 4000000000 points"), std::string::npos);
   // Within the limit, more ASCII points than the data can hold (2 bytes a value at least).
   writeBytes(dir.file("c.pcd"), pcdHeader("10000000", "ascii") + lines);
-  EXPECT_NE(errorOf([&] { (void)loadPcd(dir.file("c.pcd")); })
+  EXPECT_NE(errorOf([&] { (void)sources::loadPcd(dir.file("c.pcd")); })
                 .find("c.pcd: PCD header declares 10000000 points of 3 values, but its 167000 bytes of ASCII data hold at most 27833"),
             std::string::npos);
   // binary_compressed whose uncompressed size says 4 GB (100 points of 12 bytes are 1200).
@@ -157,7 +157,7 @@ TEST(Pcd, DeclaredSizesAreCheckedAgainstTheFileAndTheFrameLimitBeforeAnythingIsA
                                      "bytes of compressed data can hold");
   // The same file honest: 20000 ASCII points load.
   writeBytes(dir.file("e.pcd"), pcdHeader("20000", "ascii") + lines);
-  EXPECT_EQ(loadPcd(dir.file("e.pcd")).points.size(), 20000u);
+  EXPECT_EQ(sources::loadPcd(dir.file("e.pcd")).points.size(), 20000u);
 }
 
 TEST(Pcd, EightByteCoordinatesAreReadAsWritten) {
@@ -179,7 +179,7 @@ TEST(Pcd, EightByteCoordinatesAreReadAsWritten) {
   writeBytes(dir.file("ascii.pcd"), ascii);
   writeBytes(dir.file("binary.pcd"), binary);
   for (const std::string name : {"ascii.pcd", "binary.pcd"}) {
-    const Frame f = loadPcd(dir.file(name));
+    const Frame f = sources::loadPcd(dir.file(name));
     ASSERT_EQ(f.points.size(), points.size()) << name;
     for (std::size_t i = 0; i < points.size(); ++i) {
       EXPECT_EQ(f.points[i], points[i].cast<float>()) << name << " point " << i;
@@ -189,9 +189,9 @@ TEST(Pcd, EightByteCoordinatesAreReadAsWritten) {
   std::string ints = ascii;
   ints.replace(ints.find("TYPE F F F"), 10, "TYPE I I I");
   writeBytes(dir.file("ints.pcd"), ints);
-  EXPECT_NE(errorOf([&] { (void)loadPcd(dir.file("ints.pcd")); }).find("ints.pcd: PCD field x is not a 4- or 8-byte float"),
+  EXPECT_NE(errorOf([&] { (void)sources::loadPcd(dir.file("ints.pcd")); }).find("ints.pcd: PCD field x is not a 4- or 8-byte float"),
             std::string::npos)
-      << errorOf([&] { (void)loadPcd(dir.file("ints.pcd")); });
+      << errorOf([&] { (void)sources::loadPcd(dir.file("ints.pcd")); });
 }
 
 // The cheap check `build` runs on every frame before a long run: whole files pass, files

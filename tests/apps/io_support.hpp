@@ -4,7 +4,7 @@
 #include "io/ground_truth.hpp"
 #include "io/files.hpp"
 #include "io/frame_source.hpp"
-#include "io/pcd.hpp"
+#include "mobmap/sources/pcd.hpp"
 #include "io/io_error.hpp"
 #include "io/map_files.hpp"
 #include "pictures/canvas.hpp"

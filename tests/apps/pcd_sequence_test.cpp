@@ -50,7 +50,7 @@ TEST(PcdSequence, ACutFrameIsFoundFromItsHeaderBeforeTheRun) {
   }
   const auto full = fs::file_size(b);
   fs::resize_file(b, full - 1);  // one byte short of the last point's rgb
-  const auto seq = app::openSequence((dir / "frames").string(), "", 0.05, (dir / "poses.txt").string());
+  const auto seq = sources::openSequence((dir / "frames").string(), {"", 0.05, (dir / "poses.txt").string(), {}});
   EXPECT_NO_THROW(seq->check(0));
   try {
     seq->check(1);
@@ -67,39 +67,39 @@ TEST(PcdSequence, ACutFrameIsFoundFromItsHeaderBeforeTheRun) {
   const std::string sizes("\xe8\x03\x00\x00\xb0\x04\x00\x00", 8);  // 1000, 1200
   const std::string c = (dir / "c.pcd").string();
   std::ofstream(c, std::ios::binary) << head << sizes << std::string(999, 'z');
-  EXPECT_THROW(app::checkPcdComplete(c), app::IoError);
+  EXPECT_THROW(sources::checkPcdComplete(c), app::IoError);
   std::ofstream(c, std::ios::binary) << head << sizes << std::string(1000, 'z');
-  EXPECT_NO_THROW(app::checkPcdComplete(c));  // the sizes add up (the bytes are only checked by loading)
+  EXPECT_NO_THROW(sources::checkPcdComplete(c));  // the sizes add up (the bytes are only checked by loading)
   std::ofstream(c, std::ios::binary) << head << sizes.substr(0, 5);
-  EXPECT_THROW(app::checkPcdComplete(c), app::IoError);
+  EXPECT_THROW(sources::checkPcdComplete(c), app::IoError);
   // No x, y, z; and ASCII data shorter than two bytes a value.
   const std::string d = (dir / "d.pcd").string();
   std::ofstream(d) << "# .PCD v0.7\nVERSION 0.7\nFIELDS x y\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nWIDTH 1\nHEIGHT 1\n"
                       "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 1\nDATA ascii\n1 2\n";
   try {
-    app::checkPcdComplete(d);
+    sources::checkPcdComplete(d);
     FAIL();
   } catch (const app::IoError& e) {
     EXPECT_NE(std::string(e.what()).find("d.pcd: PCD has no x, y and z fields"), std::string::npos) << e.what();
   }
   std::ofstream(d) << "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\n"
                       "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA ascii\n1 2 3\n";
-  EXPECT_THROW(app::checkPcdComplete(d), app::IoError);  // 6 bytes cannot hold 6 values
+  EXPECT_THROW(sources::checkPcdComplete(d), app::IoError);  // 6 bytes cannot hold 6 values
   std::ofstream(d) << "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\n"
                       "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA ascii\n1 2 3\n4 5 6\n";
-  EXPECT_NO_THROW(app::checkPcdComplete(d));
-  EXPECT_THROW(app::checkPcdComplete((dir / "none.pcd").string()), app::IoError);
+  EXPECT_NO_THROW(sources::checkPcdComplete(d));
+  EXPECT_THROW(sources::checkPcdComplete((dir / "none.pcd").string()), app::IoError);
   fs::remove_all(dir);
 }
 
 TEST(PcdSequence, FileNameTimeStamps) {
   // 2012-12-14 14:22:55 UTC is 1355494975 s after the epoch.
-  EXPECT_NEAR(*app::timestampFromFileName("/x/frame_20121214T142255.814212.pcd"), 1355494975.814212, 1e-6);
-  EXPECT_NEAR(*app::timestampFromFileName("1305031102.175304.pcd"), 1305031102.175304, 1e-6);
-  EXPECT_NEAR(*app::timestampFromFileName("cloud-42.pcd"), 42.0, 0);
-  EXPECT_FALSE(app::timestampFromFileName("cloud.pcd"));
-  EXPECT_FALSE(app::timestampFromFileName("frame_2012121XT.pcd"));
-  EXPECT_NEAR(*app::timestampFromFileName("frame_2012121XT142255.pcd"), 142255.0, 0);  // not a date: the trailing number
+  EXPECT_NEAR(*sources::timestampFromFileName("/x/frame_20121214T142255.814212.pcd"), 1355494975.814212, 1e-6);
+  EXPECT_NEAR(*sources::timestampFromFileName("1305031102.175304.pcd"), 1305031102.175304, 1e-6);
+  EXPECT_NEAR(*sources::timestampFromFileName("cloud-42.pcd"), 42.0, 0);
+  EXPECT_FALSE(sources::timestampFromFileName("cloud.pcd"));
+  EXPECT_FALSE(sources::timestampFromFileName("frame_2012121XT.pcd"));
+  EXPECT_NEAR(*sources::timestampFromFileName("frame_2012121XT142255.pcd"), 142255.0, 0);  // not a date: the trailing number
 }
 
 TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
@@ -129,7 +129,7 @@ TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
   }
   const auto& k = scene.params().intrinsics;
   for (const char* poses : {"in_order.txt", "timed.txt"}) {
-    const auto seq = app::openSequence((dir / "frames").string(), "", 0.3, (dir / poses).string());
+    const auto seq = sources::openSequence((dir / "frames").string(), {"", 0.3, (dir / poses).string(), {}});
     ASSERT_EQ(seq->frames().size(), 3u) << poses;
     ASSERT_TRUE(seq->hasDepth()) << seq->describe();
     EXPECT_NEAR(seq->intrinsics().fx, k.fx, 1e-3);
@@ -160,13 +160,13 @@ TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
     sim::writeTumPoseLine(one, 0.0, scene.cameraPose(0));
   }
   try {
-    (void)app::openSequence((dir / "plain").string(), "", 0.05, (dir / "one.txt").string());
+    (void)sources::openSequence((dir / "plain").string(), {"", 0.05, (dir / "one.txt").string(), {}});
     FAIL();
   } catch (const app::IoError& e) {
     EXPECT_NE(std::string(e.what()).find("one.txt: 1 poses for 2 .pcd frames"), std::string::npos) << e.what();
   }
   try {
-    (void)app::openSequence((dir / "plain").string(), "", 0.05, "");
+    (void)sources::openSequence((dir / "plain").string(), {"", 0.05, "", {}});
     FAIL();
   } catch (const app::IoError& e) {
     EXPECT_NE(std::string(e.what()).find("--poses"), std::string::npos) << e.what();
@@ -181,7 +181,7 @@ TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
     sim::writeTumPoseLine(two, 0.0, scene.cameraPose(0));
     sim::writeTumPoseLine(two, 0.0, scene.cameraPose(10));
   }
-  const auto warped = app::openSequence((dir / "warped").string(), "", 0.05, (dir / "two.txt").string());
+  const auto warped = sources::openSequence((dir / "warped").string(), {"", 0.05, (dir / "two.txt").string(), {}});
   ASSERT_TRUE(warped->hasDepth());
   EXPECT_NO_THROW((void)warped->load(0));
   try {

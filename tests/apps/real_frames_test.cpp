@@ -2,7 +2,7 @@
 // folder is absent). Asserts geometric facts of the scenes, not segment counts.
 #include "io/dataset.hpp"
 #include "io/frame_source.hpp"
-#include "io/pcd.hpp"
+#include "mobmap/sources/pcd.hpp"
 
 #include "mobmap/mapping/gravity.hpp"
 #include "mobmap/mapping/mobility_map.hpp"
@@ -137,7 +137,7 @@ std::vector<Obstacle> standingObstacles(const perception::FrameResult& r, float 
 TEST(RealFrames, FivePeopleFloorIsAbout1_2MetresBelowAndPeopleAreNotTraversable) {
   const std::string path = dataFile("pcl-kinect/five_people.pcd");
   SKIP_WITHOUT(path);
-  const app::Frame f = app::loadPcd(path);
+  const app::Frame f = sources::loadPcd(path);
   perception::PerceptionParams p;
   p.max_range_m = 4.0;  // the corridor floor between the people is 2-4 m away
   // No pose in a PCD: the camera is held level, so gravity is roughly +y (OpenCV axes);
@@ -166,7 +166,7 @@ TEST(RealFrames, FivePeopleFloorIsAbout1_2MetresBelowAndPeopleAreNotTraversable)
 TEST(RealFrames, FivePeopleWithoutGravityFindsTheFloorNotTheEndWall) {
   const std::string path = dataFile("pcl-kinect/five_people.pcd");
   SKIP_WITHOUT(path);
-  const app::Frame f = app::loadPcd(path);
+  const app::Frame f = sources::loadPcd(path);
   const auto r = perception::FramePipeline().processOrganized(f.points, f.width, f.height);
   ASSERT_TRUE(r.ground_plane);
   EXPECT_EQ(r.ground_rule, perception::GroundRule::kUprightPrior);
@@ -187,7 +187,7 @@ TEST(RealFrames, OwnDelaunayTrianglesAreCgalsOnEverySegment) {
   for (const char* name : {"pcl-kinect/five_people.pcd", "pcl-kinect/milk_cartoon_all_small_clorox.pcd"}) {
     const std::string path = dataFile(name);
     SKIP_WITHOUT(path);
-    const app::Frame f = app::loadPcd(path);
+    const app::Frame f = sources::loadPcd(path);
     perception::PerceptionParams own, cgal;
     cgal.triangulator = perception::Triangulator::kCgal;
     const auto a = perception::FramePipeline(own).processOrganized(f.points, f.width, f.height);
@@ -246,7 +246,7 @@ TEST(RealFrames, OwnDelaunayTrianglesAreCgalsOnEverySegment) {
 TEST(RealFrames, MilkCartonCarpetIsAbout0_46MetresAwayAndBottlesAreSeparateObstacles) {
   const std::string path = dataFile("pcl-kinect/milk_cartoon_all_small_clorox.pcd");
   SKIP_WITHOUT(path);
-  const app::Frame f = app::loadPcd(path);
+  const app::Frame f = sources::loadPcd(path);
   const auto r = perception::FramePipeline().processOrganized(f.points, f.width, f.height);
   ASSERT_TRUE(r.ground_plane);
   EXPECT_NEAR((*r.ground_plane)(3), 0.46, 0.05);
@@ -409,7 +409,7 @@ TEST(RealFrames, GrabberTableIsTheGroundBoxTopIsARaisedFlatAndTheLaptopLidIsNotW
   ASSERT_EQ(frames.size(), 3u);
   for (const std::string& path : frames) {
     SCOPED_TRACE(path);
-    const app::Frame f = app::loadPcd(path);
+    const app::Frame f = sources::loadPcd(path);
     ASSERT_EQ(f.width, 640);
     const PixelPatch table = patch(f, 30, 600, 400, 470), box = patch(f, 400, 450, 210, 260),
                      lid = patch(f, 200, 320, 190, 290);
@@ -473,7 +473,7 @@ TEST(RealFrames, GrabberTableIsTheGroundBoxTopIsARaisedFlatAndTheLaptopLidIsNotW
 TEST(RealFrames, StereoMugTableIsTheGroundAndNothingOnTheMugIsWalkable) {
   const std::string path = dataFile("pcl-kinect/table_scene_mug_stereo_textured.pcd");
   SKIP_WITHOUT(path);
-  const app::Frame f = app::loadPcd(path);
+  const app::Frame f = sources::loadPcd(path);
   ASSERT_EQ(f.width, 640);
   const PixelPatch table = patch(f, 160, 600, 400, 470);
   ASSERT_GT(table.pixels.size(), 20000u);
@@ -515,7 +515,7 @@ TEST(RealFrames, CorruptAndMissingPcdFilesGiveErrorsNamingTheFile) {
   std::filesystem::create_directories(dir);
   const std::string missing = (dir / "missing.pcd").string();
   try {
-    (void)app::loadPcd(missing);
+    (void)sources::loadPcd(missing);
     FAIL();
   } catch (const std::exception& e) {
     EXPECT_NE(std::string(e.what()).find("missing.pcd: no such file"), std::string::npos) << e.what();
@@ -523,7 +523,7 @@ TEST(RealFrames, CorruptAndMissingPcdFilesGiveErrorsNamingTheFile) {
   const std::string bad = (dir / "bad.pcd").string();
   std::ofstream(bad) << "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 10\nHEIGHT 1\nPOINTS 10\nDATA ascii\n1 2 3\n";
   try {
-    (void)app::loadPcd(bad);
+    (void)sources::loadPcd(bad);
     FAIL();
   } catch (const std::exception& e) {
     EXPECT_NE(std::string(e.what()).find("bad.pcd"), std::string::npos) << e.what();
@@ -531,7 +531,7 @@ TEST(RealFrames, CorruptAndMissingPcdFilesGiveErrorsNamingTheFile) {
   const std::string noxyz = (dir / "noxyz.pcd").string();
   std::ofstream(noxyz) << "VERSION 0.7\nFIELDS a b\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n1 2\n";
   try {
-    (void)app::loadPcd(noxyz);
+    (void)sources::loadPcd(noxyz);
     FAIL();
   } catch (const std::exception& e) {
     EXPECT_NE(std::string(e.what()).find("no x, y and z"), std::string::npos) << e.what();

@@ -4,7 +4,7 @@
 #include "io/dataset.hpp"
 #include "io/depth_checks.hpp"
 #include "io/frame_source.hpp"
-#include "io/pcd.hpp"
+#include "mobmap/sources/pcd.hpp"
 #include "io/io_error.hpp"
 
 #include "mobmap/perception/pipeline.hpp"
@@ -198,7 +198,7 @@ TEST(FrameSource, ASingleFileIsASequenceOfOneFrame) {
   const TempDir dir;
   const sim::RenderedFrame f = corridorFrame(30.0);
   const std::string png = writeDepthIn(dir, f, 1000.0);
-  const auto seq = openSequence(png, "", 0.05);
+  const auto seq = openSequence(png, {"", 0.05, "", {}});
   EXPECT_EQ(seq->frames(), std::vector<int>{0});
   EXPECT_FALSE(seq->posed());
   EXPECT_TRUE(seq->hasDepth());
@@ -403,10 +403,10 @@ TEST(OrganizedCamera, ACloudInATurnedFrameScoresAsInItsCameraFrame) {
   const std::string plain = writeFramePcd(dir, "camera.pcd", f, Eigen::Isometry3d::Identity());
   const std::string turned = writeFramePcd(dir, "turned.pcd", f, quarter);
   const perception::FramePipeline pipeline(perception::PerceptionParams{}, gp::MobilityModel{});
-  Frame a = loadPcd(plain);
+  Frame a = sources::loadPcd(plain);
   EXPECT_FALSE(a.T_cloud_camera.has_value());
   EXPECT_EQ(a.note, "");
-  Frame b = loadPcd(turned);
+  Frame b = sources::loadPcd(turned);
   ASSERT_TRUE(b.T_cloud_camera.has_value());
   EXPECT_LT((b.T_cloud_camera->linear() - quarter.linear()).norm(), 1e-5);
   EXPECT_NE(b.note.find("turned 90.0 degrees"), std::string::npos) << b.note;
@@ -434,7 +434,7 @@ TEST(OrganizedCamera, ACloudInATurnedFrameScoresAsInItsCameraFrame) {
   std::vector<Eigen::Vector3f> shuffled = organizedCloud(f, quarter);
   std::reverse(shuffled.begin(), shuffled.begin() + static_cast<std::ptrdiff_t>(shuffled.size() / 2));
   const perception::PinholeIntrinsics k = sim::CorridorParams{}.intrinsics;
-  const Frame c = loadPcd(writeOrganizedPcd(dir, "shuffled.pcd", shuffled, k.width, k.height));
+  const Frame c = sources::loadPcd(writeOrganizedPcd(dir, "shuffled.pcd", shuffled, k.width, k.height));
   EXPECT_FALSE(c.T_cloud_camera.has_value());
   EXPECT_NE(c.note.find("its frame cannot be recovered"), std::string::npos) << c.note;
 }

@@ -6,9 +6,9 @@
 #include "io/io_error.hpp"
 #include "io/png_io.hpp"
 #include "io/map_files.hpp"
-#include "io/pcd.hpp"
+#include "mobmap/sources/pcd.hpp"
 #include "io/sequence.hpp"
-#include "io/trajectory_files.hpp"
+#include "mobmap/sources/trajectory_files.hpp"
 
 #include "mobmap/mapping/trajectory.hpp"
 #include "mobmap/sim/corridor_scene.hpp"

@@ -19,7 +19,7 @@
 #include "io/dataset.hpp"
 #include "io/config.hpp"
 #include "io/frame_source.hpp"
-#include "io/pcd.hpp"
+#include "mobmap/sources/pcd.hpp"
 
 #include "mobmap/perception/pipeline.hpp"
 #include "mobmap/perception/stages.hpp"
@@ -223,11 +223,11 @@ int main(int argc, char** argv) {
   }
   std::vector<Input> inputs;
   for (const auto& name : {"five_people.pcd", "milk_cartoon_all_small_clorox.pcd", "table_scene_mug_stereo_textured.pcd"}) {
-    const auto f = app::loadPcd(data + "/pcl-kinect/" + name);
+    const auto f = sources::loadPcd(data + "/pcl-kinect/" + name);
     if (f.width == 640 && f.height == 480) inputs.push_back({name, f.points, f.width, f.height});
   }
   for (const auto& e : fs::directory_iterator(data + "/pcl-kinect/grabber_sequences")) {
-    const auto f = app::loadPcd(e.path().string());
+    const auto f = sources::loadPcd(e.path().string());
     if (f.width == 640 && f.height == 480) inputs.push_back({e.path().filename().string(), f.points, f.width, f.height});
   }
   {

@@ -9,20 +9,19 @@ import pytest
 
 import mobmap
 from conftest import run
-from mobmap.frames import read_depth_png, read_gravity, read_intrinsics, seven_scenes_frames
 
 
-def frames(seq):
-    for _, depth, pose in seven_scenes_frames(seq):
-        yield depth, pose
+def millimetres(depth_m):
+    """float32 metres read from a 16-bit PNG, back to its uint16 millimetres."""
+    return np.round(depth_m.astype(np.float64) * 1000.0).astype(np.uint16)
 
 
 def test_a_live_map_saves_the_bytes_mobmap_build_writes(corridor, tmp_path):
-    k = read_intrinsics(corridor["seq"])
-    gravity = read_gravity(corridor["seq"])
-    mapper = mobmap.LiveMapper(gravity_down_world=gravity)
-    for i, (depth, pose) in enumerate(frames(corridor["seq"])):
-        mapper.push(depth, k, pose, stamp=i / 30.0)
+    frames = mobmap.open_recording(str(corridor["seq"]))
+    assert frames.format == "7-Scenes layout" and len(frames) == 30
+    mapper = mobmap.LiveMapper(gravity_down_world=frames.gravity_down)
+    for i, frame in enumerate(frames):
+        mapper.push(frame["depth"], frame["intrinsics"], frame["pose"], stamp=i / 30.0)
     mapper.finish()
     assert mapper.stats()["fused"] == 30
     out = tmp_path / "live.ot"
@@ -33,8 +32,8 @@ def test_a_live_map_saves_the_bytes_mobmap_build_writes(corridor, tmp_path):
 
 
 def test_a_thread_queries_while_another_pushes(corridor):
-    k = read_intrinsics(corridor["seq"])
-    mapper = mobmap.LiveMapper(gravity_down_world=read_gravity(corridor["seq"]))
+    frames = mobmap.open_recording(str(corridor["seq"]))
+    mapper = mobmap.LiveMapper(gravity_down_world=frames.gravity_down)
     pts = np.column_stack([np.linspace(0.8, 3.5, 200), np.zeros(200), np.full(200, 0.01)])
     done = threading.Event()
     seen = []
@@ -53,8 +52,8 @@ def test_a_thread_queries_while_another_pushes(corridor):
 
     t = threading.Thread(target=reader)
     t.start()
-    for depth, pose in frames(corridor["seq"]):
-        mapper.push(depth, k, pose)
+    for frame in frames:  # depth as uint16 millimetres here
+        mapper.push(millimetres(frame["depth"]), frame["intrinsics"], frame["pose"])
     mapper.finish()
     done.set()
     t.join()
@@ -84,12 +83,10 @@ def test_bad_frames_are_value_errors(corridor):
 
 
 def test_analyze_scores_a_frame_as_mobmap_analyze_does(corridor):
-    depth_path = corridor["seq"] / "frame-000005.depth.png"
-    k = read_intrinsics(corridor["seq"])
-    pose = np.loadtxt(corridor["seq"] / "frame-000005.pose.txt")
-    down_world = read_gravity(corridor["seq"])
-    gravity_camera = pose[:3, :3].T @ down_world
-    got = mobmap.analyze(read_depth_png(depth_path), k, gravity=gravity_camera)
+    frames = mobmap.open_recording(str(corridor["seq"]))
+    frame = frames[5]
+    gravity_camera = frame["pose"][:3, :3].T @ np.array(frames.gravity_down)
+    got = mobmap.analyze(frame["depth"], frame["intrinsics"], gravity=gravity_camera)
     want = json.loads(run("analyze", corridor["seq"], "--frame", 5, "--json"))
     segs = got["segments"]
     assert len(segs["points"]) == len(want["segments"]) > 3

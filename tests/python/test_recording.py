@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 import mobmap
-from mobmap.frames import read_depth_png, seven_scenes_frames
 
 FIXTURES = Path(__file__).resolve().parents[1] / "recordings"
 
@@ -32,11 +31,14 @@ def test_a_bag_gives_the_frames_and_poses_of_its_sequence(bag, corridor):
     assert rec.gravity_down == (0.0, 0.0, -1.0)
     assert len(rec) == 30 and rec.frames == list(range(30))
     assert {t["name"] for t in rec.topics} >= {"/tf", "/tf_static", "/camera/depth/camera_info"}
-    truth = list(seven_scenes_frames(corridor["seq"]))
-    for frame, (_, depth_mm, pose) in zip(rec, truth):
-        assert frame["depth"].dtype == np.float32 and frame["depth"].shape == depth_mm.shape
-        np.testing.assert_array_equal(frame["depth"], np.where(depth_mm == 0, 0, depth_mm.astype(np.float32) * np.float32(1e-3)))
-        np.testing.assert_allclose(frame["pose"], pose, atol=1e-9)
+    folder = mobmap.open_recording(str(corridor["seq"]))  # the frames the bag was written from
+    assert folder.format == "7-Scenes layout" and folder.depth_topic is None and folder.topics == []
+    for frame, truth in zip(rec, folder):
+        assert frame["depth"].dtype == np.float32 and frame["depth"].shape == truth["depth"].shape
+        np.testing.assert_array_equal(frame["depth"], truth["depth"])
+        np.testing.assert_allclose(frame["pose"], truth["pose"], atol=1e-9)
+        assert frame["frame_id"] == rec.camera_frame and truth["frame_id"] is None
+        assert isinstance(frame["stamp"], float) and truth["stamp"] is None
     assert rec[7]["number"] == 7
 
 

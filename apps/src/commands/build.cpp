@@ -7,7 +7,7 @@
 #include "io/frame_source.hpp"
 #include "io/io_error.hpp"
 #include "io/map_files.hpp"
-#include "io/openni_source.hpp"
+#include "mobmap/sources/openni.hpp"
 #include "commands/progress.hpp"
 #include "io/sequence.hpp"
 
@@ -155,7 +155,7 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
   };
   if (live || oni) {
     const FrameRange range = parseRange(o->frames);
-    OpenNiOptions on;
+    sources::OpenNiOptions on;
     on.uri = live ? o->device : o->input;
     on.is_file = oni;
     on.intrinsics_spec = o->intrinsics;
@@ -163,11 +163,11 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
     on.max_pose_gap_s = o->max_pose_gap;
     on.first = range.first, on.last = range.last, on.step = range.step;
     on.interrupted = [] { return g_interrupted.load(); };
-    dir = openOpenNi(on);
+    dir = sources::openOpenNi(on);
   }
   std::optional<Eigen::Isometry3d> T_base_camera;  // --extrinsics, read once
   if (is_dir) {
-    if (!dir) dir = openSequence(o->input, o->intrinsics, o->max_pose_gap, o->poses, o->recording);
+    if (!dir) dir = openSequence(o->input, {o->intrinsics, o->max_pose_gap, o->poses, o->recording});
     if (given.depth_scale->count() > 0) dir = withDepthScale(std::move(dir), o->depth_scale);
     if (!o->extrinsics.empty()) {
       if (dir->recording()) throw UsageError("--extrinsics: " + o->input + " is a bag, whose TF tree has its camera's mounting");
@@ -616,7 +616,7 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
     Frame f;
     try {
       f = dir->load(number);
-    } catch (const StreamInterrupted&) {  // Ctrl-C while a live sensor was silent
+    } catch (const sources::StreamInterrupted&) {  // Ctrl-C while a live sensor was silent
       break;
     } catch (const IoError& e) {  // a frame that passed check() but cannot be decoded
       if (live || oni) throw;

@@ -2,7 +2,7 @@
 // The parts of `mobmap build` that are not the run itself (internal to the commands):
 // frame selection, "down" from the floor, and opening a map to extend.
 
-#include "io/frame.hpp"
+#include "io/sequence.hpp"
 #include "io/io_error.hpp"
 #include "io/sequence.hpp"
 

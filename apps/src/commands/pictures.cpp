@@ -7,7 +7,7 @@
 #include "io/frame_source.hpp"
 #include "io/io_error.hpp"
 #include "io/map_files.hpp"
-#include "io/openni_source.hpp"
+#include "mobmap/sources/openni.hpp"
 #include "io/sequence.hpp"
 #include "pictures/top_view.hpp"
 
@@ -206,16 +206,16 @@ Command addOverlayCommand(CLI::App& app) {
     if (ext == ".oni") {
       // Frame n as `build` numbers a recording's depth frames; without poses the camera
       // is static and the map is in its frame, as build made it.
-      OpenNiOptions on;
+      sources::OpenNiOptions on;
       on.uri = input;
       on.is_file = true;
       on.intrinsics_spec = intrinsics;
       on.poses_path = poses;
       on.max_pose_gap_s = max_pose_gap;
       on.first = on.last = n;
-      seq = openOpenNi(on);
+      seq = sources::openOpenNi(on);
     } else {
-      seq = openSequence(input, intrinsics, max_pose_gap, poses, choice);
+      seq = openSequence(input, {intrinsics, max_pose_gap, poses, choice});
     }
     if (!extrinsics.empty() && !seq->recording()) seq = withExtrinsics(std::move(seq), parseExtrinsics(extrinsics));
     // The frames in the depth unit the map's run read them in.

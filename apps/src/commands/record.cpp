@@ -2,7 +2,7 @@
 // with `mobmap build FILE.oni`.
 #include "commands/commands.hpp"
 #include "io/io_error.hpp"
-#include "io/openni_source.hpp"
+#include "mobmap/sources/openni.hpp"
 
 #include <atomic>
 #include <csignal>
@@ -42,7 +42,7 @@ Command addRecordCommand(CLI::App& app) {
     // After the handler is in place: from here Ctrl-C stops the recording and keeps it.
     std::fprintf(stderr, "recording %s to %s (Ctrl-C stops and keeps the frames so far)\n",
                  o->device.empty() ? "the first attached sensor" : o->device.c_str(), o->out.c_str());
-    const int got = recordOni(o->device, o->out, o->frames, 5.0, stopRequested);
+    const int got = sources::recordOni(o->device, o->out, o->frames, 5.0, stopRequested);
     std::signal(SIGINT, SIG_DFL);
     std::printf("recorded %d depth frames to %s%s\n", got, o->out.c_str(), g_stop.load() ? " (stopped by Ctrl-C)" : "");
     return 0;

@@ -1,6 +1,6 @@
 #include "commands/recording_info.hpp"
 
-#include "io/recording_sequence.hpp"
+#include "mobmap/sources/sequence.hpp"
 
 #include "mobmap/sources/recording.hpp"
 
@@ -11,7 +11,7 @@
 namespace mobmap::app {
 
 int describeRecording(const std::string& path, const RecordingChoice& choice, double max_pose_gap_s, bool json) {
-  sources::RecordingOptions o = recordingOptions(choice, max_pose_gap_s);
+  sources::RecordingOptions o = sources::recordingOptions(choice, max_pose_gap_s);
   o.describe_only = true;
   const auto rec = sources::Recording::open(path, o);
   const bool chosen = rec->problem().empty();

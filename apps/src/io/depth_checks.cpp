@@ -20,6 +20,55 @@ void scaleDepth(std::vector<float>& depth_m, std::vector<Eigen::Vector3f>& point
   for (Eigen::Vector3f& p : points) p *= factor;
 }
 
+namespace {
+
+// A sequence read in another depth unit (`--depth-scale`).
+class ScaledSequence : public sources::Sequence {
+ public:
+  ScaledSequence(std::unique_ptr<sources::Sequence> inner, double units_per_m, float factor)
+      : inner_(std::move(inner)), unit_{units_per_m, inner_->depthUnit().cloud}, factor_(factor) {}
+  [[nodiscard]] std::string describe() const override { return inner_->describe(); }
+  [[nodiscard]] std::string format() const override { return inner_->format(); }
+  [[nodiscard]] const perception::PinholeIntrinsics& intrinsics() const override { return inner_->intrinsics(); }
+  [[nodiscard]] bool hasDepth() const override { return inner_->hasDepth(); }
+  [[nodiscard]] std::optional<Eigen::Vector3d> gravityDown() const override { return inner_->gravityDown(); }
+  [[nodiscard]] std::string gravitySource() const override { return inner_->gravitySource(); }
+  [[nodiscard]] const sources::Recording* recording() const override { return inner_->recording(); }
+  [[nodiscard]] bool posed() const override { return inner_->posed(); }
+  [[nodiscard]] const std::vector<int>& frames() const override { return inner_->frames(); }
+  void check(int n) const override { inner_->check(n); }
+  [[nodiscard]] sources::Frame load(int n) const override {
+    sources::Frame f = inner_->load(n);
+    scaleFrame(f, factor_, unit_.units_per_m);
+    return f;
+  }
+  [[nodiscard]] std::optional<Eigen::Isometry3d> pose(int n) const override { return inner_->pose(n); }
+  [[nodiscard]] std::optional<sources::ImageRgb> colour(int n) const override { return inner_->colour(n); }
+  [[nodiscard]] std::vector<std::string> files(int n) const override { return inner_->files(n); }
+  [[nodiscard]] std::string skipped() const override { return inner_->skipped(); }
+  [[nodiscard]] DepthUnit depthUnit() const override { return unit_; }
+
+ private:
+  std::unique_ptr<sources::Sequence> inner_;
+  DepthUnit unit_;
+  float factor_;
+};
+
+}  // namespace
+
+void scaleFrame(sources::Frame& f, float factor, double units_per_m) {
+  std::vector<float> no_depth;
+  scaleDepth(f.depth ? f.depth->depth_m : no_depth, f.points, factor);
+  if (f.T_cloud_camera) f.T_cloud_camera->translation() *= static_cast<double>(factor);
+  f.depth_unit.units_per_m = units_per_m;
+}
+
+std::unique_ptr<sources::Sequence> withDepthScale(std::unique_ptr<sources::Sequence> seq, double units_per_m) {
+  const float factor = depthRescaleFactor(seq->depthUnit(), units_per_m);
+  if (seq->depthUnit().units_per_m == units_per_m) return seq;
+  return std::make_unique<ScaledSequence>(std::move(seq), units_per_m, factor);
+}
+
 std::optional<std::string> depthUnitProblem(const perception::RangeReport& r, const DepthUnit& unit) {
   constexpr std::size_t kMinValid = 100;  // fewer: nothing to judge by
   if (r.valid_points < kMinValid) return std::nullopt;

@@ -4,22 +4,20 @@
 // `build`, which print what these return.
 
 #include "mobmap/perception/frame_result.hpp"
+#include "mobmap/sources/frame.hpp"
+#include "mobmap/sources/sequence.hpp"
 
 #include <Eigen/Core>
 
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 namespace mobmap::app {
 
-/// The depth a command read a frame with: `units_per_m` of the input's depth values (or
-/// cloud coordinates) to a metre, and whether it came as a cloud (whose coordinates are
-/// scaled) rather than a depth image.
-struct DepthUnit {
-  double units_per_m = 1000.0;
-  bool cloud = false;
-};
+/// The depth a command read a frame with (the library's, sources/frame.hpp).
+using sources::DepthUnit;
 
 /// `--depth-scale`: the factor that takes depth (or cloud coordinates) read at
 /// `from.units_per_m` to a reading at `units_per_m`. UsageError unless `units_per_m` is
@@ -28,6 +26,16 @@ float depthRescaleFactor(const DepthUnit& from, double units_per_m);
 
 /// Multiplies depth values and cloud points by `factor` (depthRescaleFactor).
 void scaleDepth(std::vector<float>& depth_m, std::vector<Eigen::Vector3f>& points, float factor);
+
+/// `f`'s depth (or cloud coordinates, and the camera offset of a cloud in another frame)
+/// multiplied by `factor`: read at `units_per_m` instead (depthRescaleFactor gives the
+/// factor).
+void scaleFrame(sources::Frame& f, float factor, double units_per_m);
+
+/// `seq` with its depth read at `units_per_m` instead of its own unit (depth and cloud
+/// coordinates multiplied by own / units_per_m; poses unchanged). `seq` itself when the
+/// two agree. UsageError unless `units_per_m` is positive and finite.
+std::unique_ptr<sources::Sequence> withDepthScale(std::unique_ptr<sources::Sequence> seq, double units_per_m);
 
 /// Depth cameras see about this far: a frame whose median valid depth lies outside is
 /// taken to be in another unit.

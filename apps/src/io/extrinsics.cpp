@@ -78,6 +78,7 @@ class ExtrinsicSequence : public Sequence {
  public:
   ExtrinsicSequence(std::unique_ptr<Sequence> inner, const Eigen::Isometry3d& T) : inner_(std::move(inner)), T_(T) {}
   std::string describe() const override { return inner_->describe() + ", the camera at --extrinsics on the posed frame"; }
+  std::string format() const override { return inner_->format(); }
   const perception::PinholeIntrinsics& intrinsics() const override { return inner_->intrinsics(); }
   bool hasDepth() const override { return inner_->hasDepth(); }
   std::optional<Eigen::Vector3d> gravityDown() const override { return inner_->gravityDown(); }

@@ -1,5 +1,8 @@
 #pragma once
-// Small file helpers: whole-file reads and atomic writes (temporary file + rename).
+// Small file helpers: atomic writes (temporary file + rename), inputs kept from being
+// written over; whole-file reads and numbers in text are the library's (text.hpp).
+
+#include "mobmap/sources/text.hpp"
 
 #include <functional>
 #include <optional>
@@ -8,8 +11,9 @@
 
 namespace mobmap::app {
 
-/// Reads a whole file; IoError if it cannot be opened or is larger than max_bytes.
-std::string readTextFile(const std::string& path, std::size_t max_bytes = 64u << 20);
+using sources::parseFiniteNumber;
+using sources::readTextFile;
+using sources::splitNumbers;
 
 /// Calls `write(temporary_path)` and then renames the temporary file over `path`, so
 /// `path` is either the old file or the complete new one, never half written. The
@@ -52,11 +56,5 @@ void refuseToOverwriteInputs(const std::vector<NamedPath>& outputs, const std::v
 
 /// writeAtomically() for text.
 void writeTextFileAtomically(const std::string& path, const std::string& text);
-
-/// The whole of `token` as a finite number, else nullopt ("1e3" yes; "1x", "", "nan" no).
-std::optional<double> parseFiniteNumber(const std::string& token);
-
-/// Comma-separated finite numbers ("585,585,320,240"); empty if any cell is not one.
-std::vector<double> splitNumbers(const std::string& spec);
 
 }  // namespace mobmap::app

@@ -3,7 +3,7 @@
 #include "io/dataset.hpp"
 #include "io/files.hpp"
 #include "io/io_error.hpp"
-#include "io/pcd.hpp"
+#include "mobmap/sources/pcd.hpp"
 #include "io/png_io.hpp"
 #include "io/sequence.hpp"
 
@@ -56,7 +56,7 @@ Frame loadSingleFrame(const std::string& input, int frame, const std::string& in
   namespace fs = std::filesystem;
   std::error_code ec;
   if (sources::isRecording(input)) {
-    const auto seq = openSequence(input, intrinsics_spec, 0.05, "", choice);
+    const auto seq = openSequence(input, {intrinsics_spec, 0.05, "", choice});
     if (seq->frames().empty()) throw IoError(input, "none of its depth images has a pose (" + seq->skipped() + ")");
     Frame f = loadSequenceFrame(*seq, input, frame < 0 ? seq->frames().front() : frame);
     f.description = "depth image " + std::to_string(f.number) + " of " + seq->describe();
@@ -67,7 +67,7 @@ Frame loadSingleFrame(const std::string& input, int frame, const std::string& in
   if (tum || (!fs::is_directory(input, ec) && (ext == ".pcd" || ext == ".png"))) {
     // TUM RGB-D (frames numbered as build numbers them: the depth frames with a pose), or
     // a single file, a sequence of one frame.
-    const auto seq = openSequence(input, intrinsics_spec, 0.05);
+    const auto seq = openSequence(input, {intrinsics_spec, 0.05, "", {}});
     Frame f = loadSequenceFrame(*seq, input, frame < 0 ? seq->frames().front() : frame);
     if (tum) f.description += " (TUM RGB-D)";
     return f;

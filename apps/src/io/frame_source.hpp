@@ -3,7 +3,7 @@
 // sequence (a single file is a sequence of one frame), one of its frames loaded, and
 // what is done with a frame before and after the pipeline.
 
-#include "io/frame.hpp"
+#include "io/sequence.hpp"
 #include "io/sequence.hpp"
 
 #include "mobmap/perception/camera.hpp"

@@ -4,16 +4,11 @@
 
 #include "mobmap/sources/io_error.hpp"
 
-#include <stdexcept>
-
 namespace mobmap::app {
 
 using sources::IoError;
-
-/// A mistake on the command line (exit code 2).
-class UsageError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
+/// A mistake on the command line (exit code 2); the library throws it for an invalid
+/// argument too.
+using sources::UsageError;
 
 }  // namespace mobmap::app

@@ -1,15 +1,15 @@
 #pragma once
-// OpenNI2 inputs for `mobmap build` and `mobmap record`: a live depth sensor or an .oni
-// recording, read through OpenNI2 (Debian's libopenni2).
+// OpenNI2 inputs: a live depth sensor or an .oni recording as a Sequence, read through
+// OpenNI2 (Debian's libopenni2), and recording a sensor to an .oni file.
 
-#include "io/sequence.hpp"
+#include "mobmap/sources/sequence.hpp"
 
 #include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
 
-namespace mobmap::app {
+namespace mobmap::sources {
 
 struct OpenNiOptions {
   /// A device URI, "" for the first attached sensor, or (with is_file) an .oni path.
@@ -48,4 +48,4 @@ std::unique_ptr<Sequence> openOpenNi(const OpenNiOptions& options);
 int recordOni(const std::string& device_uri, const std::string& out_path, int frames, double frame_timeout_s,
               bool (*interrupted)());
 
-}  // namespace mobmap::app
+}  // namespace mobmap::sources

@@ -1,7 +1,7 @@
-#include "io/trajectory_files.hpp"
+#include "mobmap/sources/trajectory_files.hpp"
 
-#include "io/files.hpp"
-#include "io/io_error.hpp"
+#include "mobmap/sources/io_error.hpp"
+#include "mobmap/sources/text.hpp"
 
 #include "mobmap/mapping/gravity.hpp"
 
@@ -11,7 +11,7 @@
 #include <filesystem>
 #include <sstream>
 
-namespace mobmap::app {
+namespace mobmap::sources {
 
 namespace fs = std::filesystem;
 
@@ -103,4 +103,4 @@ std::optional<double> timestampFromFileName(const std::string& path) {
   return parseFiniteNumber(stem.substr(b));
 }
 
-}  // namespace mobmap::app
+}  // namespace mobmap::sources

@@ -1,23 +1,22 @@
-#include "io/sequence.hpp"
+#include "mobmap/sources/sequence.hpp"
 
-#include "io/dataset.hpp"
-#include "io/files.hpp"
-#include "io/io_error.hpp"
-#include "io/pcd.hpp"
-#include "io/png_io.hpp"
-#include "io/recording_sequence.hpp"
-#include "io/trajectory_files.hpp"
+#include "recording_sequence.hpp"
 
 #include "mobmap/mapping/gravity.hpp"
 #include "mobmap/mapping/trajectory.hpp"
 #include "mobmap/perception/camera.hpp"
+#include "mobmap/sources/dataset.hpp"
+#include "mobmap/sources/io_error.hpp"
+#include "mobmap/sources/openni.hpp"
+#include "mobmap/sources/pcd.hpp"
+#include "mobmap/sources/trajectory_files.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <sstream>
 
-namespace mobmap::app {
+namespace mobmap::sources {
 namespace {
 
 namespace fs = std::filesystem;
@@ -25,6 +24,7 @@ namespace fs = std::filesystem;
 class SevenScenesSequence : public Sequence {
  public:
   SevenScenesSequence(const std::string& dir, const std::string& intrinsics_spec) : dir_(dir, intrinsics_spec) {}
+  std::string format() const override { return "7-Scenes layout"; }
   std::string describe() const override { return dir_.dir() + " (7-Scenes layout, " + std::to_string(dir_.frameNumbers().size()) + " frames)"; }
   const perception::PinholeIntrinsics& intrinsics() const override { return dir_.intrinsics(); }
   std::optional<Eigen::Vector3d> gravityDown() const override { return dir_.gravityDown(); }
@@ -84,7 +84,7 @@ class PcdSequence : public Sequence {
     const auto list = readTumPoses(poses);
     if (list.empty()) throw IoError(poses, "no poses in this file");
     if (list.size() == files.size()) {
-      for (std::size_t i = 0; i < files.size(); ++i) add(files[i], list[i].second);
+      for (std::size_t i = 0; i < files.size(); ++i) add(files[i], list[i].second, timestampFromFileName(files[i]));
       how_ = "one pose per frame in file-name order";
     } else {
       mapping::Trajectory trajectory;
@@ -102,7 +102,7 @@ class PcdSequence : public Sequence {
         first_t = &f == &files.front() ? *t : std::min(first_t, *t);
         last_t = &f == &files.front() ? *t : std::max(last_t, *t);
         if (auto T = trajectory.at(*t, max_gap)) {
-          add(f, *T);
+          add(f, *T, t);
         } else {
           ++skipped;
         }
@@ -138,6 +138,7 @@ class PcdSequence : public Sequence {
       }
     }
   }
+  std::string format() const override { return ".pcd frames"; }
   std::string describe() const override {
     std::ostringstream s;
     s << input_ << " (" << entries_.size() << " .pcd frames, " << how_ << " from " << poses_path_;
@@ -170,6 +171,7 @@ class PcdSequence : public Sequence {
     Frame f;
     f.number = n;
     f.T_world_camera = e.pose;
+    f.stamp_s = e.t;
     if (T_cloud_camera_) {
       toCameraFrame(lf.points, *T_cloud_camera_);
       f.T_world_camera = e.pose * *T_cloud_camera_;
@@ -219,10 +221,11 @@ class PcdSequence : public Sequence {
   struct Entry {
     std::string path;
     Eigen::Isometry3d pose;
+    std::optional<double> t;  ///< the time stamp in its name
   };
-  void add(const std::string& path, const Eigen::Isometry3d& T) {
+  void add(const std::string& path, const Eigen::Isometry3d& T, std::optional<double> t) {
     frames_.push_back(static_cast<int>(entries_.size()));
-    entries_.push_back({path, T});
+    entries_.push_back({path, T, t});
   }
   std::optional<Eigen::Isometry3d> T_cloud_camera_;  // when its points are not in the camera frame
   std::string input_, poses_path_, how_, skipped_;
@@ -265,6 +268,7 @@ class TumSequence : public Sequence {
     k_ = intrinsics_spec.empty() ? perception::PinholeIntrinsics{first.width, first.height, 525.0, 525.0, 319.5, 239.5}
                                  : parseIntrinsics(intrinsics_spec, first.width, first.height);
   }
+  std::string format() const override { return "TUM RGB-D"; }
   std::string describe() const override { return dir_ + " (TUM RGB-D, " + std::to_string(entries_.size()) + " posed frames)"; }
   const perception::PinholeIntrinsics& intrinsics() const override { return k_; }
   std::optional<Eigen::Vector3d> gravityDown() const override { return std::nullopt; }
@@ -287,6 +291,7 @@ class TumSequence : public Sequence {
     f.depth = perception::DepthImage(img.width, img.height);
     for (std::size_t i = 0; i < img.pixels.size(); ++i) f.depth->depth_m[i] = static_cast<float>(img.pixels[i]) / 5000.f;  // TUM: 5000 per metre
     f.T_world_camera = e.pose;
+    f.stamp_s = e.t;
     return f;
   }
   std::optional<ImageRgb> colour(int n) const override {
@@ -334,6 +339,7 @@ class SingleFileSequence : public Sequence {
     if (!fs::exists(input, ec)) throw IoError(input, "no such file");
     if (fs::path(input).extension() == ".pcd") {
       frame_ = loadPcd(input);
+      format_ = ".pcd file";
       return;
     }
     // Without --intrinsics, a camera-intrinsics.txt beside the PNG (as in a 7-Scenes
@@ -351,6 +357,7 @@ class SingleFileSequence : public Sequence {
     frame_.depth = readDepthPng(input);
     frame_.intrinsics = parseIntrinsics(spec, frame_.depth->width, frame_.depth->height);
   }
+  std::string format() const override { return format_; }
   std::string describe() const override { return frame_.description; }
   const perception::PinholeIntrinsics& intrinsics() const override { return frame_.intrinsics; }
   bool hasDepth() const override { return frame_.depth.has_value(); }
@@ -364,68 +371,30 @@ class SingleFileSequence : public Sequence {
   DepthUnit depthUnit() const override { return frame_.depth_unit; }
 
  private:
+  std::string format_ = "depth PNG";
   Frame frame_;
   std::vector<int> frames_{0};
 };
 
 }  // namespace
 
-namespace {
-
-// A sequence read in another depth unit (`--depth-scale`).
-class ScaledSequence : public Sequence {
- public:
-  ScaledSequence(std::unique_ptr<Sequence> inner, double units_per_m, float factor)
-      : inner_(std::move(inner)), unit_{units_per_m, inner_->depthUnit().cloud}, factor_(factor) {}
-  [[nodiscard]] std::string describe() const override { return inner_->describe(); }
-  [[nodiscard]] const perception::PinholeIntrinsics& intrinsics() const override { return inner_->intrinsics(); }
-  [[nodiscard]] bool hasDepth() const override { return inner_->hasDepth(); }
-  [[nodiscard]] std::optional<Eigen::Vector3d> gravityDown() const override { return inner_->gravityDown(); }
-  [[nodiscard]] std::string gravitySource() const override { return inner_->gravitySource(); }
-  [[nodiscard]] const sources::Recording* recording() const override { return inner_->recording(); }
-  [[nodiscard]] bool posed() const override { return inner_->posed(); }
-  [[nodiscard]] const std::vector<int>& frames() const override { return inner_->frames(); }
-  void check(int n) const override { inner_->check(n); }
-  [[nodiscard]] Frame load(int n) const override {
-    Frame f = inner_->load(n);
-    scaleFrame(f, factor_, unit_.units_per_m);
-    return f;
-  }
-  [[nodiscard]] std::optional<Eigen::Isometry3d> pose(int n) const override { return inner_->pose(n); }
-  [[nodiscard]] std::optional<ImageRgb> colour(int n) const override { return inner_->colour(n); }
-  [[nodiscard]] std::vector<std::string> files(int n) const override { return inner_->files(n); }
-  [[nodiscard]] std::string skipped() const override { return inner_->skipped(); }
-  [[nodiscard]] DepthUnit depthUnit() const override { return unit_; }
-
- private:
-  std::unique_ptr<Sequence> inner_;
-  DepthUnit unit_;
-  float factor_;
-};
-
-}  // namespace
-
-void scaleFrame(Frame& f, float factor, double units_per_m) {
-  std::vector<float> no_depth;
-  scaleDepth(f.depth ? f.depth->depth_m : no_depth, f.points, factor);
-  if (f.T_cloud_camera) f.T_cloud_camera->translation() *= static_cast<double>(factor);
-  f.depth_unit.units_per_m = units_per_m;
-}
-
-std::unique_ptr<Sequence> withDepthScale(std::unique_ptr<Sequence> seq, double units_per_m) {
-  const float factor = depthRescaleFactor(seq->depthUnit(), units_per_m);
-  if (seq->depthUnit().units_per_m == units_per_m) return seq;
-  return std::make_unique<ScaledSequence>(std::move(seq), units_per_m, factor);
-}
-
-std::unique_ptr<Sequence> openSequence(const std::string& input, const std::string& intrinsics_spec, double max_pose_gap_s,
-                                       const std::string& poses_path, const RecordingChoice& choice) {
+std::unique_ptr<Sequence> openSequence(const std::string& input, const SequenceOptions& options) {
+  const std::string& intrinsics_spec = options.intrinsics;
+  const std::string& poses_path = options.poses;
+  const double max_pose_gap_s = options.max_pose_gap_s;
   std::error_code ec;
-  if (sources::isRecording(input)) {
-    return openRecordingSequence(input, choice, intrinsics_spec, max_pose_gap_s, poses_path);
-  }
+  if (isRecording(input)) return openRecordingSequence(input, options);
   if (!fs::is_directory(input, ec)) {
     const fs::path ext = fs::path(input).extension();
+    if (ext == ".oni") {  // every frame, read in order
+      OpenNiOptions on;
+      on.uri = input;
+      on.is_file = true;
+      on.intrinsics_spec = intrinsics_spec;
+      on.poses_path = poses_path;
+      on.max_pose_gap_s = max_pose_gap_s;
+      return openOpenNi(on);
+    }
     if (ext == ".pcd" && !poses_path.empty()) {
       return std::make_unique<PcdSequence>(input, intrinsics_spec, max_pose_gap_s, poses_path);
     }
@@ -451,4 +420,4 @@ std::unique_ptr<Sequence> openSequence(const std::string& input, const std::stri
   return std::make_unique<SevenScenesSequence>(input, intrinsics_spec);
 }
 
-}  // namespace mobmap::app
+}  // namespace mobmap::sources

@@ -1,11 +1,9 @@
 #pragma once
 // One depth frame as every reader gives it: a frame of a sequence (7-Scenes, TUM, .pcd
-// frames, OpenNI2) or a single file, which is a sequence of one frame.
-
-#include "io/depth_checks.hpp"
-#include "io/png_io.hpp"
+// frames, a recording, OpenNI2) or a single file, which is a sequence of one frame.
 
 #include "mobmap/perception/camera.hpp"
+#include "mobmap/sources/png.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -14,7 +12,15 @@
 #include <string>
 #include <vector>
 
-namespace mobmap::app {
+namespace mobmap::sources {
+
+/// The unit depth was read in: `units_per_m` of the input's depth values (or cloud
+/// coordinates) to a metre, and whether it came as a cloud (whose coordinates are
+/// scaled) rather than a depth image.
+struct DepthUnit {
+  double units_per_m = 1000.0;
+  bool cloud = false;
+};
 
 struct Frame {
   int number = 0;           ///< in its sequence, as `build --frames` numbers them
@@ -35,6 +41,9 @@ struct Frame {
   /// The files it was read from (depth image or cloud, pose file), which a command must
   /// not write over.
   std::vector<std::string> sources;
+  /// When it was taken, in seconds (a TUM or bag stamp, a time in a file name, a
+  /// sensor's clock); unset when the input does not say.
+  std::optional<double> stamp_s;
   /// For the user, when loading chose something they did not ask for (empty if not).
   std::string note;
   /// The unit the depth (or the cloud's coordinates) was read in.
@@ -45,4 +54,4 @@ struct Frame {
   std::optional<Eigen::Isometry3d> T_cloud_camera;
 };
 
-}  // namespace mobmap::app
+}  // namespace mobmap::sources

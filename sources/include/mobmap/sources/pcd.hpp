@@ -2,7 +2,7 @@
 // PCD files (PCL's reader, checked against hostile headers first), and the pinhole
 // camera behind an organized cloud, fitted from its pixel grid.
 
-#include "io/frame.hpp"
+#include "mobmap/sources/frame.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-namespace mobmap::app {
+namespace mobmap::sources {
 
 /// Reads a PCD file (x y z, optional rgb/rgba) with PCL. IoError naming the file if it
 /// is missing, unreadable, has no x/y/z fields or fewer points than declared. With
@@ -48,4 +48,4 @@ void toCameraFrame(std::vector<Eigen::Vector3f>& points, const Eigen::Isometry3d
 /// camera's frame is left alone.
 void recoverCameraFrame(Frame& f, const std::string& path);
 
-}  // namespace mobmap::app
+}  // namespace mobmap::sources

@@ -1,10 +1,8 @@
-#include "io/openni_source.hpp"
+#include "mobmap/sources/openni.hpp"
 
-#include "io/dataset.hpp"
-#include "io/files.hpp"
-#include "io/frame_source.hpp"
-#include "io/io_error.hpp"
-#include "io/trajectory_files.hpp"
+#include "mobmap/sources/dataset.hpp"
+#include "mobmap/sources/io_error.hpp"
+#include "mobmap/sources/trajectory_files.hpp"
 
 #include "mobmap/mapping/trajectory.hpp"
 
@@ -22,7 +20,7 @@
 
 #include <unistd.h>
 
-namespace mobmap::app {
+namespace mobmap::sources {
 namespace {
 
 namespace fs = std::filesystem;
@@ -162,6 +160,7 @@ class OpenNiSequence : public Sequence {
   }
   ~OpenNiSequence() override = default;  // handles_ stops the stream and parks it
 
+  std::string format() const override { return "OpenNI2"; }
   std::string describe() const override {
     std::ostringstream s;
     s << name_ << " (OpenNI2 " << (o_.is_file ? ".oni recording of " + std::to_string(recorded_) + " depth frames" : "live sensor")
@@ -278,9 +277,9 @@ class OpenNiSequence : public Sequence {
       const auto* row = reinterpret_cast<const openni::DepthPixel*>(bytes + static_cast<std::ptrdiff_t>(v) * stride);
       for (int u = 0; u < k_.width; ++u) out.depth->at(u, v) = static_cast<float>(row[u]) * scale_;
     }
+    out.stamp_s = static_cast<double>(f.getTimestamp()) * 1e-6;  // the device's clock
     if (trajectory_.size() > 0) {
-      const double t = static_cast<double>(f.getTimestamp()) * 1e-6;
-      out.T_world_camera = trajectory_.at(t, o_.max_pose_gap_s);  // unset: no pose within the gap
+      out.T_world_camera = trajectory_.at(*out.stamp_s, o_.max_pose_gap_s);  // unset: no pose within the gap
     } else {
       out.T_world_camera = Eigen::Isometry3d::Identity();  // a static camera
     }
@@ -367,4 +366,4 @@ int recordOni(const std::string& device_uri, const std::string& out_path, int fr
   return got;
 }
 
-}  // namespace mobmap::app
+}  // namespace mobmap::sources

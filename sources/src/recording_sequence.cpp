@@ -1,17 +1,17 @@
-#include "io/recording_sequence.hpp"
-
-#include "io/dataset.hpp"
-#include "io/trajectory_files.hpp"
+#include "recording_sequence.hpp"
 
 #include "mobmap/mapping/trajectory.hpp"
+#include "mobmap/sources/dataset.hpp"
+#include "mobmap/sources/trajectory_files.hpp"
 
-namespace mobmap::app {
+namespace mobmap::sources {
 namespace {
 
 class RecordingSequence : public Sequence {
  public:
-  explicit RecordingSequence(std::unique_ptr<sources::Recording> r) : r_(std::move(r)) {}
+  explicit RecordingSequence(std::unique_ptr<Recording> r) : r_(std::move(r)) {}
 
+  std::string format() const override { return r_->format(); }
   std::string describe() const override {
     std::string text = r_->path() + " (" + r_->format() + ": depth " + r_->depthTopic() + ", " +
                        std::to_string(r_->frames().size()) + " of " + std::to_string(r_->imageCount()) + " images posed " +
@@ -26,11 +26,12 @@ class RecordingSequence : public Sequence {
   const std::vector<int>& frames() const override { return r_->frames(); }
   void check(int /*n*/) const override {}  // the first image was decoded at open; each is checked as it is read
   Frame load(int n) const override {
-    sources::RecordingFrame rf = r_->load(n);
+    RecordingFrame rf = r_->load(n);
     Frame f;
     f.number = n;
     f.depth = std::move(rf.depth);
     f.T_world_camera = rf.T_world_camera;
+    f.stamp_s = static_cast<double>(rf.stamp_ns) * 1e-9;
     return f;
   }
   std::optional<Eigen::Isometry3d> pose(int n) const override { return r_->pose(n); }
@@ -44,16 +45,16 @@ class RecordingSequence : public Sequence {
     return text;
   }
   DepthUnit depthUnit() const override { return {r_->depthUnitsPerMetre(), false}; }
-  const sources::Recording* recording() const override { return r_.get(); }
+  const Recording* recording() const override { return r_.get(); }
 
  private:
-  std::unique_ptr<sources::Recording> r_;
+  std::unique_ptr<Recording> r_;
 };
 
 }  // namespace
 
-sources::RecordingOptions recordingOptions(const RecordingChoice& choice, double max_pose_gap_s) {
-  sources::RecordingOptions o;
+RecordingOptions recordingOptions(const RecordingChoice& choice, double max_pose_gap_s) {
+  RecordingOptions o;
   o.depth_topic = choice.depth_topic;
   o.camera_info_topic = choice.camera_info_topic;
   o.world_frame = choice.world_frame;
@@ -62,10 +63,11 @@ sources::RecordingOptions recordingOptions(const RecordingChoice& choice, double
   return o;
 }
 
-std::unique_ptr<Sequence> openRecordingSequence(const std::string& path, const RecordingChoice& choice,
-                                                const std::string& intrinsics_spec, double max_pose_gap_s,
-                                                const std::string& poses_path) {
-  sources::RecordingOptions o = recordingOptions(choice, max_pose_gap_s);
+std::unique_ptr<Sequence> openRecordingSequence(const std::string& path, const SequenceOptions& options) {
+  RecordingOptions o = recordingOptions(options.recording, options.max_pose_gap_s);
+  const std::string& intrinsics_spec = options.intrinsics;
+  const std::string& poses_path = options.poses;
+  const double max_pose_gap_s = options.max_pose_gap_s;
   if (!intrinsics_spec.empty()) {
     o.intrinsics = [intrinsics_spec](int width, int height) { return parseIntrinsics(intrinsics_spec, width, height); };
   }
@@ -77,7 +79,7 @@ std::unique_ptr<Sequence> openRecordingSequence(const std::string& path, const R
       return trajectory->at(static_cast<double>(stamp_ns) * 1e-9, max_pose_gap_s);
     };
   }
-  return std::make_unique<RecordingSequence>(sources::Recording::open(path, o));
+  return std::make_unique<RecordingSequence>(Recording::open(path, o));
 }
 
-}  // namespace mobmap::app
+}  // namespace mobmap::sources

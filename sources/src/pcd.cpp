@@ -1,7 +1,7 @@
-#include "io/pcd.hpp"
+#include "mobmap/sources/pcd.hpp"
 
-#include "io/io_error.hpp"
-#include "io/png_io.hpp"
+#include "mobmap/sources/io_error.hpp"
+#include "mobmap/sources/png.hpp"
 
 #include "mobmap/perception/camera.hpp"
 
@@ -18,7 +18,7 @@
 #include <sstream>
 #include <vector>
 
-namespace mobmap::app {
+namespace mobmap::sources {
 
 namespace {
 
@@ -302,4 +302,4 @@ void recoverCameraFrame(Frame& f, const std::string& path) {
   f.note = text;
 }
 
-}  // namespace mobmap::app
+}  // namespace mobmap::sources

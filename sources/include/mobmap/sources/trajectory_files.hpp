@@ -9,7 +9,7 @@
 #include <utility>
 #include <vector>
 
-namespace mobmap::app {
+namespace mobmap::sources {
 
 /// "timestamp value..." lines with exactly `fields` values after the time stamp; blank
 /// lines and '#' comments are skipped. IoError naming the file and line otherwise.
@@ -25,4 +25,4 @@ std::vector<std::pair<double, Eigen::Isometry3d>> readTumPoses(const std::string
 /// 1305031102.175304.pcd. nullopt when there is none.
 std::optional<double> timestampFromFileName(const std::string& path);
 
-}  // namespace mobmap::app
+}  // namespace mobmap::sources
