@@ -134,6 +134,7 @@ class PcdSequence : public Sequence {
         k_ = camera->intrinsics;
         depth_ = true;
         fit_rms_ = camera->rms_px;
+        fit_share_ = camera->inlier_share;
         T_cloud_camera_ = camera->T_cloud_camera;
       }
     }
@@ -144,7 +145,7 @@ class PcdSequence : public Sequence {
     s << input_ << " (" << entries_.size() << " .pcd frames, " << how_ << " from " << poses_path_;
     if (depth_) {
       s << "; pinhole fx " << k_.fx << " fy " << k_.fy << " cx " << k_.cx << " cy " << k_.cy;
-      if (fit_rms_) s << " fitted to the first frame, RMS " << *fit_rms_ << " px";
+      if (fit_rms_) s << " fitted to the first frame, RMS " << *fit_rms_ << " px over the " << 100.0 * fit_share_ << " % of its points on their rays";
       if (T_cloud_camera_) {
         s << "; its points are in a frame turned " << Eigen::AngleAxisd(T_cloud_camera_->linear()).angle() * 180.0 / M_PI
           << " degrees from the camera's, which the poses are taken to be of";
@@ -172,10 +173,7 @@ class PcdSequence : public Sequence {
     f.number = n;
     f.T_world_camera = e.pose;
     f.stamp_s = e.t;
-    if (T_cloud_camera_) {
-      toCameraFrame(lf.points, *T_cloud_camera_);
-      f.T_world_camera = e.pose * *T_cloud_camera_;
-    }
+    if (T_cloud_camera_) f.T_world_camera = e.pose * *T_cloud_camera_;
     if (!depth_) {
       f.points = std::move(lf.points);
       f.width = lf.width;
@@ -186,22 +184,19 @@ class PcdSequence : public Sequence {
       throw IoError(e.path, "cloud is " + std::to_string(lf.width) + "x" + std::to_string(lf.height) +
                                 " but the sequence's frames are " + std::to_string(k_.width) + "x" + std::to_string(k_.height));
     }
+    // Placeholders and points off their rays are no depth; a frame with many off their
+    // rays is not the first frame's pinhole image.
+    const StrayPoints stray = toCameraImage(lf.points, lf.width, CloudCamera{k_, 0.0, 1.0, T_cloud_camera_});
+    if (stray.measured > 0 &&
+        static_cast<double>(stray.off_ray) > (1.0 - kMinCameraInlierShare) * static_cast<double>(stray.measured)) {
+      throw IoError(e.path, "its points are not a pinhole image with the intrinsics of the first frame (" +
+                                std::to_string(stray.off_ray) + " of its " + std::to_string(stray.measured) +
+                                " points lie off their pixels' rays); map such clouds one at a time");
+    }
     f.depth = perception::DepthImage(lf.width, lf.height);
-    double worst_px = 0.0;
     for (std::size_t i = 0; i < lf.points.size(); ++i) {
       const Eigen::Vector3f& p = lf.points[i];
-      const bool valid = p.allFinite() && p.z() > 0.f;
-      f.depth->depth_m[i] = valid ? p.z() : 0.f;
-      if (valid && i % 97 == 0) {  // a sample: is this frame still the first one's pinhole image?
-        const auto uv = perception::project(k_, p.cast<double>());
-        const double u = static_cast<double>(i % static_cast<std::size_t>(lf.width));
-        const double v = static_cast<double>(i / static_cast<std::size_t>(lf.width));
-        if (uv) worst_px = std::max(worst_px, std::max(std::abs(uv->x() - u), std::abs(uv->y() - v)));
-      }
-    }
-    if (worst_px > 1.0) {
-      throw IoError(e.path, "its points are not a pinhole image with the intrinsics of the first frame (a point lies " +
-                                std::to_string(worst_px) + " px from its pixel); map such clouds one at a time");
+      f.depth->depth_m[i] = p.allFinite() && p.z() > 0.f ? p.z() : 0.f;
     }
     return f;
   }
@@ -234,6 +229,7 @@ class PcdSequence : public Sequence {
   perception::PinholeIntrinsics k_;
   bool depth_ = false;
   std::optional<double> fit_rms_;
+  double fit_share_ = 1.0;
 };
 
 class TumSequence : public Sequence {

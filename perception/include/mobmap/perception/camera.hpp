@@ -79,6 +79,15 @@ std::vector<Eigen::Vector3d> depthToPoints(const DepthImage& depth, const Pinhol
 std::optional<PinholeIntrinsics> fitIntrinsics(const std::vector<Eigen::Vector3f>& organized, int width, int height,
                                                double* rms_px = nullptr);
 
+/// Pixels of an organized cloud that hold no measurement, by the rules drivers store
+/// them: a non-finite point, the origin, or a value repeated at another pixel (two
+/// pixels' rays meet only at the camera, so a repeated point is a placeholder).
+std::vector<bool> unmeasuredPoints(const std::vector<Eigen::Vector3f>& organized);
+
+/// A point lies on its pixel's ray when the fitted camera projects it within this many
+/// pixels of that pixel.
+constexpr double kCameraInlierPx = 1.0;
+
 /// The camera behind an organized cloud whose points may be in another frame than the
 /// camera's (a driver's or a robot's): each valid pixel's point lies on that pixel's ray,
 /// so the pixel grid gives the camera's intrinsics and its pose in the cloud's frame.
@@ -86,17 +95,22 @@ struct OrganizedCameraFit {
   PinholeIntrinsics intrinsics;
   /// Camera to cloud: a point p in the camera frame is T_cloud_camera * p in the cloud's.
   Eigen::Isometry3d T_cloud_camera = Eigen::Isometry3d::Identity();
-  double rms_px = 0.0;      ///< RMS reprojection residual over the points used
+  double rms_px = 0.0;      ///< RMS reprojection residual over the inliers
   double skew = 0.0;        ///< K(0, 1) / fx of the fitted camera (0 for a pinhole)
-  std::size_t points = 0;   ///< valid points used (a grid sample of at most ~20000)
+  std::size_t points = 0;   ///< measured points used (a grid sample of at most ~20000)
+  /// The share of those points on their pixels' rays (within kCameraInlierPx).
+  double inlier_share = 1.0;
+  std::size_t unmeasured = 0;  ///< pixels left out as unmeasuredPoints() says
 };
 
-/// Fits a projective camera u ~ P [q; 1] to the valid points q of an organized cloud
-/// (row-major, width x height; NaN or zero where there is no point) by the normalised
-/// direct linear transform and splits it into intrinsics and pose (RQ decomposition,
-/// the camera looking at its points). nullopt with fewer than 100 valid points or a
-/// degenerate system (the points on one plane through the camera, for example). The
-/// caller judges rms_px and skew: a cloud that is not a pinhole image fits badly.
+/// Fits a projective camera u ~ P [q; 1] to the measured points q of an organized cloud
+/// (row-major, width x height; unmeasuredPoints() are left out) by the normalised
+/// direct linear transform, robustly: when some points are off their pixels' rays, by
+/// RANSAC over 8-point samples with a refit on the inliers. Splits P into intrinsics and
+/// pose (RQ decomposition, the camera looking at its points). nullopt with fewer than 100
+/// measured points or a degenerate system (the points on one plane through the camera,
+/// for example). The caller judges inlier_share, rms_px and skew: a cloud that is not a
+/// pinhole image has few inliers.
 std::optional<OrganizedCameraFit> fitOrganizedCamera(const std::vector<Eigen::Vector3f>& organized, int width, int height);
 
 }  // namespace mobmap::perception

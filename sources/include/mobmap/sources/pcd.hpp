@@ -24,28 +24,42 @@ Frame loadPcd(const std::string& path, bool recover_camera = true);
 void checkPcdComplete(const std::string& path);
 
 /// The pinhole camera behind an organized cloud, fitted from its pixel grid: in the
-/// cloud's own frame (perception::fitIntrinsics), else in another frame with the
-/// camera's pose in it (perception::fitOrganizedCamera). A fit counts with an RMS under
-/// 0.5 px (and no skew). nullopt when neither fits; `best_rms_px` (if given) then gets
-/// the RMS of the pose fit, NaN when none could be made.
+/// cloud's own frame (perception::fitIntrinsics), else robustly in any frame, with the
+/// camera's pose in it (perception::fitOrganizedCamera, which leaves out the pixels that
+/// hold no measurement and the points off their rays). A fit counts with an RMS under
+/// 0.5 px over its inliers, no skew, and at least kMinCameraInlierShare of the measured
+/// points on their rays. nullopt when no camera fits; `best` (if given) then gets the
+/// best fit found, to say how far it was.
+constexpr double kMinCameraInlierShare = 0.6;
 struct CloudCamera {
   perception::PinholeIntrinsics intrinsics;
   double rms_px = 0.0;
+  double inlier_share = 1.0;  ///< of the measured points, on their pixels' rays
   std::optional<Eigen::Isometry3d> T_cloud_camera;  ///< unset: the cloud is in the camera's frame
 };
 std::optional<CloudCamera> fitCloudCamera(const std::vector<Eigen::Vector3f>& organized, int width, int height,
-                                          double* best_rms_px = nullptr);
+                                          std::optional<CloudCamera>* best = nullptr);
 
 /// A cloud's finite points taken from its frame to its camera's (T_cloud_camera
 /// inverted); the others are left as they are.
 void toCameraFrame(std::vector<Eigen::Vector3f>& points, const Eigen::Isometry3d& T_cloud_camera);
 
-/// For an organized cloud (height > 1) whose points are not a pinhole image in the
-/// camera frame: fits the camera from the pixel grid (perception::fitOrganizedCamera)
-/// and, when it fits (RMS under 0.5 px, no skew), moves the points into the camera frame
-/// and sets T_cloud_camera and a note. When no camera fits, the note says the frame
-/// cannot be recovered and the cloud is scored as it is. A cloud already in its
-/// camera's frame is left alone.
+/// What toCameraImage() left out.
+struct StrayPoints {
+  std::size_t placeholders = 0;  ///< finite points that hold no measurement (perception::unmeasuredPoints)
+  std::size_t off_ray = 0;       ///< measured points farther than kCameraInlierPx from their pixel
+  std::size_t measured = 0;      ///< finite points that are not placeholders
+};
+/// An organized cloud's points taken to `camera`'s frame, with the placeholders and the
+/// points off their pixels' rays (under camera.intrinsics) set to NaN.
+StrayPoints toCameraImage(std::vector<Eigen::Vector3f>& points, int width, const CloudCamera& camera);
+
+/// For an organized cloud (height > 1) whose points are not a clean pinhole image in the
+/// camera frame: fits the camera from the pixel grid (fitCloudCamera) and, when it fits,
+/// moves the points into the camera frame (toCameraImage: placeholders and points off
+/// their rays left out), and sets T_cloud_camera (when the frame is not the camera's)
+/// and a note that says the fit and what was left out. When no camera fits, the note
+/// says the frame cannot be recovered and the cloud is scored as it is.
 void recoverCameraFrame(Frame& f, const std::string& path);
 
 }  // namespace mobmap::sources
