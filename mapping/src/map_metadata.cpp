@@ -114,6 +114,7 @@ void fields(MapRun& r, V& v) {
   v("points_outside_map", r.points_outside_map);
   v("frames_outside_map", r.frames_outside_map);
   v("depth_units_per_m", r.depth_units_per_m);
+  v("depth_format", r.depth_format);
   v("points_in_view", r.points_in_view);
   v("points_beyond_range", r.points_beyond_range);
   v("seconds", r.seconds);

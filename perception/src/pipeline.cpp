@@ -78,20 +78,15 @@ struct RangeGate {
   float lo2, hi2;
 };
 
-// A sample of a frame's valid points (about one in 16): their ranges and their heights
-// below the camera along `down`, for the RangeReport.
+// A sample of a frame's valid points (about one in 16), for the RangeReport: their
+// ranges, and the points, whose heights are measured once the frame's "down" is known.
 struct RangeSample {
-  explicit RangeSample(const std::optional<Eigen::Vector3f>& gravity)
-      : down(gravity && gravity->allFinite() && gravity->stableNorm() > 1e-6f ? gravity->normalized()
-                                                                             : Eigen::Vector3f(0.f, 1.f, 0.f)),
-        from_gravity(gravity && gravity->allFinite() && gravity->stableNorm() > 1e-6f) {}
   void add(const Eigen::Vector3f& q) {
     range.push_back(q.norm());
-    height.push_back(q.dot(down));
+    point.push_back(q);
   }
-  Eigen::Vector3f down;
-  bool from_gravity;
-  std::vector<float> range, height;
+  std::vector<float> range;
+  std::vector<Eigen::Vector3f> point;
 };
 
 // The q-quantile of `v` (reordered); 0 for an empty one.
@@ -102,15 +97,33 @@ double quantile(std::vector<float>& v, double q) {
   return v[static_cast<std::size_t>(k)];
 }
 
+// The range summary of a processed frame. Heights are measured along gravity when the
+// frame had it, else along the ground plane found (a pitched camera's +y axis tilts the
+// far floor below the near one), else along the camera's +y.
 RangeReport summarizeRanges(RangeSample sample, const PerceptionParams& p, std::size_t valid, std::size_t beyond,
-                            std::size_t nearer) {
+                            std::size_t nearer, const std::optional<Eigen::Vector3f>& gravity,
+                            const std::optional<Eigen::Vector4f>& ground_plane) {
   RangeReport r;
   r.valid_points = valid;
   r.beyond_max_range = beyond;
   r.nearer_than_min_range = nearer;
   r.min_range_m = p.min_range_m;
   r.max_range_m = p.max_range_m;
-  r.down_from_gravity = sample.from_gravity;
+  Eigen::Vector3f down(0.f, 1.f, 0.f);
+  if (gravity && gravity->allFinite() && gravity->stableNorm() > 1e-6f) {
+    down = gravity->normalized();
+    r.down_from_gravity = true;
+  } else if (ground_plane && ground_plane->head<3>().allFinite() && ground_plane->head<3>().stableNorm() > 1e-6f) {
+    // Its normal points towards the camera; a ground more than 45 degrees from the
+    // image's up axis may be a wall, and +y says more then.
+    const Eigen::Vector3f ground_down = -ground_plane->head<3>().normalized();
+    if (ground_down.y() > std::cos(static_cast<float>(M_PI) / 4.f)) {
+      down = ground_down;
+      r.down_from_ground = true;
+    }
+  }
+  std::vector<float> height(sample.point.size());
+  for (std::size_t i = 0; i < sample.point.size(); ++i) height[i] = sample.point[i].dot(down);
   std::vector<float> ranges = sample.range;
   r.median_range_m = quantile(ranges, 0.5);
   r.range_p95_m = quantile(ranges, 0.95);
@@ -118,13 +131,13 @@ RangeReport summarizeRanges(RangeSample sample, const PerceptionParams& p, std::
   if (sample.range.size() < kMinSample) return r;
   // The lowest surface: a band of 8 cm either side of the 98th percentile of height
   // (the lowest 2 % may be noise under the floor).
-  std::vector<float> heights = sample.height;
+  std::vector<float> heights = height;
   const double floor_h = quantile(heights, 0.98);
   std::vector<float> band_range, band_height;
   for (std::size_t i = 0; i < sample.range.size(); ++i) {
-    if (std::abs(sample.height[i] - floor_h) > 0.08) continue;
+    if (std::abs(height[i] - floor_h) > 0.08) continue;
     band_range.push_back(sample.range[i]);
-    band_height.push_back(sample.height[i]);
+    band_height.push_back(height[i]);
   }
   if (band_range.size() < kMinSample / 4) return r;
   RangeReport::Lowest low;
@@ -138,15 +151,20 @@ RangeReport summarizeRanges(RangeSample sample, const PerceptionParams& p, std::
   return r;
 }
 
+// What the range limits took from a frame: the counts, and a sample for the summary.
+struct RangeTaken {
+  RangeSample sample;
+  std::size_t valid = 0, beyond = 0, nearer = 0;
+};
+
 // The finite points of `points` within the range limits, in order; `index` (if given)
-// receives the position of each in `points`; `range` what the limits took.
+// receives the position of each in `points`; `taken` what the limits took.
 std::vector<Eigen::Vector3f> finiteInRange(const std::vector<Eigen::Vector3f>& points, const RangeGate& in_range,
-                                           std::vector<int>* index, const PerceptionParams& p,
-                                           const std::optional<Eigen::Vector3f>& gravity, RangeReport& range) {
+                                           std::vector<int>* index, RangeTaken& taken) {
   // Sized for every point and cut to the kept ones after (not a push_back per point).
   std::vector<Eigen::Vector3f> raw(points.size());
   if (index) index->resize(points.size());
-  RangeSample sample(gravity);
+  RangeSample& sample = taken.sample;
   std::size_t n = 0, valid = 0, beyond = 0, nearer = 0;
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (!points[i].allFinite()) continue;
@@ -166,7 +184,7 @@ std::vector<Eigen::Vector3f> finiteInRange(const std::vector<Eigen::Vector3f>& p
   }
   raw.resize(n);
   if (index) index->resize(n);
-  range = summarizeRanges(std::move(sample), p, valid, beyond, nearer);
+  taken.valid = valid, taken.beyond = beyond, taken.nearer = nearer;
   return raw;
 }
 
@@ -196,7 +214,7 @@ FrameResult FramePipeline::process(const DepthImage& depth, const PinholeIntrins
   std::vector<int> pixel_of_raw(depth.depth_m.size());
   std::size_t n = 0, valid = 0, beyond = 0;
   const float inv_fx = static_cast<float>(1.0 / k.fx), inv_fy = static_cast<float>(1.0 / k.fy);
-  RangeSample sample(gravity);
+  RangeSample sample;
   for (int v = 0; v < k.height; ++v) {
     const float ry = (static_cast<float>(v) - static_cast<float>(k.cy)) * inv_fy;
     for (int u = 0; u < k.width; ++u) {
@@ -217,7 +235,7 @@ FrameResult FramePipeline::process(const DepthImage& depth, const PinholeIntrins
   pixel_of_raw.resize(n);
   // Every 4th pixel of every 4th row for the RangeReport.
   sample.range.reserve(static_cast<std::size_t>((k.width + 3) / 4) * static_cast<std::size_t>((k.height + 3) / 4));
-  sample.height.reserve(sample.range.capacity());
+  sample.point.reserve(sample.range.capacity());
   for (int v = 0; v < k.height; v += 4) {
     const float ry = (static_cast<float>(v) - static_cast<float>(k.cy)) * inv_fy;
     for (int u = 0; u < k.width; u += 4) {
@@ -227,7 +245,7 @@ FrameResult FramePipeline::process(const DepthImage& depth, const PinholeIntrins
     }
   }
   FrameResult out = run(std::move(raw), std::move(pixel_of_raw), depth.depth_m.size(), valid, started, gravity);
-  out.range = summarizeRanges(std::move(sample), params_, valid, beyond, valid - n - beyond);
+  out.range = summarizeRanges(std::move(sample), params_, valid, beyond, valid - n - beyond, gravity, out.ground_plane);
   return out;
 }
 
@@ -241,20 +259,20 @@ FrameResult FramePipeline::processOrganized(const std::vector<Eigen::Vector3f>& 
   }
   const auto started = std::chrono::steady_clock::now();
   std::vector<int> pixel_of_raw;
-  RangeReport range;
-  std::vector<Eigen::Vector3f> raw = finiteInRange(points, RangeGate(params_), &pixel_of_raw, params_, gravity, range);
-  FrameResult out = run(std::move(raw), std::move(pixel_of_raw), points.size(), range.valid_points, started, gravity);
-  out.range = std::move(range);
+  RangeTaken taken;
+  std::vector<Eigen::Vector3f> raw = finiteInRange(points, RangeGate(params_), &pixel_of_raw, taken);
+  FrameResult out = run(std::move(raw), std::move(pixel_of_raw), points.size(), taken.valid, started, gravity);
+  out.range = summarizeRanges(std::move(taken.sample), params_, taken.valid, taken.beyond, taken.nearer, gravity, out.ground_plane);
   return out;
 }
 
 FrameResult FramePipeline::process(const std::vector<Eigen::Vector3f>& points,
                                    const std::optional<Eigen::Vector3f>& gravity) const {
   const auto started = std::chrono::steady_clock::now();
-  RangeReport range;
-  std::vector<Eigen::Vector3f> raw = finiteInRange(points, RangeGate(params_), nullptr, params_, gravity, range);
-  FrameResult out = run(std::move(raw), {}, 0, range.valid_points, started, gravity);
-  out.range = std::move(range);
+  RangeTaken taken;
+  std::vector<Eigen::Vector3f> raw = finiteInRange(points, RangeGate(params_), nullptr, taken);
+  FrameResult out = run(std::move(raw), {}, 0, taken.valid, started, gravity);
+  out.range = summarizeRanges(std::move(taken.sample), params_, taken.valid, taken.beyond, taken.nearer, gravity, out.ground_plane);
   return out;
 }
 

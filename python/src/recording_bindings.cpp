@@ -98,9 +98,10 @@ SequencePtr openRecording(const std::string& path, const py::kwargs& kwargs) {
     else if (key == "max_pose_gap") o.max_pose_gap_s = value.cast<double>();
     else if (key == "poses") o.poses = py::str(value);
     else if (key == "intrinsics") o.intrinsics = intrinsicsSpec(value);
+    else if (key == "depth_format") o.depth_format = value.cast<std::string>();
     else {
       throw py::type_error("open_recording() got an unexpected keyword argument '" + key +
-                           "' (depth_topic, camera_info_topic, world_frame, imu_topic, max_pose_gap, intrinsics, poses)");
+                           "' (depth_topic, camera_info_topic, world_frame, imu_topic, max_pose_gap, intrinsics, poses, depth_format)");
     }
   }
   if (!(o.max_pose_gap_s >= 0.0)) throw py::value_error("max_pose_gap must be a number of seconds >= 0");
@@ -211,7 +212,8 @@ void bindRecording(py::module_& m) {
         ".pcd frames (with poses=), a single .pcd or 16-bit depth .png, an .oni file, a ROS 2 bag (folder with "
         "metadata.yaml, .db3 or .mcap) or a ROS 1 .bag. Keyword arguments: intrinsics ((fx, fy, cx, cy) or a "
         "camera file, instead of the input's own), poses (a TUM trajectory file: for .pcd frames, or a bag's "
-        "camera poses by stamp instead of its TF tree), max_pose_gap (s, 0.05), and for bags depth_topic, "
+        "camera poses by stamp instead of its TF tree), max_pose_gap (s, 0.05), depth_format ('sunrgbd' for SUN "
+        "RGB-D's depth PNGs), and for bags depth_topic, "
         "camera_info_topic, world_frame, imu_topic. RecordingError (an OSError) names the file and the problem; "
         "ValueError for an invalid argument.");
 }

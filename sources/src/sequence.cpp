@@ -374,7 +374,71 @@ class SingleFileSequence : public Sequence {
 
 }  // namespace
 
+const std::vector<std::pair<std::string, std::string>>& depthFormats() {
+  static const std::vector<std::pair<std::string, std::string>> formats{
+      {"sunrgbd", "SUN RGB-D's depth PNGs: millimetres rotated left by 3 bits"}};
+  return formats;
+}
+
+void undoDepthFormat(perception::DepthImage& depth, double units_per_m, const std::string& format) {
+  if (format != "sunrgbd") {
+    std::string known;
+    for (const auto& [name, what] : depthFormats()) known += (known.empty() ? "" : ", ") + name + " (" + what + ")";
+    throw UsageError("--depth-format must be one of: " + known + "; got '" + format + "'");
+  }
+  for (float& d : depth.depth_m) {
+    if (!(d > 0.f) || !std::isfinite(d)) continue;
+    const long stored = std::lround(static_cast<double>(d) * units_per_m);
+    if (stored <= 0 || stored >= 65535) {  // not a 16-bit value, or its "no measurement"
+      d = 0.f;
+      continue;
+    }
+    const auto v = static_cast<std::uint16_t>(stored);
+    const auto decoded = static_cast<std::uint16_t>((v >> 3) | (v << 13));
+    // As the readers read a value: millimetres as metresFromMillimetres, others divided in float.
+    d = units_per_m == 1000.0 ? perception::metresFromMillimetres(decoded)
+        : decoded == 0 || decoded == 65535 ? 0.f
+                                           : static_cast<float>(decoded) / static_cast<float>(units_per_m);
+  }
+}
+
+namespace {
+
+// A sequence of 16-bit depth images in another encoding (`--depth-format`), decoded.
+class DepthFormatSequence : public ForwardingSequence {
+ public:
+  DepthFormatSequence(std::unique_ptr<Sequence> inner, std::string format)
+      : ForwardingSequence(std::move(inner)), format_(std::move(format)) {}
+  std::string describe() const override { return inner().describe() + ", depth decoded as " + format_; }
+  Frame load(int n) const override {
+    Frame f = inner().load(n);
+    if (f.depth) undoDepthFormat(*f.depth, inner().depthUnit().units_per_m, format_);
+    return f;
+  }
+
+ private:
+  std::string format_;
+};
+
+std::unique_ptr<Sequence> openPlainSequence(const std::string& input, const SequenceOptions& options);
+
+}  // namespace
+
 std::unique_ptr<Sequence> openSequence(const std::string& input, const SequenceOptions& options) {
+  auto seq = openPlainSequence(input, options);
+  if (options.depth_format.empty()) return seq;
+  perception::DepthImage probe(1, 1);
+  undoDepthFormat(probe, 1000.0, options.depth_format);  // an unknown name is refused before a run
+  if (!seq->hasDepth() || seq->depthUnit().cloud || seq->depthUnit().units_per_m < 2.0) {
+    throw UsageError("--depth-format " + options.depth_format + " is for 16-bit depth images; " + input +
+                     " gives " + (seq->hasDepth() && !seq->depthUnit().cloud ? "depth in metres as floats" : "point clouds"));
+  }
+  return std::make_unique<DepthFormatSequence>(std::move(seq), options.depth_format);
+}
+
+namespace {
+
+std::unique_ptr<Sequence> openPlainSequence(const std::string& input, const SequenceOptions& options) {
   const std::string& intrinsics_spec = options.intrinsics;
   const std::string& poses_path = options.poses;
   const double max_pose_gap_s = options.max_pose_gap_s;
@@ -415,5 +479,7 @@ std::unique_ptr<Sequence> openSequence(const std::string& input, const SequenceO
   if (!poses_path.empty()) throw IoError(poses_path, "a 7-Scenes directory brings its own frame-*.pose.txt; --poses is for .pcd frames");
   return std::make_unique<SevenScenesSequence>(input, intrinsics_spec);
 }
+
+}  // namespace
 
 }  // namespace mobmap::sources

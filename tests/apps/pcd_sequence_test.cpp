@@ -50,7 +50,7 @@ TEST(PcdSequence, ACutFrameIsFoundFromItsHeaderBeforeTheRun) {
   }
   const auto full = fs::file_size(b);
   fs::resize_file(b, full - 1);  // one byte short of the last point's rgb
-  const auto seq = sources::openSequence((dir / "frames").string(), {"", 0.05, (dir / "poses.txt").string(), {}});
+  const auto seq = sources::openSequence((dir / "frames").string(), {"", 0.05, (dir / "poses.txt").string(), {}, ""});
   EXPECT_NO_THROW(seq->check(0));
   try {
     seq->check(1);
@@ -129,7 +129,7 @@ TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
   }
   const auto& k = scene.params().intrinsics;
   for (const char* poses : {"in_order.txt", "timed.txt"}) {
-    const auto seq = sources::openSequence((dir / "frames").string(), {"", 0.3, (dir / poses).string(), {}});
+    const auto seq = sources::openSequence((dir / "frames").string(), {"", 0.3, (dir / poses).string(), {}, ""});
     ASSERT_EQ(seq->frames().size(), 3u) << poses;
     ASSERT_TRUE(seq->hasDepth()) << seq->describe();
     EXPECT_NEAR(seq->intrinsics().fx, k.fx, 1e-3);
@@ -160,13 +160,13 @@ TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
     sim::writeTumPoseLine(one, 0.0, scene.cameraPose(0));
   }
   try {
-    (void)sources::openSequence((dir / "plain").string(), {"", 0.05, (dir / "one.txt").string(), {}});
+    (void)sources::openSequence((dir / "plain").string(), {"", 0.05, (dir / "one.txt").string(), {}, ""});
     FAIL();
   } catch (const app::IoError& e) {
     EXPECT_NE(std::string(e.what()).find("one.txt: 1 poses for 2 .pcd frames"), std::string::npos) << e.what();
   }
   try {
-    (void)sources::openSequence((dir / "plain").string(), {"", 0.05, "", {}});
+    (void)sources::openSequence((dir / "plain").string(), {"", 0.05, "", {}, ""});
     FAIL();
   } catch (const app::IoError& e) {
     EXPECT_NE(std::string(e.what()).find("--poses"), std::string::npos) << e.what();
@@ -181,7 +181,7 @@ TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
     sim::writeTumPoseLine(two, 0.0, scene.cameraPose(0));
     sim::writeTumPoseLine(two, 0.0, scene.cameraPose(10));
   }
-  const auto warped = sources::openSequence((dir / "warped").string(), {"", 0.05, (dir / "two.txt").string(), {}});
+  const auto warped = sources::openSequence((dir / "warped").string(), {"", 0.05, (dir / "two.txt").string(), {}, ""});
   ASSERT_TRUE(warped->hasDepth());
   EXPECT_NO_THROW((void)warped->load(0));
   try {

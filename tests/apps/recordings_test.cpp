@@ -199,7 +199,7 @@ TEST(FrameSource, ASingleFileIsASequenceOfOneFrame) {
   const TempDir dir;
   const sim::RenderedFrame f = corridorFrame(30.0);
   const std::string png = writeDepthIn(dir, f, 1000.0);
-  const auto seq = openSequence(png, {"", 0.05, "", {}});
+  const auto seq = openSequence(png, {"", 0.05, "", {}, ""});
   EXPECT_EQ(seq->frames(), std::vector<int>{0});
   EXPECT_FALSE(seq->posed());
   EXPECT_TRUE(seq->hasDepth());
@@ -482,7 +482,7 @@ TEST(OrganizedCamera, PlaceholdersAndStrayPointsDoNotHideTheCamera) {
     if (clean[i].allFinite()) measured.push_back(i);
   }
   for (const double holes : {0.05, 0.2}) {
-    for (const Eigen::Vector3f placeholder : {Eigen::Vector3f(0.f, 0.f, 0.f), Eigen::Vector3f(0.f, 0.f, 8.f)}) {
+    for (const Eigen::Vector3f& placeholder : {Eigen::Vector3f(0.f, 0.f, 0.f), Eigen::Vector3f(0.f, 0.f, 8.f)}) {
       SCOPED_TRACE(std::to_string(holes) + " placeholder z " + std::to_string(placeholder.z()));
       std::mt19937 rng(11);
       std::vector<std::size_t> order = measured;
@@ -523,6 +523,39 @@ TEST(OrganizedCamera, PlaceholdersAndStrayPointsDoNotHideTheCamera) {
   }
 }
 
+// A robot's camera 0.6 m up, pitched 3.4 degrees up, without gravity: measured along
+// the camera's +y axis the far floor lies lower than the near floor, so the "lowest
+// surface" was the far floor beyond the range and a note said the floor was cut away
+// while the ground taken was the floor. Measured along the ground found, the lowest
+// surface is the floor the ground is, and nothing is said.
+TEST(RangeChecks, APitchedRobotCameraGetsNoFalseFloorNote) {
+  sim::CorridorParams params;
+  params.camera_height_m = 0.6;
+  params.pitch_down_deg = -3.4;
+  params.bob_m = 0.0;
+  const sim::RenderedFrame f = sim::CorridorScene(params).render(60);
+  const perception::FrameResult r =
+      perception::FramePipeline(perception::PerceptionParams{}, gp::MobilityModel{}).process(f.depth, params.intrinsics, std::nullopt);
+  ASSERT_TRUE(r.ground_plane.has_value());
+  EXPECT_NEAR((*r.ground_plane)(3), 0.6, 0.03);  // the floor
+  EXPECT_FALSE(r.range.down_from_gravity);
+  EXPECT_TRUE(r.range.down_from_ground);
+  ASSERT_TRUE(r.range.lowest.has_value());
+  EXPECT_NEAR(r.range.lowest->below_camera_m, 0.6, 0.03);
+  const auto note = floorCutProblem(r.range, (*r.ground_plane)(3));
+  EXPECT_FALSE(note.has_value()) << *note;
+  // Along the camera's +y the far floor is up to D sin(3.4 deg) lower: the old reading.
+  double deepest = 0;
+  const perception::PinholeIntrinsics& k = params.intrinsics;
+  for (int v = 0; v < k.height; v += 4) {
+    for (int u = 0; u < k.width; u += 4) {
+      const float z = f.depth.at(u, v);
+      if (z > 0.f) deepest = std::max(deepest, perception::backProject(k, u, v, z).y());
+    }
+  }
+  EXPECT_GT(deepest, 0.6 + 0.15);  // what made the false note
+}
+
 // The output of `mobmap ARGS` (stdout and stderr) and its exit code.
 std::pair<int, std::string> mobmap(const std::string& args) {
   const std::string cmd = std::string(MOBMAP_EXE) + " " + args + " 2>&1";
@@ -533,6 +566,67 @@ std::pair<int, std::string> mobmap(const std::string& args) {
   while (std::fgets(buf, sizeof buf, pipe)) out += buf;
   const int status = ::pclose(pipe);
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+// SUN RGB-D stores depth PNGs as millimetres rotated left by 3 bits. Read as millimetres
+// they lie 8 times too far; the median alone pointed at 10000 per metre, 20 % off. The
+// stored values' low bits point at the right reading; a build of such frames alone
+// writes no map; --depth-format sunrgbd decodes them to the map of the plain frames.
+TEST(DepthUnit, SunRgbdDepthIsRecognisedByItsLowBitsAndDecoded) {
+  const TempDir dir;
+  const std::string seq = (dir.path / "seq").string(), sun = (dir.path / "sun").string();
+  ASSERT_EQ(mobmap("simulate --out " + seq + " --frames 2 --noise none --quiet").first, 0);
+  fs::create_directories(sun);
+  for (const auto& e : fs::directory_iterator(seq)) {
+    const std::string name = e.path().filename().string();
+    if (name.size() > 10 && name.substr(name.size() - 10) == ".depth.png") {
+      Image16 img = readPng16(e.path().string());
+      for (std::uint16_t& v : img.pixels) v = static_cast<std::uint16_t>((v << 3) | (v >> 13));
+      writePng16((fs::path(sun) / name).string(), img);
+    } else {
+      fs::copy(e.path(), fs::path(sun) / name);
+    }
+  }
+  const auto [analyzed, warned] = mobmap("analyze " + sun + " --frame 1");
+  EXPECT_EQ(analyzed, 0) << warned;
+  EXPECT_NE(warned.find("% of its values are multiples of 8 (their 3 low bits are zero): --depth-scale 8000 puts the median at"),
+            std::string::npos)
+      << warned;
+  EXPECT_NE(warned.find("--depth-format sunrgbd decodes SUN RGB-D's depth PNGs"), std::string::npos) << warned;
+  EXPECT_EQ(warned.find("--depth-scale 10000"), std::string::npos) << warned;
+  const auto [fixed, quiet] = mobmap("analyze " + sun + " --frame 1 --depth-format sunrgbd");
+  EXPECT_EQ(fixed, 0) << quiet;
+  EXPECT_EQ(quiet.find("another unit"), std::string::npos) << quiet;
+  // Every frame in another unit: no map, and the diagnosis; also when a range long enough
+  // for the misread depth would have left something to map.
+  const std::string wrong = (dir.path / "wrong.ot").string();
+  for (const std::string range : {"", " --max-range 30 --resolution 0.1 --voxel 0.05"}) {
+    const auto [refused, why] = mobmap("build " + sun + " --out " + wrong + range + " --quiet");
+    EXPECT_EQ(refused, 1) << why;
+    EXPECT_NE(why.find("--depth-format sunrgbd decodes"), std::string::npos) << why;
+    EXPECT_NE(why.find("no map written"), std::string::npos) << why;
+    if (!range.empty()) {
+      EXPECT_NE(why.find("every frame fused reads as depth in another unit"), std::string::npos) << why;
+    }
+    EXPECT_FALSE(fs::exists(wrong));
+  }
+  // Decoded, the frames give the plain frames' map, byte for byte.
+  const std::string plain_map = (dir.path / "plain.ot").string(), sun_map = (dir.path / "decoded.ot").string();
+  ASSERT_EQ(mobmap("build " + seq + " --out " + plain_map + " --quiet").first, 0);
+  const auto [built, said] = mobmap("build " + sun + " --out " + sun_map + " --depth-format sunrgbd --quiet");
+  ASSERT_EQ(built, 0) << said;
+  const auto bytes = [](const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  const std::string plain_bytes = bytes(plain_map), decoded_bytes = bytes(sun_map);
+  EXPECT_GT(plain_bytes.size(), 1000u);
+  EXPECT_TRUE(plain_bytes == decoded_bytes) << plain_bytes.size() << " vs " << decoded_bytes.size() << " bytes";
+  std::ifstream meta_in((dir.path / "decoded.json").string());
+  const nlohmann::json meta = nlohmann::json::parse(meta_in);
+  EXPECT_EQ(meta["depth_format"], "sunrgbd") << meta.dump();
+  // Not for inputs whose depth is not 16-bit values, nor an unknown name.
+  EXPECT_EQ(mobmap("build " + seq + " --out " + (dir.path / "x.ot").string() + " --depth-format nonsense --quiet").first, 2);
 }
 
 // `build` maps a turned cloud in its points' frame as it maps the camera-frame cloud in

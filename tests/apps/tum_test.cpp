@@ -75,7 +75,7 @@ TEST(TumSequence, AssociatesDepthWithInterpolatedPosesAndSkipsFramesInAGap) {
   p.noise = sim::NoiseModel::kNone;
   const sim::CorridorScene scene(p);
   const std::string dir = writeTum(scene, 10, 5);
-  const auto seq = sources::openSequence(dir, {"585,585,320,240", 0.02, "", {}});
+  const auto seq = sources::openSequence(dir, {"585,585,320,240", 0.02, "", {}, ""});
   EXPECT_NE(seq->describe().find("TUM"), std::string::npos);
   ASSERT_EQ(seq->frames().size(), 9u);  // frame 5 has no pose within 20 ms
   EXPECT_NE(seq->skipped().find("1 of 10 depth frames"), std::string::npos) << seq->skipped();
@@ -132,7 +132,7 @@ TEST(TumSequence, OverlayPaintsTheMapOverTheRegisteredColourAndAnalyzeReadsTheSa
     }
   }
   const std::string intrinsics = "585,585,320,240";
-  const auto seq = sources::openSequence(dir, {intrinsics, 0.02, "", {}});
+  const auto seq = sources::openSequence(dir, {intrinsics, 0.02, "", {}, ""});
   ASSERT_EQ(seq->frames().size(), 12u);
   for (int n : {0, 6, 11}) {
     const auto c = seq->colour(n);
@@ -309,21 +309,21 @@ TEST(TumSequence, BadGroundTruthNamesTheFileAndPose) {
   std::ofstream(dir / "depth.txt") << "1.0 depth/1.png\n";
   std::ofstream(dir / "groundtruth.txt") << "1.0 0 0 0 0 0 0 1\n1.1 0 0 0 0.5 0 0 0.5\n";
   try {
-    (void)sources::openSequence(dir.string(), {"", 0.05, "", {}});
+    (void)sources::openSequence(dir.string(), {"", 0.05, "", {}, ""});
     FAIL();
   } catch (const app::IoError& e) {
     EXPECT_NE(std::string(e.what()).find("groundtruth.txt: pose 2: quaternion norm"), std::string::npos) << e.what();
   }
   std::ofstream(dir / "groundtruth.txt") << "1.0 0 0 0 0 0 0\n";
   try {
-    (void)sources::openSequence(dir.string(), {"", 0.05, "", {}});
+    (void)sources::openSequence(dir.string(), {"", 0.05, "", {}, ""});
     FAIL();
   } catch (const app::IoError& e) {
     EXPECT_NE(std::string(e.what()).find("line 1: expected 8 columns"), std::string::npos) << e.what();
   }
   fs::remove(dir / "groundtruth.txt");
   try {
-    (void)sources::openSequence(dir.string(), {"", 0.05, "", {}});
+    (void)sources::openSequence(dir.string(), {"", 0.05, "", {}, ""});
     FAIL();
   } catch (const app::IoError& e) {
     EXPECT_NE(std::string(e.what()).find("groundtruth.txt: missing"), std::string::npos) << e.what();

@@ -134,3 +134,16 @@ def test_an_unorganized_pcd_gives_its_points(tmp_path):
 def test_unknown_options_are_type_errors(tmp_path):
     with pytest.raises(TypeError, match="unexpected keyword argument 'topic'"):
         mobmap.open_recording(str(tmp_path), topic="/depth")
+
+
+def test_sun_rgbd_depth_is_decoded(tmp_path):
+    """SUN RGB-D stores millimetres rotated left by 3 bits; depth_format undoes it."""
+    rng = np.random.default_rng(9)
+    mm = rng.integers(1, 65535, size=(5, 7), dtype=np.uint16)
+    stored = ((mm.astype(np.uint32) << 3 | mm.astype(np.uint32) >> 13) & 0xFFFF).astype(np.uint16)
+    path = tmp_path / "sun.png"
+    path.write_bytes(encode(stored, [4]))
+    rec = mobmap.open_recording(str(path), intrinsics=(5.0, 5.0, 3.0, 2.0), depth_format="sunrgbd")
+    np.testing.assert_array_equal(rec[0]["depth"], metres(mm))
+    with pytest.raises(ValueError, match="sunrgbd"):
+        mobmap.open_recording(str(path), intrinsics=(5.0, 5.0, 3.0, 2.0), depth_format="rotated")

@@ -56,7 +56,8 @@ nlohmann::json frameResultJson(const perception::FrameResult& r) {
                 {"max_range_m", range.max_range_m},
                 {"median_range_m", range.median_range_m},
                 {"range_p95_m", range.range_p95_m},
-                {"down_from_gravity", range.down_from_gravity}};
+                {"down_from_gravity", range.down_from_gravity},
+                {"down_from_ground", range.down_from_ground}};
   if (range.lowest) {
     j["range"]["lowest_surface"] = {{"below_camera_m", range.lowest->below_camera_m},
                                     {"share_beyond", range.lowest->share_beyond},
@@ -131,6 +132,7 @@ Command addAnalyzeCommand(CLI::App& app) {
     std::string background = "colour";
     double max_range = -1;
     double depth_scale = 0;
+    std::string depth_format;
     double voxel = 0;
     std::string config;
     RecordingChoice choice;
@@ -144,6 +146,7 @@ Command addAnalyzeCommand(CLI::App& app) {
   cmd->add_option("--max-range", o->max_range, "Maximum range in metres (default 3)");
   addRecordingOptions(*cmd, o->choice);
   auto* depth_scale = cmd->add_option("--depth-scale", o->depth_scale, kDepthScaleHelp)->check(CLI::PositiveNumber);
+  cmd->add_option("--depth-format", o->depth_format, kDepthFormatHelp);
   cmd->add_option("--config", o->config, "YAML file with any of the parameters of `mobmap config --print-default`");
   auto* voxel = cmd->add_option("--voxel", o->voxel, kVoxelHelp);
   cmd->add_flag("--json", o->json, "Print one JSON object instead of tables");
@@ -169,6 +172,7 @@ Command addAnalyzeCommand(CLI::App& app) {
       refuseToOverwriteInputs({{"--segments", o->segments}, {"--overlay", o->overlay}}, inputs);
     }
     if (!f.note.empty()) std::fprintf(stderr, "note: %s\n", f.note.c_str());
+    if (!o->depth_format.empty()) decodeDepthFormat(f, o->depth_format, o->input);
     if (depth_scale->count() > 0) rescaleDepth(f, o->depth_scale);
     if (!o->gravity.empty()) {
       // Given in the frame of the input's points: a cloud in another frame than its camera's.
@@ -196,7 +200,8 @@ Command addAnalyzeCommand(CLI::App& app) {
       if (!note.empty()) std::fprintf(stderr, "%s\n", note.c_str());
     }
     // Depth in another unit, or a range that cuts away most of the frame or its floor.
-    if (const auto unit = depthUnitProblem(r.range, f.depth_unit)) {
+    const std::optional<LowZeroBits> bits = f.depth ? lowZeroBits(*f.depth, f.depth_unit) : std::nullopt;
+    if (const auto unit = depthUnitProblem(r.range, f.depth_unit, bits)) {
       std::fprintf(stderr, "warning: %s: %s\n", o->input.c_str(), unit->c_str());
     } else {
       const std::optional<double> ground = r.ground_plane ? std::optional<double>((*r.ground_plane)(3)) : std::nullopt;

@@ -167,7 +167,11 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
   }
   std::optional<Eigen::Isometry3d> T_base_camera;  // --extrinsics, read once
   if (is_dir) {
-    if (!dir) dir = openSequence(o->input, {o->intrinsics, o->max_pose_gap, o->poses, o->recording});
+    if (!dir) {
+      dir = openSequence(o->input, {o->intrinsics, o->max_pose_gap, o->poses, o->recording, o->depth_format});
+    } else if (!o->depth_format.empty()) {
+      throw UsageError("--depth-format is for depth images stored in files; OpenNI2 gives millimetres");
+    }
     if (given.depth_scale->count() > 0) dir = withDepthScale(std::move(dir), o->depth_scale);
     if (!o->extrinsics.empty()) {
       if (dir->recording()) throw UsageError("--extrinsics: " + o->input + " is a bag, whose TF tree has its camera's mounting");
@@ -234,6 +238,7 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
   } else {
     single = loadSingleFrame(o->input, -1, o->intrinsics);
     if (!single.note.empty()) std::fprintf(stderr, "note: %s\n", single.note.c_str());
+    if (!o->depth_format.empty()) decodeDepthFormat(single, o->depth_format, o->input);
     if (given.depth_scale->count() > 0) rescaleDepth(single, o->depth_scale);
     frames.push_back(0);
     if (!o->frames.empty()) throw UsageError("--frames needs a directory input");
@@ -397,6 +402,7 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
   struct Pushed {
     int number;
     Eigen::Isometry3d T_world_camera;
+    std::optional<LowZeroBits> bits;  // of its stored depth values, for the unit check
   };
   std::vector<Pushed> pushed;  // by LiveMapper's frame index
   const auto done = [&] { return used + no_pose + unreadable_in_run + outside_frames; };
@@ -462,6 +468,7 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
     run.points_in_view = static_cast<long long>(depth_checks.validPoints());
     run.points_beyond_range = static_cast<long long>(depth_checks.beyondMaxRange());
     run.depth_units_per_m = depth_unit.units_per_m;
+    if (!o->depth_format.empty()) run.depth_format = o->depth_format;
     mapping::MapMetadata meta;
     if (existing) {
       meta = existing->meta;
@@ -536,7 +543,7 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
     // Depth in another unit, or a range that cuts away most of the frame or its floor.
     for (const std::string& w : depth_checks.add("frame " + std::to_string(f.number), r.range,
                                                  r.ground_found ? std::optional<double>(r.ground_distance_m) : std::nullopt,
-                                                 depth_unit)) {
+                                                 depth_unit, f.bits)) {
       Progress::message(w);
     }
     const mapping::IntegrationReport& fused = r.integration;
@@ -608,7 +615,7 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
       f.intrinsics = single.intrinsics;
       {
         const std::lock_guard<std::mutex> lock(state);
-        pushed.push_back({number, T_world_single});
+        pushed.push_back({number, T_world_single, single.depth ? lowZeroBits(*single.depth, depth_unit) : std::nullopt});
       }
       mapper->push(std::move(f));
       continue;
@@ -633,10 +640,11 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
       showProgress(map_nodes);
       continue;
     }
+    std::optional<LowZeroBits> bits = f.depth ? lowZeroBits(*f.depth, depth_unit) : std::nullopt;
     {
       const std::lock_guard<std::mutex> lock(state);
       read_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-      pushed.push_back({number, *f.T_world_camera});
+      pushed.push_back({number, *f.T_world_camera, bits});
     }
     try {
       if (dir->hasDepth()) {
@@ -706,6 +714,13 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
     }
     msg << ". Check the range, the depth unit and the intrinsics";
     if (const auto unit = depth_checks.unitProblem()) msg << " (" << *unit << ")";
+    throw IoError(live ? device_label : o->input, msg.str());
+  }
+  if (depth_checks.everyFrameInAnotherUnit() && !g_interrupted.load()) {
+    // A map of depth read in the wrong unit is not the scene's: say what fits instead.
+    std::ostringstream msg;
+    msg << "every frame fused reads as depth in another unit (" << *depth_checks.unitProblem() << ")";
+    msg << (o->checkpoint > 0 && used >= o->checkpoint ? "; the checkpoint at " + o->out + " holds them" : "; no map written");
     throw IoError(live ? device_label : o->input, msg.str());
   }
   const mapping::MapMetadata meta = writeMap(*final_map, false, run_s);

@@ -41,6 +41,7 @@ void addBuildRunOptions(CLI::App& cmd_ref, BuildOptions& o_ref) {
   cmd->add_option("--config", o->config, "YAML file with any of the parameters of `mobmap config --print-default`");
   o->given.voxel = cmd->add_option("--voxel", o->voxel, kVoxelHelp);
   o->given.depth_scale = cmd->add_option("--depth-scale", o->depth_scale, kDepthScaleHelp)->check(CLI::PositiveNumber);
+  cmd->add_option("--depth-format", o->depth_format, kDepthFormatHelp);
   cmd->add_option("--gravity", o->gravity, "Gravity (down) in the data's world frame X,Y,Z, or 'floor' for the floor's normal "
                   "(default: gravity-direction.txt, else the floor's normal in up to 8 frames spread over the run, else "
                   "the cameras' mean +y axis; a single .pcd or .png frame: its ground plane's normal; OpenNI2: the "

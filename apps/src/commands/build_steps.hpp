@@ -35,6 +35,7 @@ struct BuildOptions {
   std::string frames;
   double max_range = 3.0;
   double depth_scale = 0;
+  std::string depth_format;
   double resolution = 0.02;
   double voxel = 0;
   std::string gravity;

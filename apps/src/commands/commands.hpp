@@ -35,6 +35,11 @@ inline constexpr const char* kDepthScaleHelp =
     "5000 for TUM, 1 for PCD metres). A warning suggests it when the depths read implausibly for a depth camera: "
     "10000 for tenths of a millimetre, 1000 for a PCD in millimetres";
 
+/// `--depth-format` of analyze and build.
+inline constexpr const char* kDepthFormatHelp =
+    "How the input's 16-bit depth values are encoded beyond their unit: sunrgbd for SUN RGB-D's depth PNGs "
+    "(millimetres rotated left by 3 bits: most values are multiples of 8; a warning suggests it)";
+
 /// `--fov` of analyze and build.
 inline constexpr const char* kFovHelp =
     "For a camera whose calibration is unknown: its horizontal field of view in degrees (fx = fy from it, the principal "

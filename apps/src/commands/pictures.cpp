@@ -163,8 +163,10 @@ Command addOverlayCommand(CLI::App& app) {
     std::string extrinsics = o->extrinsics;
     double max_pose_gap = o->max_pose_gap;
     std::optional<double> depth_units_per_m;  // the run's --depth-scale
+    std::string depth_format;                 // and --depth-format
     if (const mapping::MapRun* run = runOfInput(metadata, input)) {
       depth_units_per_m = run->depth_units_per_m;
+      depth_format = run->depth_format.value_or("");
       // A recording's run names its topics and world frame; its camera_info (and the
       // distortion it undoes) is read again rather than replaced by the numbers.
       if (extrinsics.empty() && run->extrinsics) extrinsics = *run->extrinsics;
@@ -215,7 +217,7 @@ Command addOverlayCommand(CLI::App& app) {
       on.first = on.last = n;
       seq = sources::openOpenNi(on);
     } else {
-      seq = openSequence(input, {intrinsics, max_pose_gap, poses, choice});
+      seq = openSequence(input, {intrinsics, max_pose_gap, poses, choice, depth_format});
     }
     if (!extrinsics.empty() && !seq->recording()) seq = withExtrinsics(std::move(seq), parseExtrinsics(extrinsics));
     // The frames in the depth unit the map's run read them in.

@@ -3,6 +3,7 @@
 #include "io/io_error.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <utility>
@@ -23,33 +24,18 @@ void scaleDepth(std::vector<float>& depth_m, std::vector<Eigen::Vector3f>& point
 namespace {
 
 // A sequence read in another depth unit (`--depth-scale`).
-class ScaledSequence : public sources::Sequence {
+class ScaledSequence : public sources::ForwardingSequence {
  public:
   ScaledSequence(std::unique_ptr<sources::Sequence> inner, double units_per_m, float factor)
-      : inner_(std::move(inner)), unit_{units_per_m, inner_->depthUnit().cloud}, factor_(factor) {}
-  [[nodiscard]] std::string describe() const override { return inner_->describe(); }
-  [[nodiscard]] std::string format() const override { return inner_->format(); }
-  [[nodiscard]] const perception::PinholeIntrinsics& intrinsics() const override { return inner_->intrinsics(); }
-  [[nodiscard]] bool hasDepth() const override { return inner_->hasDepth(); }
-  [[nodiscard]] std::optional<Eigen::Vector3d> gravityDown() const override { return inner_->gravityDown(); }
-  [[nodiscard]] std::string gravitySource() const override { return inner_->gravitySource(); }
-  [[nodiscard]] const sources::Recording* recording() const override { return inner_->recording(); }
-  [[nodiscard]] bool posed() const override { return inner_->posed(); }
-  [[nodiscard]] const std::vector<int>& frames() const override { return inner_->frames(); }
-  void check(int n) const override { inner_->check(n); }
+      : ForwardingSequence(std::move(inner)), unit_{units_per_m, this->inner().depthUnit().cloud}, factor_(factor) {}
   [[nodiscard]] sources::Frame load(int n) const override {
-    sources::Frame f = inner_->load(n);
+    sources::Frame f = inner().load(n);
     scaleFrame(f, factor_, unit_.units_per_m);
     return f;
   }
-  [[nodiscard]] std::optional<Eigen::Isometry3d> pose(int n) const override { return inner_->pose(n); }
-  [[nodiscard]] std::optional<sources::ImageRgb> colour(int n) const override { return inner_->colour(n); }
-  [[nodiscard]] std::vector<std::string> files(int n) const override { return inner_->files(n); }
-  [[nodiscard]] std::string skipped() const override { return inner_->skipped(); }
   [[nodiscard]] DepthUnit depthUnit() const override { return unit_; }
 
  private:
-  std::unique_ptr<sources::Sequence> inner_;
   DepthUnit unit_;
   float factor_;
 };
@@ -69,7 +55,28 @@ std::unique_ptr<sources::Sequence> withDepthScale(std::unique_ptr<sources::Seque
   return std::make_unique<ScaledSequence>(std::move(seq), units_per_m, factor);
 }
 
-std::optional<std::string> depthUnitProblem(const perception::RangeReport& r, const DepthUnit& unit) {
+std::optional<LowZeroBits> lowZeroBits(const perception::DepthImage& depth, const DepthUnit& unit) {
+  if (unit.cloud || unit.units_per_m < 2.0) return std::nullopt;
+  std::size_t valid = 0;
+  std::array<std::size_t, 5> zero{};  // zero[k]: values whose k low bits are all zero
+  for (std::size_t i = 0; i < depth.depth_m.size(); i += 7) {  // a sample is enough to see the pattern
+    const float d = depth.depth_m[i];
+    if (!(d > 0.f) || !std::isfinite(d)) continue;
+    const long v = std::lround(static_cast<double>(d) * unit.units_per_m);
+    if (v <= 0 || v > 65535) return std::nullopt;  // not 16-bit values
+    ++valid;
+    for (int k = 1; k <= 4; ++k) zero[static_cast<std::size_t>(k)] += (v & ((1L << k) - 1)) == 0;
+  }
+  if (valid < 1000) return std::nullopt;
+  for (int k = 4; k >= 2; --k) {
+    const double share = static_cast<double>(zero[static_cast<std::size_t>(k)]) / static_cast<double>(valid);
+    if (share >= 0.9) return LowZeroBits{k, share};
+  }
+  return std::nullopt;
+}
+
+std::optional<std::string> depthUnitProblem(const perception::RangeReport& r, const DepthUnit& unit,
+                                            const std::optional<LowZeroBits>& bits) {
   constexpr std::size_t kMinValid = 100;  // fewer: nothing to judge by
   if (r.valid_points < kMinValid) return std::nullopt;
   const double median = r.median_range_m;
@@ -82,9 +89,23 @@ std::optional<std::string> depthUnitProblem(const perception::RangeReport& r, co
                 100.0 * static_cast<double>(r.valid_points - r.beyond_max_range - r.nearer_than_min_range) /
                     static_cast<double>(r.valid_points));
   std::string out = text;
+  const double raw_median = median * unit.units_per_m;
+  if (bits) {
+    // The stored values say more than their median: 2^bits times the unit reads them.
+    const double scale = unit.units_per_m * static_cast<double>(1 << bits->bits);
+    std::snprintf(text, sizeof text,
+                  "; %.1f %% of its values are multiples of %d (their %d low bits are zero): --depth-scale %g puts the "
+                  "median at %.2f m",
+                  100.0 * bits->share, 1 << bits->bits, bits->bits, scale, raw_median / scale);
+    out += text;
+    if (bits->bits == 3 && unit.units_per_m == 1000.0) {
+      out += ", and --depth-format sunrgbd decodes SUN RGB-D's depth PNGs, which store millimetres rotated left by 3 "
+             "bits (the same reading for depth under 8.19 m)";
+    }
+    return out;
+  }
   // Every common unit that puts the median where depth cameras usually have it, the
   // nearest to 2 m first: the median alone cannot always tell 5000 from 10000.
-  const double raw_median = median * unit.units_per_m;
   std::vector<std::pair<double, double>> fits;  // (distance from 2 m in log scale, units per metre)
   for (const double candidate : {1000.0, 5000.0, 10000.0, 100.0, 1.0}) {
     const double m = raw_median / candidate;
@@ -128,7 +149,8 @@ std::optional<std::string> floorCutProblem(const perception::RangeReport& r, std
   std::snprintf(text, sizeof text,
                 "the lowest surface in view, likely the floor, lies %.2f m below the camera (along %s) and %.0f %% of it "
                 "beyond --max-range %g m, so it was left out; --max-range %g keeps it",
-                low.below_camera_m, r.down_from_gravity ? "gravity" : "the camera's +y axis", 100.0 * low.share_beyond,
+                low.below_camera_m,
+                r.down_from_gravity ? "gravity" : r.down_from_ground ? "the ground's normal" : "the camera's +y axis", 100.0 * low.share_beyond,
                 r.max_range_m, rangeToSuggest(low.range_p95_m));
   std::string out = text;
   if (ground_distance_m) {
@@ -140,13 +162,14 @@ std::optional<std::string> floorCutProblem(const perception::RangeReport& r, std
 }
 
 std::vector<std::string> DepthCheckTally::add(const std::string& label, const perception::RangeReport& r,
-                                              std::optional<double> ground_distance_m, const DepthUnit& unit) {
+                                              std::optional<double> ground_distance_m, const DepthUnit& unit,
+                                              const std::optional<LowZeroBits>& bits) {
   ++frames_;
   valid_ += r.valid_points;
   beyond_ += r.beyond_max_range;
   max_range_m_ = r.max_range_m;
   std::vector<std::string> out;
-  if (const auto unit_problem = depthUnitProblem(r, unit)) {
+  if (const auto unit_problem = depthUnitProblem(r, unit, bits)) {
     if (unit_frames_++ == 0) {
       out.push_back("warning: " + label + ": " + *unit_problem);
       unit_problem_ = *unit_problem;

@@ -41,11 +41,26 @@ std::unique_ptr<sources::Sequence> withDepthScale(std::unique_ptr<sources::Seque
 /// taken to be in another unit.
 constexpr double kPlausibleMedianMin = 0.3, kPlausibleMedianMax = 12.0;
 
+/// Low bits that most of a depth image's stored values have zero: depth in a unit 2^bits
+/// times finer than it was read in, or an encoding such as SUN RGB-D's (millimetres
+/// rotated left by 3 bits, so nearly every value is a multiple of 8).
+struct LowZeroBits {
+  int bits = 0;
+  double share = 0.0;  ///< of the valid values
+};
+/// The most low bits (2 to 4) that at least 90 % of the image's valid values, as stored
+/// (depth times unit.units_per_m; every 7th pixel), have zero; nullopt for clouds, float
+/// depth, fewer than 1000 valid values in the sample, or no such bits (plain depth has each low bit zero in about half
+/// its values).
+std::optional<LowZeroBits> lowZeroBits(const perception::DepthImage& depth, const DepthUnit& unit);
+
 /// When the frame's median valid depth is implausible for a depth camera: what it reads
 /// as, and each `--depth-scale` (units per metre) among the common ones (1000, 5000,
-/// 10000, 100, 1) that puts the median between 0.4 and 8 m, the one nearest 2 m first.
-/// Else nullopt.
-std::optional<std::string> depthUnitProblem(const perception::RangeReport& r, const DepthUnit& unit);
+/// 10000, 100, 1) that puts the median between 0.4 and 8 m, the one nearest 2 m first;
+/// when the stored values share low zero bits (`bits`), the scale and the depth format
+/// those bits point to instead. Else nullopt.
+std::optional<std::string> depthUnitProblem(const perception::RangeReport& r, const DepthUnit& unit,
+                                            const std::optional<LowZeroBits>& bits = std::nullopt);
 
 /// The `--max-range` (metres, rounded up to half a metre) that keeps points out to
 /// `range_m`.
@@ -68,7 +83,11 @@ class DepthCheckTally {
   /// Checks one frame (`label`: "frame 12"); returns what to print now, each line
   /// starting "warning: " (depth in another unit) or "note: " (what the range cut).
   std::vector<std::string> add(const std::string& label, const perception::RangeReport& r,
-                               std::optional<double> ground_distance_m, const DepthUnit& unit);
+                               std::optional<double> ground_distance_m, const DepthUnit& unit,
+                               const std::optional<LowZeroBits>& bits = std::nullopt);
+  /// Whether every frame checked read as depth in another unit (a map of them is not
+  /// the scene's).
+  [[nodiscard]] bool everyFrameInAnotherUnit() const { return frames_ > 0 && unit_frames_ == static_cast<int>(frames_); }
   /// For the run's summary: what the range took over all frames, and how many frames
   /// showed each problem, with the largest `--max-range` suggested ("warning: " when a
   /// quarter of the frames or more did, else "note: ").

@@ -74,36 +74,22 @@ Eigen::Isometry3d fromYaml(const std::string& path) {
   throw IoError(path, "holds no transform: expected local_transform, translation + rotation, or data (12 or 16 values)");
 }
 
-class ExtrinsicSequence : public Sequence {
+class ExtrinsicSequence : public sources::ForwardingSequence {
  public:
-  ExtrinsicSequence(std::unique_ptr<Sequence> inner, const Eigen::Isometry3d& T) : inner_(std::move(inner)), T_(T) {}
-  std::string describe() const override { return inner_->describe() + ", the camera at --extrinsics on the posed frame"; }
-  std::string format() const override { return inner_->format(); }
-  const perception::PinholeIntrinsics& intrinsics() const override { return inner_->intrinsics(); }
-  bool hasDepth() const override { return inner_->hasDepth(); }
-  std::optional<Eigen::Vector3d> gravityDown() const override { return inner_->gravityDown(); }
-  std::string gravitySource() const override { return inner_->gravitySource(); }
-  bool posed() const override { return inner_->posed(); }
-  const std::vector<int>& frames() const override { return inner_->frames(); }
-  void check(int n) const override { inner_->check(n); }
+  ExtrinsicSequence(std::unique_ptr<Sequence> inner, const Eigen::Isometry3d& T) : ForwardingSequence(std::move(inner)), T_(T) {}
+  std::string describe() const override { return inner().describe() + ", the camera at --extrinsics on the posed frame"; }
   Frame load(int n) const override {
-    Frame f = inner_->load(n);
+    Frame f = inner().load(n);
     if (f.T_world_camera) f.T_world_camera = *f.T_world_camera * T_;
     return f;
   }
   std::optional<Eigen::Isometry3d> pose(int n) const override {
-    auto p = inner_->pose(n);
+    auto p = inner().pose(n);
     if (p) p = *p * T_;
     return p;
   }
-  std::optional<ImageRgb> colour(int n) const override { return inner_->colour(n); }
-  std::vector<std::string> files(int n) const override { return inner_->files(n); }
-  std::string skipped() const override { return inner_->skipped(); }
-  DepthUnit depthUnit() const override { return inner_->depthUnit(); }
-  const sources::Recording* recording() const override { return inner_->recording(); }
 
  private:
-  std::unique_ptr<Sequence> inner_;
   Eigen::Isometry3d T_;
 };
 

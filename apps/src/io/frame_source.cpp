@@ -56,7 +56,7 @@ Frame loadSingleFrame(const std::string& input, int frame, const std::string& in
   namespace fs = std::filesystem;
   std::error_code ec;
   if (sources::isRecording(input)) {
-    const auto seq = openSequence(input, {intrinsics_spec, 0.05, "", choice});
+    const auto seq = openSequence(input, {intrinsics_spec, 0.05, "", choice, ""});
     if (seq->frames().empty()) throw IoError(input, "none of its depth images has a pose (" + seq->skipped() + ")");
     Frame f = loadSequenceFrame(*seq, input, frame < 0 ? seq->frames().front() : frame);
     f.description = "depth image " + std::to_string(f.number) + " of " + seq->describe();
@@ -67,7 +67,7 @@ Frame loadSingleFrame(const std::string& input, int frame, const std::string& in
   if (tum || (!fs::is_directory(input, ec) && (ext == ".pcd" || ext == ".png"))) {
     // TUM RGB-D (frames numbered as build numbers them: the depth frames with a pose), or
     // a single file, a sequence of one frame.
-    const auto seq = openSequence(input, {intrinsics_spec, 0.05, "", {}});
+    const auto seq = openSequence(input, {intrinsics_spec, 0.05, "", {}, ""});
     Frame f = loadSequenceFrame(*seq, input, frame < 0 ? seq->frames().front() : frame);
     if (tum) f.description += " (TUM RGB-D)";
     return f;
@@ -120,6 +120,14 @@ void rescaleDepth(Frame& f, double units_per_m) {
   const float factor = depthRescaleFactor(f.depth_unit, units_per_m);
   if (units_per_m == f.depth_unit.units_per_m) return;
   scaleFrame(f, factor, units_per_m);
+}
+
+void decodeDepthFormat(Frame& f, const std::string& format, const std::string& input) {
+  if (!f.depth || f.depth_unit.cloud || f.depth_unit.units_per_m < 2.0) {
+    throw UsageError("--depth-format " + format + " is for 16-bit depth images; " + input + " gives " +
+                     (f.depth ? "depth in metres as floats" : "a point cloud"));
+  }
+  sources::undoDepthFormat(*f.depth, f.depth_unit.units_per_m, format);
 }
 
 perception::FrameResult perceiveFrame(const perception::FramePipeline& pipeline, const Frame& f,

@@ -27,6 +27,11 @@ void toInputFrame(perception::FrameResult& r, const Frame& f);
 /// read in (`--depth-scale`). UsageError unless positive and finite.
 void rescaleDepth(Frame& f, double units_per_m);
 
+/// Decodes `f`'s 16-bit depth values as `format` says (`--depth-format`,
+/// sources::undoDepthFormat). UsageError naming `input` when its depth is not 16-bit
+/// values (a cloud, 32-bit floats).
+void decodeDepthFormat(Frame& f, const std::string& format, const std::string& input);
+
 /// Runs `pipeline` on a loaded frame: its depth image, else its cloud (organized when
 /// it has more than one row).
 perception::FrameResult perceiveFrame(const perception::FramePipeline& pipeline, const Frame& f,

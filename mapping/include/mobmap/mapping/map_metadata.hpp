@@ -88,6 +88,7 @@ struct MapRun {
   std::optional<std::string> origin_source;
   std::optional<long long> points_outside_map, frames_outside_map;
   std::optional<double> depth_units_per_m;  ///< the input's depth values per metre as read (`--depth-scale`)
+  std::optional<std::string> depth_format;  ///< `--depth-format`: how its 16-bit depth values were decoded
   /// Valid points in the frames fused, and those of them beyond the perception's max range.
   std::optional<long long> points_in_view, points_beyond_range;
   std::optional<double> seconds, frames_per_second;

@@ -67,7 +67,8 @@ struct RangeReport {
   /// 0 when no point was valid.
   double median_range_m = 0, range_p95_m = 0;
   /// The lowest surface in view: the points within 8 cm of the 98th percentile of height
-  /// below the camera along `down` (gravity when the frame had it, else the camera's +y).
+  /// below the camera along `down`: gravity when the frame had it, else the normal of the
+  /// ground plane found, else the camera's +y.
   struct Lowest {
     double below_camera_m = 0;  ///< its depth below the camera along down
     double share_beyond = 0;    ///< of its points, the share farther than max_range_m
@@ -76,6 +77,7 @@ struct RangeReport {
   };
   std::optional<Lowest> lowest;  ///< unset when the sample is too small (under 200 points)
   bool down_from_gravity = false;
+  bool down_from_ground = false;  ///< down was the ground plane's normal (no gravity)
   /// beyond_max_range / valid_points (0 for no valid point).
   [[nodiscard]] double shareBeyond() const {
     return valid_points ? static_cast<double>(beyond_max_range) / static_cast<double>(valid_points) : 0.0;

@@ -72,6 +72,35 @@ class Sequence {
   [[nodiscard]] virtual const Recording* recording() const { return nullptr; }
 };
 
+/// A sequence that hands every call to another: the base of those that change one thing
+/// about it (its depth's encoding or unit, its poses) and override what they change.
+class ForwardingSequence : public Sequence {
+ public:
+  explicit ForwardingSequence(std::unique_ptr<Sequence> inner) : inner_(std::move(inner)) {}
+  [[nodiscard]] std::string describe() const override { return inner_->describe(); }
+  [[nodiscard]] std::string format() const override { return inner_->format(); }
+  [[nodiscard]] const perception::PinholeIntrinsics& intrinsics() const override { return inner_->intrinsics(); }
+  [[nodiscard]] bool hasDepth() const override { return inner_->hasDepth(); }
+  [[nodiscard]] std::optional<Eigen::Vector3d> gravityDown() const override { return inner_->gravityDown(); }
+  [[nodiscard]] std::string gravitySource() const override { return inner_->gravitySource(); }
+  [[nodiscard]] bool posed() const override { return inner_->posed(); }
+  [[nodiscard]] const std::vector<int>& frames() const override { return inner_->frames(); }
+  void check(int n) const override { inner_->check(n); }
+  [[nodiscard]] Frame load(int n) const override { return inner_->load(n); }
+  [[nodiscard]] std::optional<Eigen::Isometry3d> pose(int n) const override { return inner_->pose(n); }
+  [[nodiscard]] std::optional<ImageRgb> colour(int n) const override { return inner_->colour(n); }
+  [[nodiscard]] std::vector<std::string> files(int n) const override { return inner_->files(n); }
+  [[nodiscard]] std::string skipped() const override { return inner_->skipped(); }
+  [[nodiscard]] DepthUnit depthUnit() const override { return inner_->depthUnit(); }
+  [[nodiscard]] const Recording* recording() const override { return inner_->recording(); }
+
+ protected:
+  [[nodiscard]] const Sequence& inner() const { return *inner_; }
+
+ private:
+  std::unique_ptr<Sequence> inner_;
+};
+
 /// How openSequence reads an input.
 struct SequenceOptions {
   /// "fx,fy,cx,cy", "fov:DEGREES" or a camera file (parseIntrinsics): replaces the
@@ -86,7 +115,19 @@ struct SequenceOptions {
   /// recording's images (matched by stamp) instead of its TF tree.
   std::string poses;
   RecordingChoice recording;
+  /// How 16-bit depth values are encoded beyond their unit (depthFormats()); empty:
+  /// plainly, as numbers of units.
+  std::string depth_format;
 };
+
+/// The depth encodings undoDepthFormat() knows, with what each is: "sunrgbd" (SUN RGB-D's
+/// depth PNGs: millimetres rotated left by 3 bits, so most values are multiples of 8).
+const std::vector<std::pair<std::string, std::string>>& depthFormats();
+
+/// Undoes `format` (depthFormats()) on `depth` read from 16-bit values at `units_per_m`
+/// values per metre: each value is taken back to its 16 bits, decoded, and read at the
+/// same unit (0 and 65535 stay "no measurement"). UsageError for an unknown format.
+void undoDepthFormat(perception::DepthImage& depth, double units_per_m, const std::string& format);
 
 /// Opens INPUT: a robot's recording (isRecording: a ROS 2 bag folder, .db3 or .mcap, a
 /// ROS 1 .bag), an OpenNI2 .oni file (every frame; load them in order), a TUM RGB-D
@@ -95,7 +136,8 @@ struct SequenceOptions {
 /// `poses`, else a lone frame whose organized cloud's camera is recovered, see
 /// recoverCameraFrame) or a single 16-bit depth .png in millimetres.
 /// IoError naming the file and the problem; UsageError for an invalid
-/// `options.intrinsics` or a PNG without intrinsics.
+/// `options.intrinsics`, a PNG without intrinsics, or a depth format for an input whose
+/// depth is not 16-bit images (clouds, 32-bit float images).
 std::unique_ptr<Sequence> openSequence(const std::string& input, const SequenceOptions& options = {});
 
 /// The recording options `choice` and `max_pose_gap_s` give (topics, world frame, IMU).
