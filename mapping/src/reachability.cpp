@@ -201,18 +201,36 @@ Reachability computeReachability(std::shared_ptr<const SurfaceColumns> columns, 
       }
     }
   } else {
-    // The largest level: most sole centres (any heading's geometry passes) within 4 cm.
-    const double window = std::max(0.04, res);
-    std::vector<double> zs;
-    zs.reserve(r.feet_.size());
-    for (const FootPlace& f : r.feet_) zs.push_back(f.z);
-    std::sort(zs.begin(), zs.end());
-    std::size_t best = 0, lo = 0, hi = 0;
+    // The largest level: the most walkable surface, as `info` measures it.
+    const std::vector<Level> levels = gatherLevels(walkableBins(cols), res, 1, 0.0);
     double level = 0;
-    for (std::size_t i = 0; i < zs.size(); ++i) {
-      while (zs[lo] < zs[i] - window - 1e-9) ++lo;
-      while (hi < zs.size() && zs[hi] <= zs[i] + window + 1e-9) ++hi;
-      if (hi - lo > best) best = hi - lo, level = zs[i];
+    if (!levels.empty()) {
+      level = levels.front().z_m;
+      StartLevel sl;
+      sl.z_m = level, sl.walkable = levels.front().count, sl.share = levels.front().share;
+      const double radius2 = params.start_radius_m * params.start_radius_m;
+      for (const Place& p : r.places_) {
+        if (!p.has_mobility || p.mobility < kWalkableMobility || std::abs(p.top_z - level) > level_tol) continue;
+        const double d2 = (p.x - start.x()) * (p.x - start.x()) + (p.y - start.y()) * (p.y - start.y());
+        if (d2 > radius2) continue;
+        ++sl.walkable_near;
+        sl.standable_near += p.standable;
+      }
+      r.start_level_ = sl;
+    } else {
+      // No walkable place: the height with the most sole centres (any heading's geometry
+      // passes) within 4 cm.
+      const double window = std::max(0.04, res);
+      std::vector<double> zs;
+      zs.reserve(r.feet_.size());
+      for (const FootPlace& f : r.feet_) zs.push_back(f.z);
+      std::sort(zs.begin(), zs.end());
+      std::size_t best = 0, lo = 0, hi = 0;
+      for (std::size_t i = 0; i < zs.size(); ++i) {
+        while (zs[lo] < zs[i] - window - 1e-9) ++lo;
+        while (hi < zs.size() && zs[hi] <= zs[i] + window + 1e-9) ++hi;
+        if (hi - lo > best) best = hi - lo, level = zs[i];
+      }
     }
     for (const std::size_t f : near) {
       if (r.feet_[f].isStandable() && std::abs(r.feet_[f].z - level) <= level_tol) r.start_feet_.push_back(f);

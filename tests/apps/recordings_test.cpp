@@ -6,6 +6,7 @@
 #include "io/frame_source.hpp"
 #include "mobmap/sources/pcd.hpp"
 #include "io/io_error.hpp"
+#include "io/png_io.hpp"
 
 #include "mobmap/perception/pipeline.hpp"
 #include "mobmap/sim/corridor_scene.hpp"
@@ -729,6 +730,114 @@ TEST(OrganizedCamera, APcdSequenceInATurnedFrameMapsAsInTheCameraFrame) {
   ASSERT_GT(ca.size(), 10000u);
   EXPECT_GT(static_cast<double>(common), 0.995 * static_cast<double>(std::max(ca.size(), cb.size())))
       << ca.size() << " and " << cb.size() << " columns, " << common << " in both";
+}
+
+// A quad of two triangles, counter-clockwise seen from the side its normal faces.
+void addQuad(std::vector<sim::Triangle>& tris, const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+             const Eigen::Vector3d& d, int id) {
+  tris.push_back({a, b, c, id});
+  tris.push_back({a, c, d, id});
+}
+
+// One office frame: a camera 1.1 m up, pitched 8 degrees down, sees the floor from 1.8 m
+// to 5 m away and a box 0.45 m high 1.3-1.9 m ahead. With Kinect noise the far floor's
+// depths fall on disparity steps several centimetres apart: 2 cm voxels leave it striped.
+// Written as a single 16-bit depth PNG (millimetres); returns its path.
+std::string farFloorFrame(const fs::path& dir) {
+  std::vector<sim::Triangle> tris;
+  addQuad(tris, {-5, -1, 0}, {5, -1, 0}, {5, 7, 0}, {-5, 7, 0}, 1);                       // floor z = 0
+  addQuad(tris, {-5, 7, 0}, {5, 7, 0}, {5, 7, 3}, {-5, 7, 3}, 2);                         // end wall
+  const double x0 = -0.35, x1 = 0.35, y0 = 1.3, y1 = 1.9, h = 0.45;
+  addQuad(tris, {x0, y0, h}, {x1, y0, h}, {x1, y1, h}, {x0, y1, h}, 3);                   // box top
+  addQuad(tris, {x0, y0, 0}, {x0, y0, h}, {x1, y0, h}, {x1, y0, 0}, 4);                   // its front
+  addQuad(tris, {x0, y0, 0}, {x0, y1, 0}, {x0, y1, h}, {x0, y0, h}, 4);                   // its sides
+  addQuad(tris, {x1, y0, 0}, {x1, y0, h}, {x1, y1, h}, {x1, y1, 0}, 4);
+  const double pitch = 8.0 * M_PI / 180.0;
+  const Eigen::Vector3d fwd(0, std::cos(pitch), -std::sin(pitch)), right(1, 0, 0);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear().col(0) = right;
+  T.linear().col(1) = fwd.cross(right);
+  T.linear().col(2) = fwd;
+  T.translation() = Eigen::Vector3d(0, 0, 1.1);
+  const perception::PinholeIntrinsics k{320, 240, 292.5, 292.5, 160.0, 120.0};
+  sim::RayCastResult rc = sim::castRays(tris, k, T);
+  sim::applyKinectNoise(rc.depth, rc.incidence_cos, sim::KinectNoiseParams{}, k.fx, 7, 0);
+  Image16 img{k.width, k.height, {}};
+  for (const float z : rc.depth.depth_m) img.pixels.push_back(z > 0.f ? static_cast<std::uint16_t>(std::lround(z * 1000.f)) : 0);
+  const std::string path = (dir / "office.depth.png").string();
+  writePng16(path, img);
+  return path;
+}
+
+// At 2 cm the striped far floor holds most of the walkable surface but few whole soles,
+// and the box top many: `reach` starts on the floor (the level `info` lists first), says
+// why so few soles stand there and what helps; at 4 cm the floor carries them. Gravity
+// comes from that far floor, and `build` says how far and how much of it there was.
+TEST(SparseFloor, AFarFloorSeenOnceIsTheStartLevelAndItsGapsAreExplained) {
+  const TempDir dir;
+  const std::string png = farFloorFrame(dir.path);
+  // The floor's nearest pixel (the bottom row's middle) lies 1.1 m / sin(8 deg + atan(119.5 / 292.5)) away.
+  const double nearest_floor = 1.1 / std::sin(8.0 * M_PI / 180.0 + std::atan(119.5 / 292.5));
+  double reached_at_2cm = 0;
+  for (const std::string res : {"0.02", "0.04"}) {
+    SCOPED_TRACE(res);
+    const std::string map = (dir.path / ("m" + res + ".ot")).string();
+    const auto [built, said] =
+        mobmap("build " + png + " --intrinsics 292.5,292.5,160,120 --max-range 5 --out " + map + " --resolution " + res + " --quiet");
+    ASSERT_EQ(built, 0) << said;
+    double near = 0, median = 0, lo = 0, hi = 0;
+    const auto at = said.find("note: gravity (down) comes from the frame's ground plane, seen only ");
+    ASSERT_NE(at, std::string::npos) << said;
+    ASSERT_EQ(std::sscanf(said.c_str() + at, "note: gravity (down) comes from the frame's ground plane, seen only %lf m from the "
+                                             "camera or farther (median %lf m;",
+                          &near, &median),
+              2)
+        << said;
+    const auto ninety = said.find("90 % of them ", at);
+    ASSERT_NE(ninety, std::string::npos) << said;
+    ASSERT_EQ(std::sscanf(said.c_str() + ninety, "90 %% of them %lf-%lf m", &lo, &hi), 2) << said;
+    EXPECT_EQ(lo, near);
+    EXPECT_GE(near, nearest_floor - 0.05);
+    EXPECT_LT(near, nearest_floor + 0.5);
+    EXPECT_GT(median, near);
+    EXPECT_GT(hi, 4.0);
+    EXPECT_LE(hi, 5.0);
+    std::ifstream meta(dir.path / ("m" + res + ".json"));
+    const auto mj = nlohmann::json::parse(meta);
+    EXPECT_NE(mj.dump().find("the frame's ground plane (its largest plane; "), std::string::npos) << mj.dump();
+    // info's largest walkable level is the floor, 1.1 m below the camera; reach starts on
+    // it, and measures it the same way.
+    const auto [informed, info] = mobmap("info --json " + map);
+    ASSERT_EQ(informed, 0) << info;
+    nlohmann::json largest;
+    const auto ij = nlohmann::json::parse(info);
+    for (const auto& l : ij["walkable_levels"]) {
+      if (largest.is_null() || l["share"].get<double>() > largest["share"].get<double>()) largest = l;
+    }
+    ASSERT_FALSE(largest.is_null()) << info;
+    EXPECT_NEAR(largest["z_m"].get<double>(), -1.1, 0.03);
+    EXPECT_GT(largest["share"].get<double>(), 0.8);
+    const auto [reached, out] = mobmap("reach --json " + map);
+    ASSERT_EQ(reached, 0) << out;
+    const auto rj = nlohmann::json::parse(out.substr(out.find('{')));
+    EXPECT_NEAR(rj["start"]["place"][2].get<double>(), -1.1, 0.05) << rj.dump();
+    EXPECT_DOUBLE_EQ(rj["start"]["level"]["z_m"].get<double>(), largest["z_m"].get<double>());
+    EXPECT_DOUBLE_EQ(rj["start"]["level"]["walkable_share"].get<double>(), largest["share"].get<double>());
+    const double carried = rj["start"]["level"]["standable_near"].get<double>() / rj["start"]["level"]["walkable_near"].get<double>();
+    if (res == "0.02") {
+      EXPECT_LT(carried, 0.3) << rj.dump();
+      ASSERT_TRUE(rj["start"]["note"].is_string()) << rj.dump();
+      EXPECT_NE(rj["start"]["note"].get<std::string>().find("a coarser --resolution (0.04 m, twice this map's)"), std::string::npos)
+          << rj.dump();
+      reached_at_2cm = rj["reachable"]["area_m2"].get<double>();
+      const auto [text_code, text] = mobmap("reach " + map);
+      EXPECT_NE(text.find("note: the start level (z = -1.0"), std::string::npos) << text;
+    } else {
+      EXPECT_GT(carried, 0.5) << rj.dump();
+      EXPECT_TRUE(rj["start"]["note"].is_null()) << rj.dump();
+      EXPECT_GT(rj["reachable"]["area_m2"].get<double>(), 4 * reached_at_2cm) << rj.dump();
+    }
+  }
 }
 
 }  // namespace

@@ -205,10 +205,15 @@ TEST(Cli, InfoListsEveryStairTreadAsAWalkableLevel) {
     EXPECT_TRUE(std::any_of(z.begin(), z.end(), [&](double l) { return l >= tread - 0.005 && l <= tread + 0.025; }))
         << "no level at " << tread << ": " << levels.dump();
   }
+  // The text lists the same levels, in the same order.
   const Result text = run("info " + dir + "/m.ot");
-  for (const char* tread : {"z = 0.18 m", "z = 0.35 m", "z = 0.51 m", "z = 0.69 m"}) {
-    EXPECT_NE(text.out.find(tread), std::string::npos) << text.out;
+  std::string listed;
+  for (std::size_t i = 0; i < levels.size(); ++i) {
+    char item[64];
+    std::snprintf(item, sizeof item, "%s z = %.2f m (%.0f %%)", i ? "," : "", z[i], 100 * levels[i]["share"].get<double>());
+    listed += item;
   }
+  EXPECT_NE(text.out.find("share of them):" + listed + "\n"), std::string::npos) << listed << "\n" << text.out;
   fs::remove_all(dir);
 }
 
@@ -232,7 +237,7 @@ TEST(Cli, InfoAndReachFindTheRedkitchenFloorAndTableTop) {
   for (const auto& l : levels) table = table || std::abs(l["z_m"].get<double>() + 0.77) < 0.03;
   EXPECT_TRUE(table) << levels.dump();
   const Result text = run("info " + dir + "/m.ot");
-  EXPECT_NE(text.out.find("walkable levels (top faces of voxels >= 0.75, share of them): z = -1.4"), std::string::npos)
+  EXPECT_NE(text.out.find("walkable levels (surface tops with mobility >= 0.75, one per column and run; share of them): z = -1.4"), std::string::npos)
       << text.out;
   // Reach from the first camera position starts on the floor, not on the table top
   // nearer the camera, and cannot climb the 0.7 m to the table, which can be stood on.

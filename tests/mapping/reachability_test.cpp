@@ -454,6 +454,69 @@ TEST(Reachability, RejectsInvalidParamsAndStartsNamingThem) {
   EXPECT_EQ(r.reachableCount(), 0u);
 }
 
+// A floor seen from far away: striped (one row of voxels in three), so it holds most of
+// the walkable surface but no whole sole; a solid box top 0.4 m up holds fewer walkable
+// voxels and many soles. The largest level is the floor, by walkable surface (as `info`
+// measures it), and the start level says how little of it carries a sole; with the floor
+// whole the walk starts on it.
+TEST(Reachability, TheLargestLevelIsTheOneWithTheMostWalkableSurfaceEvenWhereItCarriesNoSole) {
+  for (const bool striped : {true, false}) {
+    SCOPED_TRACE(striped ? "striped floor" : "whole floor");
+    MobilityOcTree tree(kRes);
+    std::size_t floor = 0;
+    for (int i = 0; i < 100; ++i) {
+      for (int j = 0; j < 100; ++j) {
+        const bool box = i >= 40 && i < 60 && j >= 40 && j < 60;
+        if (box) {
+          for (int k = 0; k <= 20; ++k) put(tree, i, j, k, k == 20 ? 1.0 : 0.0);
+        } else if (!striped || j % 3 == 0) {
+          put(tree, i, j, 0, 1.0);
+          ++floor;
+        }
+      }
+    }
+    // Both levels as info counts them: the floor 0.02 m up, the box top 0.42 m.
+    const auto bins = walkableBins(SurfaceColumns(tree));
+    EXPECT_EQ(bins.size(), 2u);
+    EXPECT_EQ(bins.at(1), floor);
+    EXPECT_EQ(bins.at(21), 400u);
+    ReachParams p;
+    p.start_rule = ReachParams::Start::kLargestLevel;
+    p.start_radius_m = 1.0;
+    const Eigen::Vector3d from(0.5, 0.5, 1.5);  // a camera above the floor, the box within the radius
+    const Reachability r = computeReachability(tree, from, p);
+    ASSERT_TRUE(r.startLevel());
+    const StartLevel& level = *r.startLevel();
+    EXPECT_NEAR(level.z_m, 0.02, 1e-9);
+    EXPECT_EQ(level.walkable, floor);
+    EXPECT_NEAR(level.share, static_cast<double>(floor) / static_cast<double>(floor + 400), 1e-12);
+    // Brute force: the floor's walkable columns within 1 m of (0.5, 0.5), and those
+    // under a standable sole.
+    std::size_t near = 0, carried = 0;
+    for (const Place& pl : r.places()) {
+      if (std::abs(pl.top_z - 0.02) > 1e-9 || std::hypot(pl.x - 0.5, pl.y - 0.5) > 1.0) continue;
+      ++near;
+      carried += pl.standable;
+    }
+    EXPECT_GT(near, 100u);
+    EXPECT_EQ(level.walkable_near, near);
+    EXPECT_EQ(level.standable_near, carried);
+    if (striped) {
+      EXPECT_EQ(carried, 0u);
+      EXPECT_EQ(level.carriedShare(), 0.0);
+      EXPECT_FALSE(r.start());  // no sole on the floor; never the box top
+      EXPECT_EQ(r.reachableCount(), 0u);
+    } else {
+      EXPECT_GT(level.carriedShare(), 0.9);
+      ASSERT_TRUE(r.start());
+      EXPECT_NEAR(r.footPlaces()[*r.start()].z, 0.02, 1e-6);
+    }
+    // The nearest rule has no start level.
+    p.start_rule = ReachParams::Start::kNearest;
+    EXPECT_FALSE(computeReachability(tree, from, p).startLevel());
+  }
+}
+
 // Parameters by name (Python's keyword arguments, serve's JSON): each name sets the field
 // validate() names when that field is out of range (NaN), and no other.
 TEST(FootstepPlanner, EachNamedParameterSetsTheFieldOfThatName) {

@@ -175,15 +175,9 @@ constexpr double kMinLevelShare = 0.005;
 }  // namespace
 
 std::vector<Level> walkableLevels(const mapping::MobilityOcTree& t) {
-  const double res = t.getResolution();
-  std::map<long, std::size_t> bins;  // round(top / res) -> voxels
-  // Top faces are binned per voxel (a pruned leaf counts once per column it covers).
-  for (auto it = t.begin_leafs(); it != t.end_leafs(); ++it) {
-    if (!t.isNodeOccupied(*it) || !it->hasMobility() || it->mobility() < 0.75) continue;
-    bins[std::lround((it.getZ() + it.getSize() / 2) / res)] += static_cast<std::size_t>(std::lround(std::pow(it.getSize() / res, 2)));
-  }
   // Every level, however many: a staircase of 7 treads has 8.
-  std::vector<Level> levels = gatherLevels(std::move(bins), res, std::numeric_limits<std::size_t>::max(), kMinLevelShare);
+  std::vector<Level> levels = gatherLevels(mapping::walkableBins(mapping::SurfaceColumns(t)), t.getResolution(),
+                                           std::numeric_limits<std::size_t>::max(), kMinLevelShare);
   std::sort(levels.begin(), levels.end(), [](const Level& a, const Level& b) { return a.z_m < b.z_m; });
   return levels;
 }

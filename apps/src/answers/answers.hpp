@@ -3,7 +3,7 @@
 // each, shared by the commands' --json output and `mobmap serve`, so that both say the
 // same thing byte for byte.
 
-#include "commands/levels.hpp"
+#include "mobmap/mapping/levels.hpp"
 
 #include "mobmap/mapping/footstep_planner.hpp"
 #include "mobmap/mapping/map_metadata.hpp"
@@ -77,8 +77,11 @@ struct LeafCounts {
 };
 LeafCounts countLeaves(const mapping::MobilityOcTree& tree);
 
-/// Heights where walkable voxels (mobility >= 0.75) gather: floors, landings, table tops.
-/// In height order; a level holds at least 0.5 % of the walkable voxels (docs/MAPPING.md).
+using mapping::gatherLevels;
+using mapping::Level;
+
+/// Heights where walkable surfaces (mapping::walkableBins) gather: floors, landings, table
+/// tops. In height order; a level holds at least 0.5 % of them (docs/MAPPING.md).
 std::vector<Level> walkableLevels(const mapping::MobilityOcTree& tree);
 
 /// The JSON object `mobmap info --json` prints: `map_label` is the "map" field, and the

@@ -340,10 +340,19 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
     gravity_world = T_world_single.linear() * (single_result->ground_plane
                                                    ? Eigen::Vector3d(-single_result->ground_plane->head<3>().cast<double>())
                                                    : Eigen::Vector3d(0, 1, 0));
+    const auto extent = groundExtent(*single_result);
+    const std::string how = extent ? "; " + describeGround(*extent) : "";
     gravity_source = !single_result->ground_plane ? "the camera's +y axis (no ground plane)"
                      : single_result->ground_rule == perception::GroundRule::kUprightPrior
-                         ? "the frame's ground plane (a floor within ground_upright_prior_deg of the image's up axis)"
-                         : "the frame's ground plane (its largest plane)";
+                         ? "the frame's ground plane (a floor within ground_upright_prior_deg of the image's up axis" + how + ")"
+                         : "the frame's ground plane (its largest plane" + how + ")";
+    if (extent && extent->near_m >= kFarGroundM) {
+      std::fprintf(stderr,
+                   "note: gravity (down) comes from the frame's ground plane, seen only %.1f m from the camera or farther "
+                   "(median %.1f m; %s): depth noise grows with the square of the range, so a far floor tilts gravity and "
+                   "heights measured above it may be off by centimetres; --gravity X,Y,Z sets it\n",
+                   extent->near_m, extent->median_m, describeGround(*extent).c_str());
+    }
     const std::string note = groundChoiceNote(*single_result, pp.ground_upright_prior_deg);
     if (!note.empty()) std::fprintf(stderr, "%s\n", note.c_str());
   }

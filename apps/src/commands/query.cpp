@@ -1,7 +1,7 @@
 #include "answers/answers.hpp"
 #include "commands/commands.hpp"
 #include "io/io_error.hpp"
-#include "commands/levels.hpp"
+#include "mobmap/mapping/levels.hpp"
 #include "io/map_files.hpp"
 #include "commands/reach_options.hpp"
 #include "commands/recording_info.hpp"
@@ -128,6 +128,8 @@ Command addQueryCommand(CLI::App& app) {
                    "note: reach from the surface at (%.2f, %.2f, %.2f) m, map frame (%s rule): %zu of %zu surface voxels "
                    "under soles the robot can stand on are reachable\n",
                    s.x, s.y, s.z, o->robot.rule.c_str(), run->result.reachableCount(), run->result.standableCount());
+      const std::string sparse = sparseStartNote(run->result, o->robot);
+      if (!sparse.empty()) std::fprintf(stderr, "note: %s\n", sparse.c_str());
     }
     // A sole: X Y Z YAW LENGTH WIDTH. `where` names its source in errors.
     const InputFrame frame = o->frame == "world" ? InputFrame::kWorld : InputFrame::kMap;
@@ -328,7 +330,7 @@ Command addInfoCommand(CLI::App& app) {
     }
     const std::vector<Level> levels = walkableLevels(t);
     if (!levels.empty()) {
-      std::printf("walkable levels (top faces of voxels >= 0.75, share of them):");
+      std::printf("walkable levels (surface tops with mobility >= 0.75, one per column and run; share of them):");
       for (std::size_t i = 0; i < levels.size(); ++i) {
         std::printf("%s z = %.2f m (%.0f %%)", i ? "," : "", levels[i].z_m, 100 * levels[i].share);
       }

@@ -3,7 +3,7 @@
 #include "commands/commands.hpp"
 #include "io/files.hpp"
 #include "io/io_error.hpp"
-#include "commands/levels.hpp"
+#include "mobmap/mapping/levels.hpp"
 #include "io/map_files.hpp"
 #include "commands/reach_options.hpp"
 #include "pictures/top_view.hpp"
@@ -89,8 +89,9 @@ Command addReachCommand(CLI::App& app) {
       if (p.standable && !p.reachable) ++bins[std::lround(p.top_z / res)];
     }
     const std::size_t unreachable = r.standableCount() - r.reachableCount();
-    const std::vector<Level> levels = gatherLevels(std::move(bins), res);
+    const std::vector<mapping::Level> levels = mapping::gatherLevels(std::move(bins), res);
     const auto& q = o->reach.params;
+    const std::string sparse = sparseStartNote(r, o->reach);
     if (o->json) {
       nlohmann::json j{{"start", {{"from", {start.x(), start.y(), start.z()}}, {"rule", rule}, {"place", {s.x, s.y, s.z}}, {"soles", r.startFeet().size()}}},
                        {"frame", "map"},
@@ -111,14 +112,22 @@ Command addReachCommand(CLI::App& app) {
                        {"standable", {{"places", r.standableCount()}, {"area_m2", r.standableCount() * cell_m2}}},
                        {"reachable", {{"places", r.reachableCount()}, {"area_m2", r.reachableCount() * cell_m2}}},
                        {"unreachable", {{"places", unreachable}, {"area_m2", unreachable * cell_m2}}}};
+      if (const auto& level = r.startLevel()) {
+        j["start"]["level"] = {{"z_m", level->z_m},
+                               {"walkable_share", level->share},
+                               {"walkable_near", level->walkable_near},
+                               {"standable_near", level->standable_near}};
+      }
+      j["start"]["note"] = sparse.empty() ? nlohmann::json(nullptr) : nlohmann::json(sparse);
       j["unreachable_levels"] = nlohmann::json::array();
-      for (const Level& l : levels) j["unreachable_levels"].push_back({{"z_m", l.z_m}, {"places", l.count}, {"share", l.share}});
+      for (const mapping::Level& l : levels) j["unreachable_levels"].push_back({{"z_m", l.z_m}, {"places", l.count}, {"share", l.share}});
       std::cout << j.dump() << "\n";
     } else {
       std::printf("start: the surface at (%.2f, %.2f, %.2f) m, map frame (%zu soles: %s within %.2f m of %s)\n", s.x, s.y,
                   s.z, r.startFeet().size(),
                   rule == "nearest" ? "the nearest place for a sole" : "every standable sole on the map's largest level",
                   q.start_radius_m, o->reach.from.empty() ? "the first camera position" : "--from");
+      if (!sparse.empty()) std::fprintf(stderr, "note: %s\n", sparse.c_str());
       const auto& b = q.robot;
       std::printf("robot: %.2f x %.2f m soles on mobility >= %.2f (%.0f %% of the sole on known surface, tilt up to %.0f deg, "
                   "unevenness up to %.2f m); steps up to %.2f m, strides up to %.2f m, swing %.2f m high, gaps up to %.2f m",

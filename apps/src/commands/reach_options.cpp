@@ -86,6 +86,42 @@ void resolveReachOptions(ReachOptions& o) {
   }
 }
 
+namespace {
+
+// Below this share of its walkable places near the start under a whole sole, a start
+// level is sparse: on a floor seen whole, only the rim (half a sole wide) and the edges
+// of holes and obstacles carry none.
+constexpr double kMinCarriedShare = 0.5;
+
+// Why few of the start level's walkable voxels carry a whole sole, and what helps.
+std::string sparseLevelReason(const mapping::Reachability& r) {
+  char msg[400];
+  std::snprintf(msg, sizeof msg,
+                "its walkable voxels are scattered, as the sensor's depth steps stripe a floor seen from far away or in few "
+                "frames; building with a coarser --resolution (%.2f m, twice this map's), from more frames, or from "
+                "frames nearer the floor fills it in",
+                2 * r.resolution());
+  return msg;
+}
+
+}  // namespace
+
+std::string sparseStartNote(const mapping::Reachability& r, const ReachOptions& o) {
+  const auto& level = r.startLevel();
+  if (o.params.start_rule != mapping::ReachParams::Start::kLargestLevel || !level || level->walkable_near == 0 ||
+      level->carriedShare() >= kMinCarriedShare) {
+    return {};
+  }
+  const auto& robot = o.params.robot;
+  char msg[400];
+  std::snprintf(msg, sizeof msg,
+                "the start level (z = %.2f m, %.0f %% of the map's walkable surface) carries whole %.2f x %.2f m soles on "
+                "only %.0f %% of its %zu walkable voxels within %.2f m of the start: ",
+                level->z_m, 100 * level->share, robot.sole_length_m, robot.sole_width_m, 100 * level->carriedShare(),
+                level->walkable_near, o.params.start_radius_m);
+  return msg + sparseLevelReason(r);
+}
+
 ReachRun runReach(const ReachOptions& o, const mapping::MobilityMap& map, const std::string& map_path, bool from_in_world,
                   const CameraPath& camera) {
   ReachRun run;
@@ -113,6 +149,16 @@ ReachRun runReach(const ReachOptions& o, const mapping::MobilityMap& map, const 
     if (o.rule == "nearest") {
       std::snprintf(msg, sizeof msg, " with its support at or below z = %.2f m", run.from.z() + 0.1);
       text += msg;
+    } else if (const auto& level = run.result.startLevel()) {
+      std::snprintf(msg, sizeof msg, " on the map's largest level (z = %.2f m, %.0f %% of its walkable surface; ", level->z_m,
+                    100 * level->share);
+      text += msg;
+      if (level->walkable_near == 0) {
+        text += "none of it lies there)";
+      } else {
+        std::snprintf(msg, sizeof msg, "none of its %zu walkable voxels there carries a whole sole: ", level->walkable_near);
+        text += msg + sparseLevelReason(run.result) + ")";
+      }
     } else {
       text += " on the map's largest level";
     }

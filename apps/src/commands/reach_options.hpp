@@ -49,6 +49,11 @@ struct ReachRun {
 /// world frame when `from_in_world`, else the first position of `camera`; UsageError if
 /// neither) and runs computeReachability. No place to start on: std::runtime_error naming
 /// `map_path`, the radius and the rule.
+/// Under the largest-level rule, when under half of the start level's walkable places
+/// near the start lie under a whole standable sole: what that means and what helps (a
+/// sentence without a "note:" prefix). Empty otherwise.
+std::string sparseStartNote(const mapping::Reachability& r, const ReachOptions& o);
+
 ReachRun runReach(const ReachOptions& o, const mapping::MobilityMap& map, const std::string& map_path, bool from_in_world,
                   const CameraPath& camera);
 

@@ -137,6 +137,34 @@ perception::FrameResult perceiveFrame(const perception::FramePipeline& pipeline,
                       : pipeline.process(f.points, gravity_down_camera);
 }
 
+std::optional<GroundExtent> groundExtent(const perception::FrameResult& r) {
+  const perception::Segment* ground = nullptr;
+  for (const perception::Segment& s : r.segments) {
+    if (s.is_ground) ground = &s;
+  }
+  if (!ground || ground->points.empty()) return std::nullopt;
+  GroundExtent g;
+  g.points = ground->points.size(), g.frame_points = r.points.size(), g.area_m2 = ground->area_m2;
+  std::vector<double> d;
+  d.reserve(ground->points.size());
+  for (const int i : ground->points) d.push_back(r.points[static_cast<std::size_t>(i)].cast<double>().norm());
+  const auto at = [&d](double q) {
+    const auto k = static_cast<std::size_t>(std::lround(q * static_cast<double>(d.size() - 1)));
+    std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(k), d.end());
+    return d[k];
+  };
+  g.near_m = at(0.05), g.median_m = at(0.5), g.far_m = at(0.95);
+  return g;
+}
+
+std::string describeGround(const GroundExtent& g) {
+  char buf[200];
+  std::snprintf(buf, sizeof buf, "%.1f m2, %.0f %% of the frame's points, 90 %% of them %.1f-%.1f m from the camera", g.area_m2,
+                g.frame_points ? 100.0 * static_cast<double>(g.points) / static_cast<double>(g.frame_points) : 0.0, g.near_m,
+                g.far_m);
+  return buf;
+}
+
 std::string groundChoiceNote(const perception::FrameResult& r, double upright_prior_deg) {
   if (!r.ground_plane) return {};
   const double tilt = perception::imageUpTiltDeg(*r.ground_plane);

@@ -12,6 +12,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <cstddef>
 #include <optional>
 #include <string>
 #include <vector>
@@ -46,6 +47,23 @@ perception::FrameResult perceiveFrame(const perception::FramePipeline& pipeline,
 /// plane lie at other heights (levels seen from above: treads, a floor); else that it is
 /// a floor seen from above or a wall. `analyze` and `build` both take `--gravity`.
 std::string groundChoiceNote(const perception::FrameResult& r, double upright_prior_deg);
+
+/// Where the ground plane of a frame lay: how much of the frame it holds and how far
+/// from the camera (a far floor gives a less certain gravity: depth noise grows with
+/// the square of the range).
+struct GroundExtent {
+  std::size_t points = 0;        ///< the ground segment's points
+  std::size_t frame_points = 0;  ///< the frame's points after reduction
+  double area_m2 = 0;            ///< its triangulated area
+  double near_m = 0, median_m = 0, far_m = 0;  ///< 5th, 50th and 95th percentile of its points' distances
+};
+/// nullopt when the frame has no ground segment.
+std::optional<GroundExtent> groundExtent(const perception::FrameResult& r);
+/// "4.2 m2, 61 % of the frame's points, 90 % of them 1.9-4.6 m from the camera".
+std::string describeGround(const GroundExtent& g);
+/// A ground whose nearest 5 % lie at least this far away is far: `build` says so when
+/// gravity comes from it.
+constexpr double kFarGroundM = 1.5;
 
 /// Parses "X,Y,Z" (non-zero, finite), a direction: returned as a unit vector. Throws
 /// UsageError.

@@ -9,6 +9,7 @@
 #include "mobmap/mapping/budget.hpp"
 #include "mobmap/mapping/foot.hpp"
 #include "mobmap/mapping/footholds.hpp"
+#include "mobmap/mapping/levels.hpp"
 #include "mobmap/mapping/mobility_octree.hpp"
 
 #include <Eigen/Core>
@@ -33,10 +34,13 @@ struct ReachParams {
     /// most 0.1 m above the point; the walk starts from every standable sole within half
     /// a sole length of it at its height: for a point on or just above the robot's footing.
     kNearest,
-    /// Every standable sole within start_radius_m on the map's largest level (the height
-    /// with the most sole centres within 4 cm of it, the lowest of equals): for a camera
-    /// position whose footing was never seen. That level is the floor, not a chair seat
-    /// or table top nearer the camera.
+    /// Every standable sole within start_radius_m on the map's largest level: the height
+    /// with the most walkable surface, measured as `mobmap info` measures its walkable
+    /// levels (gatherLevels(walkableBins()): the fullest height bin with its two
+    /// neighbours). For a camera position whose footing was never seen:
+    /// that level is the floor, not a chair seat or table top nearer the camera, even
+    /// where the floor was seen too sparsely for many whole soles. A map without a
+    /// walkable place falls back to the height with the most sole centres within 4 cm.
     kLargestLevel,
   };
   Start start_rule = Start::kNearest;
@@ -80,6 +84,24 @@ struct SoleReach {
   bool reachable = false;
 };
 
+/// The level a walk under ReachParams::Start::kLargestLevel started on, and how well its
+/// walkable surface near the start carries whole soles: a floor seen from far away (or in
+/// few frames) is striped by the sensor's depth steps, so its walkable voxels are many
+/// and its soles few.
+struct StartLevel {
+  double z_m = 0;             ///< its height (map frame), as gatherLevels(walkableBins()) gives it
+  std::size_t walkable = 0;   ///< walkable surfaces on it (Level::count)
+  double share = 0;           ///< of the map's walkable surfaces (Level::share)
+  /// Walkable places (mobility >= kWalkableMobility) within start_radius_m of the start
+  /// point, their top face within max(0.05 m, 2 voxels) of z_m (as the start soles).
+  std::size_t walkable_near = 0;
+  std::size_t standable_near = 0;  ///< of those, the ones under a standable sole
+  /// standable_near / walkable_near (0 when nothing walkable is near).
+  [[nodiscard]] double carriedShare() const {
+    return walkable_near ? static_cast<double>(standable_near) / static_cast<double>(walkable_near) : 0.0;
+  }
+};
+
 /// The result of computeReachability(). Immutable; safe to query from several threads.
 class Reachability {
  public:
@@ -91,6 +113,9 @@ class Reachability {
   /// nearest of the start soles; nullopt when there was no standable sole to start on
   /// (then nothing is reachable).
   [[nodiscard]] std::optional<std::size_t> start() const { return start_; }
+  /// The level the walk started on, under Start::kLargestLevel when some place is
+  /// walkable; nullopt otherwise.
+  [[nodiscard]] const std::optional<StartLevel>& startLevel() const { return start_level_; }
   /// Surfaces (places) under a standable / a reachable sole.
   [[nodiscard]] std::size_t standableCount() const { return standable_; }
   [[nodiscard]] std::size_t reachableCount() const { return reachable_; }
@@ -124,6 +149,7 @@ class Reachability {
   std::vector<std::uint32_t> feet_offsets_;  ///< per lattice cell, into feet_
   std::optional<std::size_t> start_;
   std::vector<std::size_t> start_feet_;
+  std::optional<StartLevel> start_level_;
   std::size_t standable_ = 0, reachable_ = 0;
 };
 

@@ -1,9 +1,12 @@
-#include "commands/levels.hpp"
+#include "mobmap/mapping/levels.hpp"
+
+#include "mobmap/mapping/footholds.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 
-namespace mobmap::app {
+namespace mobmap::mapping {
 
 std::vector<Level> gatherLevels(std::map<long, std::size_t> bins, double res, std::size_t max_levels, double min_share) {
   std::size_t total = 0;
@@ -37,4 +40,13 @@ std::vector<Level> gatherLevels(std::map<long, std::size_t> bins, double res, st
   return levels;
 }
 
-}  // namespace mobmap::app
+std::map<long, std::size_t> walkableBins(const SurfaceColumns& columns) {
+  std::map<long, std::size_t> bins;
+  const double res = columns.resolution();
+  for (const SurfaceColumns::Run& run : columns.runs()) {
+    if (run.hasMobility() && run.mobility >= kWalkableMobility) ++bins[std::lround(columns.topFace(run) / res)];
+  }
+  return bins;
+}
+
+}  // namespace mobmap::mapping
