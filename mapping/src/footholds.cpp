@@ -7,6 +7,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
+#include <cstdio>
 #include <stdexcept>
 
 namespace mobmap::mapping {
@@ -98,7 +100,9 @@ const char* toString(FootholdProblem p) {
 
 // ---- SurfaceColumns -------------------------------------------------------------
 
-long SurfaceColumns::keyOf(double c) const { return static_cast<long>(std::floor(c / res_)) + 32768L; }
+long SurfaceColumns::keyOf(double c) const {
+  return static_cast<long>(std::floor(inv_res_ * static_cast<double>(static_cast<float>(c)))) + 32768L;
+}
 
 double SurfaceColumns::centreOf(long key) const { return (static_cast<double>(key - 32768L) + 0.5) * res_; }
 
@@ -118,7 +122,7 @@ long SurfaceColumns::runBelow(double x, double y, double z_max, double z_min) co
   return -1;
 }
 
-SurfaceColumns::SurfaceColumns(const MobilityOcTree& tree) : res_(tree.getResolution()) {
+SurfaceColumns::SurfaceColumns(const MobilityOcTree& tree) : res_(tree.getResolution()), inv_res_(1.0 / res_) {
   const unsigned depth = tree.getTreeDepth();
   struct Leaf {
     octomap::OcTreeKey base;
@@ -282,6 +286,18 @@ Foothold evaluateFoothold(const SurfaceColumns& cols, double x, double y, double
               : f.poor_fraction > robot.max_poor_fraction + 1e-12 ? FootholdProblem::kLowMobility
                                                     : FootholdProblem::kNone;
   return f;
+}
+
+std::string formatLimit(double value) {
+  char buf[64];
+  if (std::isfinite(value) && std::abs(value) < 1e15) {
+    for (int decimals = 0; decimals <= 17; ++decimals) {
+      std::snprintf(buf, sizeof buf, "%.*f", decimals, value);
+      if (std::strtod(buf, nullptr) == value) return buf;
+    }
+  }
+  std::snprintf(buf, sizeof buf, "%.17g", value);
+  return buf;
 }
 
 bool stepHeightOk(double za, double zb, const RobotParams& robot, double resolution) {

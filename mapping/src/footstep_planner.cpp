@@ -52,16 +52,19 @@ bool solesOverlap(double xa, double ya, double ta, double xb, double yb, double 
 std::string describeProblem(const Foothold& f, const RobotParams& r) {
   switch (f.problem) {
     case FootholdProblem::kNoSurface:
-      return format("only %.0f %% of a sole there rests on known surface (--min-support %.0f %%)", 100 * f.support_fraction,
-                    100 * r.min_support_fraction);
-    case FootholdProblem::kTooSteep: return format("its surface tilts %.1f degrees, over --max-tilt %.1f", f.tilt_deg, r.max_tilt_deg);
+      return format("only %.0f %% of a sole there rests on known surface (--min-support ", 100 * f.support_fraction) +
+             formatLimit(100 * r.min_support_fraction) + " %)";
+    case FootholdProblem::kTooSteep:
+      return format("its surface tilts %.1f degrees, over --max-tilt ", f.tilt_deg) + formatLimit(r.max_tilt_deg);
     case FootholdProblem::kUneven:
-      return format("the surface under a sole is uneven by %.3f m, over --max-unevenness %.3f", f.unevenness_m, r.max_unevenness_m);
+      return format("the surface under a sole is uneven by %.3f m, over --max-unevenness ", f.unevenness_m) +
+             formatLimit(r.max_unevenness_m);
     case FootholdProblem::kObstacle:
       return "something occupied stands inside the sole's space (within --swing-clearance or --clearance above it)";
     case FootholdProblem::kLowMobility:
-      return format("%.0f %% of the surface under the sole has mobility under --min-mobility %.2f (at most %.0f %% may: "
-                    "--max-poor)", 100 * f.poor_fraction, r.min_mobility, 100 * r.max_poor_fraction);
+      return format("%.0f %% of the surface under the sole has mobility under --min-mobility ", 100 * f.poor_fraction) +
+             formatLimit(r.min_mobility) + format(" (mean %.2f; at most ", f.mean_mobility) +
+             formatLimit(100 * r.max_poor_fraction) + " % may: --max-poor)";
     case FootholdProblem::kNone: break;
   }
   return "it can be stood on";
@@ -257,11 +260,14 @@ std::string diagnose(const SurfaceColumns& cols, const Reachability& reach, cons
     const FootPlace& from = feet[path[i - 1]];
     const FootPlace& to = feet[path[i]];
     if (stepHeightOk(from.z, to.z, robot, res)) continue;
+    // The heights printed are the ones compared (to the millimetre).
+    const double rise = std::abs(to.z - from.z);
     return std::string(to.z > from.z ? "the step up" : "the step down") +
-           format(" on the easiest way there is %.2f m", std::abs(to.z - from.z)) +
-           format(" (from z = %.2f m to z = %.2f m near x = %.2f, y = %.2f), over --max-step %.2f", from.z, to.z, to.x, to.y,
-                  robot.max_step_m) +
-           format(" (a step must pass with one voxel, %.2f m, to spare: heights are known to a voxel)", res);
+           format(" on the easiest way there measures %.3f m, from a sole resting at z = %.3f m to one at z = %.3f m "
+                  "(near x = %.2f, y = %.2f; each height known to one voxel, %.3f m); ",
+                  rise, from.z, to.z, to.x, to.y, res) +
+           "a step passes when its measured rise plus one voxel to spare is at most --max-step " +
+           formatLimit(robot.max_step_m) + format(": this one needs %.3f m", rise + res);
   }
   return "the goal is cut off from the start (no step over the limits found on the way; --max-gap or --swing-clearance "
          "may block it)";
@@ -424,6 +430,7 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
     fs.side = st.side;
     std::tie(fs.x, fs.y) = search.centre(st.run);
     fs.z = f.z, fs.yaw = headingYaw(st.heading), fs.min_mobility = f.min_mobility, fs.tilt_deg = f.tilt_deg;
+    fs.mean_mobility = f.mean_mobility, fs.poor_fraction = f.poor_fraction;
     if (fs.yaw > kPi) fs.yaw -= 2 * kPi;
     return fs;
   };

@@ -400,6 +400,7 @@ PointQuery MobilityMap::query(const Eigen::Vector3d& p) const {
   unknown.size_m = tree_->getResolution();
   if (!keyOf(*tree_, p, key)) {
     unknown.centre = p;
+    unknown.outside_map = true;
     return unknown;
   }
   // Descend by hand to learn the depth of the (possibly pruned) leaf; like
@@ -492,17 +493,49 @@ FootprintQuery MobilityMap::footprint(const Foot& f, double search_up_m, double 
   // each rests on.
   std::vector<detail::SupportSample> support;
   support.reserve(samples.size());
+  const double res = tree_->getResolution();
+  // The surface at (x, y) in [lo, hi]: the top voxel of the highest run of occupied voxels
+  // whose top face lies in it (a run rising above hi is no surface to rest on; the next
+  // run below it may be), as SurfaceColumns::runBelow() finds it.
+  const auto runTopIn = [&](double x, double y, double lo, double hi) -> std::optional<PointQuery> {
+    lo -= 1e-6, hi += 1e-6;
+    double from = hi;
+    while (from > lo) {
+      const auto q = snapDown({x, y, from}, from - lo);
+      if (!q) return std::nullopt;
+      const double top = q->centre.z() + q->size_m / 2;
+      if (top <= hi && query({x, y, top + res / 2}).state != VoxelState::kSurface) return q;
+      double z = q->centre.z();
+      while (z > lo && query({x, y, z}).state == VoxelState::kSurface) z -= res;
+      from = z;
+    }
+    return std::nullopt;
+  };
+  // The reference height: the surface under the centre, as Reachability::sole() takes it.
+  double z_ref = f.z;
+  if (const auto centre = runTopIn(f.x, f.y, f.z - search_down_m, f.z + search_up_m)) {
+    z_ref = centre->centre.z() + centre->size_m / 2;
+  }
+  const auto restOn = [&](double x, double y) { return runTopIn(x, y, z_ref - search_down_m, z_ref + search_up_m); };
   for (const SoleSample& sample : samples) {
     ++out.samples;
-    const auto q = snapDown({sample.x, sample.y, f.z + search_up_m}, search_up_m + search_down_m);
+    const auto q = restOn(sample.x, sample.y);
     if (!q) continue;
     zmin = std::min(zmin, q->centre.z());
     zmax = std::max(zmax, q->centre.z());
     support.push_back({sample.a, sample.b, q->centre.z() + q->size_m / 2});
-    if (!q->has_mobility) continue;
+    // The run's mobility: this voxel's, else the highest voxel's below it in the run.
+    std::optional<double> mobility;
+    if (q->has_mobility) mobility = q->mobility;
+    for (double z = q->centre.z() - res; !mobility; z -= res) {
+      const PointQuery below = query({sample.x, sample.y, z});
+      if (below.state != VoxelState::kSurface) break;
+      if (below.has_mobility) mobility = below.mobility;
+    }
+    if (!mobility) continue;
     ++known;
-    sum += q->mobility;
-    out.min_mobility = std::min(out.min_mobility, q->mobility);
+    sum += *mobility;
+    out.min_mobility = std::min(out.min_mobility, *mobility);
   }
   out.known_fraction = out.samples ? static_cast<double>(known) / out.samples : 0.0;
   out.mean_mobility = known ? sum / known : 0.0;

@@ -60,6 +60,7 @@ py::dict plan(const MapHandle& h, const py::handle& start, const py::handle& goa
   }
   const auto n = static_cast<py::ssize_t>(p.footsteps.size());
   auto xyz = newArray(n, 3), yaw = newArray(n), min_mobility = newArray(n), tilt = newArray(n);
+  auto mean_mobility = newArray(n), poor_fraction = newArray(n);
   py::array_t<std::uint8_t> side(n);
   auto o = xyz.mutable_unchecked<2>();
   for (py::ssize_t i = 0; i < n; ++i) {
@@ -73,6 +74,8 @@ py::dict plan(const MapHandle& h, const py::handle& start, const py::handle& goa
     for (int k = 0; k < 3; ++k) o(i, k) = c(k);
     yaw.mutable_at(i) = heading;
     min_mobility.mutable_at(i) = f.min_mobility;
+    mean_mobility.mutable_at(i) = f.mean_mobility;
+    poor_fraction.mutable_at(i) = f.poor_fraction;
     tilt.mutable_at(i) = f.tilt_deg;
     side.mutable_at(i) = f.side == mapping::Side::kLeft ? 0 : 1;
   }
@@ -83,6 +86,8 @@ py::dict plan(const MapHandle& h, const py::handle& start, const py::handle& goa
   out["yaw"] = yaw;
   out["side"] = side;
   out["min_mobility"] = min_mobility;
+  out["mean_mobility"] = mean_mobility;
+  out["poor_fraction"] = poor_fraction;
   out["tilt_deg"] = tilt;
   out["cost"] = p.cost;
   out["length_m"] = p.length_m;
@@ -134,7 +139,7 @@ void bindPlanning(py::module_& m) {
         "set the robot (sole_length_m, max_step_m, min_mobility, ...: RobotParams) and the search "
         "(heuristic_weight, time_limit_s, ...: PlanParams). Returns a dict: found, reason (why not, in "
         "words), xyz (N, 3) and yaw of the footsteps (the start stance first), side (0 left, 1 right), "
-        "min_mobility, tilt_deg, cost, length_m, max_step_height_m, expansions, planning_time_s.");
+        "min_mobility, mean_mobility, poor_fraction (what the standability rule checks), tilt_deg, cost, length_m, max_step_height_m, expansions, planning_time_s.");
   m.def("reachable", &reachable, py::arg("map"), py::arg("start"), py::arg("points"), py::arg("frame") = "map",
         py::arg("max_drop") = 0.5,
         "For each point (N, 3): whether the surface found within MAX_DROP metres below it is one the robot "

@@ -145,8 +145,9 @@ void CorridorMap::footprintsOnFloorAndAcrossTheStairs() const {
   EXPECT_GT(flat.min_mobility, 0.75);
   EXPECT_GT(flat.known_fraction, 0.9);
   EXPECT_LT(flat.max_height_difference_m, 0.03);
-  // A sole straddling the first riser (x = 6.0) spans a 17 cm step.
-  const auto step = map_->footprint({6.0, 0.9, 0.1, 0.0, 0.25, 0.12}, 0.15, 0.15);
+  // A sole straddling the first riser (x = 6.0) spans a 17 cm step (searched 0.2 m either
+  // side of the surface under its centre, the floor or the tread).
+  const auto step = map_->footprint({6.0, 0.9, 0.1, 0.0, 0.25, 0.12}, 0.2, 0.2);
   EXPECT_GT(step.max_height_difference_m, 0.12);
   EXPECT_LT(step.min_mobility, 0.5);
   // Soles along the ramps (scene: ramp i rises along +x from x = 1.5 + 1.2 i over 0.6 m):
@@ -258,10 +259,31 @@ void CorridorMap::footstepPlansAgreeWithTheTruth() const {
     for (const auto& f : stairs.footsteps) on = on || std::abs(f.z - 0.17 * k - 0.01) < 0.025;
     EXPECT_TRUE(on) << "tread " << k;
   }
+  // Too low a limit: the reason gives the measured rise (a 17 cm riser, the soles'
+  // heights known to a voxel), the limit as given and what the step needed.
+  std::string low_reason;
+  for (const double limit : {0.15, 0.155}) {
+    p.robot.max_step_m = limit;
+    const mapping::Plan low = mapping::planFootsteps(map_->tree(), {5.6, 0.9, 0.0}, {7.05, 0.9, 0.68}, p);
+    if (limit == 0.15) low_reason = low.reason;
+    EXPECT_FALSE(low.found);
+    double rise = 0, z0 = 0, z1 = 0, x = 0, y = 0, voxel = 0, needs = 0;
+    char limit_text[16] = {};
+    ASSERT_EQ(std::sscanf(low.reason.c_str(),
+                          "the step up on the easiest way there measures %lf m, from a sole resting at z = %lf m to one at "
+                          "z = %lf m (near x = %lf, y = %lf; each height known to one voxel, %lf m); a step passes when its "
+                          "measured rise plus one voxel to spare is at most --max-step %15[0-9.]: this one needs %lf m",
+                          &rise, &z0, &z1, &x, &y, &voxel, limit_text, &needs),
+              8)
+        << low.reason;
+    EXPECT_NEAR(rise, z1 - z0, 0.0015) << low.reason;
+    EXPECT_NEAR(rise, 0.17, 0.02 + 1e-6) << low.reason;  // within a voxel of the true riser
+    EXPECT_DOUBLE_EQ(voxel, 0.02);
+    EXPECT_EQ(std::string(limit_text), limit == 0.15 ? "0.15" : "0.155");
+    EXPECT_NEAR(needs, rise + voxel, 0.0015);
+    EXPECT_GT(needs, limit);
+  }
   p.robot.max_step_m = 0.15;
-  const mapping::Plan low = mapping::planFootsteps(map_->tree(), {5.6, 0.9, 0.0}, {7.05, 0.9, 0.68}, p);
-  EXPECT_FALSE(low.found);
-  EXPECT_NE(low.reason.find("over --max-step 0.15"), std::string::npos) << low.reason;
   const mapping::Plan box = mapping::planFootsteps(map_->tree(), {4.0, 0.5, 0.0}, {4.8, 0.8, 0.5}, p);
   EXPECT_FALSE(box.found);
   const mapping::Plan ramp = mapping::planFootsteps(map_->tree(), {2.2, -0.9, 0.0}, {3.2, -0.9, 0.14}, p);
@@ -271,7 +293,7 @@ void CorridorMap::footstepPlansAgreeWithTheTruth() const {
   for (const auto& f : ramp.footsteps) on_ramp = on_ramp || (f.x > 2.75 && f.x < 3.25 && f.z > 0.04);
   EXPECT_TRUE(on_ramp);
   std::printf("[ info ] plans: stairs %zu footsteps (%zu expansions), ramp %zu footsteps; 15 cm steps: %s\n",
-              stairs.footsteps.size(), stairs.expansions, ramp.footsteps.size(), low.reason.c_str());
+              stairs.footsteps.size(), stairs.expansions, ramp.footsteps.size(), low_reason.c_str());
 }
 
 TEST(CorridorMap, FusedKinectSequenceMatchesTheGroundTruth) {

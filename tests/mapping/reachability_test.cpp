@@ -1,6 +1,7 @@
 // Footholds, reachability and the footstep planner on analytic voxel scenes: soles on
 // floors, edges, ramps and holes; which surfaces a robot walks to; monotone limits; plans.
 #include "mobmap/mapping/footstep_planner.hpp"
+#include "mobmap/mapping/mobility_map.hpp"
 #include "mobmap/mapping/reachability.hpp"
 
 #include <gtest/gtest.h>
@@ -514,6 +515,66 @@ TEST(Reachability, TheLargestLevelIsTheOneWithTheMostWalkableSurfaceEvenWhereItC
     // The nearest rule has no start level.
     p.start_rule = ReachParams::Start::kNearest;
     EXPECT_FALSE(computeReachability(tree, from, p).startLevel());
+  }
+}
+
+// `query --foot` (MobilityMap::footprint) and `query --foot --reach` (a sole judged for
+// the robot) count the same samples as known, with the same mobilities: on the scene's
+// stairs, ledge, table, walls, hole and poor floor, plus a patch of floor whose top voxels
+// have no mobility yet (the voxel under each has one) and a patch with none at all.
+TEST(Reachability, FootprintAndFootholdCountTheSameKnownSurface) {
+  Scene s;
+  for (int i = 140; i < 150; ++i) {
+    for (int j = 20; j < 30; ++j) s.tree.updateNode(octomap::point3d(static_cast<float>((i + 0.5) * kRes),
+                                                                     static_cast<float>((j + 0.5) * kRes), 0.03f), true);
+  }
+  for (int i = 100; i < 110; ++i) {
+    for (int j = 40; j < 50; ++j) {
+      auto* n = s.tree.search(octomap::point3d(static_cast<float>((i + 0.5) * kRes), static_cast<float>((j + 0.5) * kRes), 0.01f));
+      ASSERT_NE(n, nullptr);
+      n->clearMobility();
+    }
+  }
+  // The map gets a copy voxel by voxel (octomap's copy constructor drops the payload).
+  auto copy = std::make_unique<MobilityOcTree>(kRes);
+  for (auto it = s.tree.begin_leafs(); it != s.tree.end_leafs(); ++it) {
+    ASSERT_NEAR(it.getSize(), kRes, 1e-9);
+    copy->updateNode(it.getKey(), true)->copyData(*it);
+  }
+  MapParams mp;
+  mp.resolution_m = kRes;
+  const MobilityMap map(std::move(copy), mp, Eigen::Matrix3d::Identity());
+  const Reachability r = computeReachability(s.tree, {0.5, 1.0, 0.1}, {});
+  std::mt19937 rng(52);
+  std::uniform_real_distribution<double> x(0.0, 3.5), y(0.0, 2.0), yaw(-M_PI, M_PI), dz(-0.05, 0.05);
+  int partly_known = 0, fallback = 0;
+  for (int k = 0; k < 3000; ++k) {
+    const Eigen::Vector3d p(x(rng), y(rng), 0.0);
+    const Place* under = r.placeBelow({p.x(), p.y(), 1.0}, 1.0);
+    const Foot foot{p.x(), p.y(), (under ? under->top_z : 0.02) + dz(rng), yaw(rng), 0.25, 0.12};
+    const FootprintQuery fp = map.footprint(foot);
+    const Foothold fh = r.sole(foot).foothold;
+    SCOPED_TRACE(std::to_string(foot.x) + " " + std::to_string(foot.y) + " " + std::to_string(foot.z) + " yaw " +
+                 std::to_string(foot.yaw));
+    ASSERT_EQ(fp.samples, fh.samples);
+    ASSERT_NEAR(fp.known_fraction, fh.support_fraction, 1e-12);
+    ASSERT_NEAR(fp.mean_mobility, fh.mean_mobility, 1e-6);
+    ASSERT_NEAR(fp.min_mobility, fh.min_mobility, 1e-6);
+    partly_known += fp.known_fraction > 0 && fp.known_fraction < 1;
+    fallback += std::abs(p.x() - 2.9) < 0.1 && std::abs(p.y() - 0.5) < 0.1 && fp.known_fraction > 0.5;
+  }
+  EXPECT_GT(partly_known, 100);
+  EXPECT_GT(fallback, 3);  // soles on the patch whose top voxels have no mobility count it known
+}
+
+// Limits in messages read as they were given, and read back to the same number.
+TEST(Footholds, FormatLimitGivesTheShortestDecimalThatReadsBack) {
+  EXPECT_EQ(formatLimit(0.155), "0.155");
+  EXPECT_EQ(formatLimit(0.15), "0.15");
+  EXPECT_EQ(formatLimit(100 * 0.1), "10");
+  EXPECT_EQ(formatLimit(20), "20");
+  for (const double v : {0.1 + 0.2, 1.0 / 3, 1e-300, -2.5e20, 123456.789}) {
+    EXPECT_EQ(std::strtod(formatLimit(v).c_str(), nullptr), v) << formatLimit(v);
   }
 }
 

@@ -51,6 +51,7 @@ PointAnswer answerPoint(const mapping::MobilityMap& map, const Eigen::Vector3d& 
   PointAnswer a;
   a.query_map = frame == InputFrame::kWorld ? map.worldToMap(p) : p;
   a.snap_m = snap_m;
+  a.outside_map = map.query(a.query_map).outside_map;
   if (snap_m >= 0) {
     a.voxel = map.snapDown(a.query_map, snap_m);
   } else {
@@ -67,6 +68,7 @@ PointAnswer answerPoint(const mapping::MobilityMap& map, const Eigen::Vector3d& 
 nlohmann::json toJson(const PointAnswer& a) {
   nlohmann::json j = a.voxel ? voxelJson(*a.voxel) : nlohmann::json{{"state", "no surface within snap distance"}};
   j["query"] = {a.query_map.x(), a.query_map.y(), a.query_map.z()};
+  j["outside_map"] = a.outside_map;
   if (a.with_reach) j["reach"] = placeJson(a.place);
   return j;
 }
@@ -135,6 +137,8 @@ nlohmann::json planJson(const mapping::MobilityMap& map, const mapping::Plan& pl
                               {"z", s.centre.z()},
                               {"yaw", s.yaw},
                               {"min_mobility", f.min_mobility},
+                              {"mean_mobility", f.mean_mobility},
+                              {"poor_fraction", f.poor_fraction},
                               {"tilt_deg", f.tilt_deg}});
   }
   j["steps"] = plan.footsteps.size() >= 2 ? plan.footsteps.size() - 2 : 0;

@@ -34,6 +34,7 @@ struct PointAnswer {
   bool with_reach = false;
   const mapping::Place* place = nullptr;  ///< with_reach: the place under the point, if any
   double reach_drop_m = 0;                ///< how far below the point a place was looked for
+  bool outside_map = false;               ///< beyond every voxel the map can hold (PointQuery::outside_map)
 };
 /// `reach` may be null (no reach answer). `p` must be finite.
 PointAnswer answerPoint(const mapping::MobilityMap& map, const Eigen::Vector3d& p, InputFrame frame, double snap_m,

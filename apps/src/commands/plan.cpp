@@ -88,16 +88,19 @@ Command addPlanCommand(CLI::App& app) {
     if (o->json) {
       std::cout << planJson(map, plan, o->params, frame).dump() << "\n";
     } else if (plan.found) {
-      std::printf("plan: %zu footsteps after the start stance, %.2f m walked, highest step %.2f m, cost %.2f (%zu states "
-                  "expanded in %.3f s); %s frame:\n",
+      const auto& robot = o->params.robot;
+      std::printf("plan: %zu footsteps after the start stance, %.2f m walked, highest step %.3f m, cost %.2f (%zu states "
+                  "expanded in %.3f s); %s frame. Under each sole: the mean mobility and the share under --min-mobility %s "
+                  "(a sole stands on at most %s of it):\n",
                   plan.footsteps.size() - 2, plan.length_m, plan.max_step_height_m, plan.cost, plan.expansions,
-                  plan.planning_time_s, o->frame.c_str());
+                  plan.planning_time_s, o->frame.c_str(), mapping::formatLimit(robot.min_mobility).c_str(),
+                  (mapping::formatLimit(100 * robot.max_poor_fraction) + " %").c_str());
       for (std::size_t i = 0; i < plan.footsteps.size(); ++i) {
         const auto& f = plan.footsteps[i];
         const FootstepIn s = footstepIn(map, f, frame);
-        std::printf("  %2zu %-5s x %7.3f  y %7.3f  z %6.3f  yaw %6.1f deg  mobility >= %.2f  tilt %4.1f deg%s\n", i,
-                    mapping::toString(f.side), s.centre.x(), s.centre.y(), s.centre.z(), s.yaw * 180 / M_PI, f.min_mobility, f.tilt_deg,
-                    i < 2 ? "  (start)" : "");
+        std::printf("  %2zu %-5s x %7.3f  y %7.3f  z %6.3f  yaw %6.1f deg  mobility %.2f mean, %3.0f %% poor  tilt %4.1f deg%s\n",
+                    i, mapping::toString(f.side), s.centre.x(), s.centre.y(), s.centre.z(), s.yaw * 180 / M_PI,
+                    f.mean_mobility, 100 * f.poor_fraction, f.tilt_deg, i < 2 ? "  (start)" : "");
       }
     } else {
       std::printf("no plan: %s\n", plan.reason.c_str());

@@ -188,7 +188,13 @@ Command addQueryCommand(CLI::App& app) {
         std::cout << toJson(a).dump() << "\n";
         return;
       }
-      if (a.voxel) {
+      if (a.outside_map) {
+        const Eigen::Vector3d& p = a.query_map;
+        const double res = map.tree().getResolution();
+        std::printf("outside the map: (%.4g, %.4g, %.4g) lies beyond the +-%.2f m a map of %g m voxels spans around its "
+                    "origin (map frame)\n",
+                    p.x(), p.y(), p.z(), 32768 * res, res);
+      } else if (a.voxel) {
         printPoint(*a.voxel);
       } else {
         const Eigen::Vector3d& p = a.query_map;

@@ -129,12 +129,14 @@ Command addReachCommand(CLI::App& app) {
                   q.start_radius_m, o->reach.from.empty() ? "the first camera position" : "--from");
       if (!sparse.empty()) std::fprintf(stderr, "note: %s\n", sparse.c_str());
       const auto& b = q.robot;
-      std::printf("robot: %.2f x %.2f m soles on mobility >= %.2f (%.0f %% of the sole on known surface, tilt up to %.0f deg, "
-                  "unevenness up to %.2f m); steps up to %.2f m, strides up to %.2f m, swing %.2f m high, gaps up to %.2f m",
-                  b.sole_length_m, b.sole_width_m, b.min_mobility, 100 * b.min_support_fraction, b.max_tilt_deg,
-                  b.max_unevenness_m, b.max_step_m, b.max_stride_m, b.swing_clearance_m, b.max_gap_m);
+      const auto g = [](double v) { return mapping::formatLimit(v); };  // as given
+      std::printf("robot: %s x %s m soles on mobility >= %s (%s %% of the sole on known surface, tilt up to %s deg, "
+                  "unevenness up to %s m); steps up to %s m, strides up to %s m, swing %s m high, gaps up to %s m",
+                  g(b.sole_length_m).c_str(), g(b.sole_width_m).c_str(), g(b.min_mobility).c_str(),
+                  g(100 * b.min_support_fraction).c_str(), g(b.max_tilt_deg).c_str(), g(b.max_unevenness_m).c_str(),
+                  g(b.max_step_m).c_str(), g(b.max_stride_m).c_str(), g(b.swing_clearance_m).c_str(), g(b.max_gap_m).c_str());
       if (b.clearance_m > 0) {
-        std::printf(", needs %.2f m of clearance\n", b.clearance_m);
+        std::printf(", needs %s m of clearance\n", g(b.clearance_m).c_str());
       } else {
         std::printf("\n");
       }

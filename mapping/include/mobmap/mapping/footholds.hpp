@@ -84,7 +84,9 @@ class SurfaceColumns {
   SurfaceColumns() = default;
 
   [[nodiscard]] double resolution() const { return res_; }
-  /// Key of the voxel holding coordinate c (not clamped: may lie outside the tree).
+  /// Key of the voxel holding coordinate c (not clamped: may lie outside the tree), found
+  /// as the tree finds it (the coordinate as a float, times 1 / resolution, floored), so a
+  /// point on a voxel face falls in the same voxel for the columns and for the tree.
   [[nodiscard]] long keyOf(double c) const;
   [[nodiscard]] double centreOf(long key) const;  ///< coordinate of a key's voxel centre
   [[nodiscard]] double topFace(const Run& r) const { return centreOf(r.top) + res_ / 2; }
@@ -112,6 +114,7 @@ class SurfaceColumns {
 
  private:
   double res_ = 0;
+  double inv_res_ = 0;  ///< 1 / res_, as octomap computes its resolution factor
   long kx0_ = 0, ky0_ = 0, nx_ = 0, ny_ = 0;
   std::vector<std::uint32_t> offsets_;  ///< per column, into runs_ (nx * ny + 1)
   std::vector<Run> runs_;
@@ -162,6 +165,10 @@ struct Foothold {
 /// than max_gap_m without surface near the walking height).
 [[nodiscard]] FootholdProblem swingProblem(const SurfaceColumns& columns, double xa, double ya, double za, double xb,
                                            double yb, double zb, const RobotParams& robot);
+
+/// A limit as a person gave it: the shortest decimal that reads back as the same double
+/// ("0.155", not "0.15" or "0.15500000000000000"), for messages that name it.
+[[nodiscard]] std::string formatLimit(double value);
 
 /// Whether a step from a support at za to one at zb passes max_step_m (one voxel of
 /// margin, see RobotParams::max_step_m).

@@ -60,8 +60,12 @@ const char* toString(Side side);
 struct Footstep {
   Side side = Side::kLeft;
   double x = 0, y = 0, z = 0, yaw = 0;
-  double min_mobility = 0;  ///< lowest mobility under the sole
-  double tilt_deg = 0;      ///< of its support plane
+  double min_mobility = 0;   ///< lowest mobility under the sole
+  /// What the standability rule checks: the mean mobility under the sole and the share
+  /// of it under RobotParams::min_mobility (at most max_poor_fraction).
+  double mean_mobility = 0;
+  double poor_fraction = 0;
+  double tilt_deg = 0;       ///< of its support plane
 };
 
 /// The planner's answer.

@@ -72,13 +72,16 @@ struct PointQuery {
   double occupancy = 0.5;  ///< probability
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();  ///< map frame
   double size_m = 0.0;     ///< edge of the (possibly pruned) voxel
+  /// The point lies beyond every voxel the map's tree can hold (+-32768 voxels around
+  /// the map origin, or not finite): no map of this resolution reaches it (state kUnknown).
+  bool outside_map = false;
 };
 
 /// Answer of MobilityMap::footprint().
 struct FootprintQuery {
   double min_mobility = 0.0;        ///< over sole samples with a known surface (0 if none)
   double mean_mobility = 0.0;
-  double known_fraction = 0.0;      ///< samples with a surface voxel that has a mobility
+  double known_fraction = 0.0;      ///< samples on a surface with a mobility (footprint())
   double max_height_difference_m = 0.0;  ///< between the highest and lowest supporting voxel
   int samples = 0;
   /// The support plane: least squares through the top faces of the supporting voxels
@@ -169,8 +172,14 @@ class MobilityMap {
   /// The first surface voxel at or below `p_map` along -z within `max_drop_m`, searched
   /// one voxel at a time; nullopt if none (or if max_drop_m is negative or not finite).
   [[nodiscard]] std::optional<PointQuery> snapDown(const Eigen::Vector3d& p_map, double max_drop_m) const;
-  /// Mobility under a rectangular sole, sampled every voxel; each sample snaps down from
-  /// foot.z + `search_up_m` over `search_up_m + search_down_m`.
+  /// Mobility under a rectangular sole, sampled every voxel. The surface under the sole's
+  /// centre within [foot.z - search_down_m, foot.z + search_up_m] sets the reference
+  /// height (foot.z when there is none); each sample rests on the first surface voxel at
+  /// or below the reference plus search_up_m, down to the reference minus search_down_m.
+  /// A sample is known when that surface has a mobility: the voxel's own or, failing
+  /// that, the highest one below it in the same run of occupied voxels. That is how
+  /// evaluateFoothold() counts a sole's support (Foothold::support_fraction), so with the
+  /// default RobotParams (their band is within 1 mm of 0.1 m) the two agree.
   [[nodiscard]] FootprintQuery footprint(const Foot& foot, double search_up_m = 0.1, double search_down_m = 0.1) const;
 
   /// Converts a point of the data's world frame into the map frame.
