@@ -1,6 +1,8 @@
 // The top view behind `export --png`: one cell per column, cuts, large maps.
 #include "io_support.hpp"
 
+#include <random>
+
 namespace mobmap::app {
 namespace {
 
@@ -179,6 +181,76 @@ TEST(TopView, LargeMapsGetCellsOfSeveralColumnsShowingTheHighest) {
   EXPECT_LE(far.columns, 1000);
   EXPECT_NEAR(far.top[far.cell(0, 0)], 0.3, 1e-9);  // the whole map in one cell: the box is its highest
   EXPECT_THROW(computeTopView(tree, {Eigen::Vector2d(std::nan(""), 0.0)}, 1000), std::invalid_argument);
+}
+
+// Heights in the pictures: a floor with one voxel of noise under 10 % of its columns (across
+// a contour level, so only the smoothing keeps lines off it) and
+// four stair treads 17 cm apart, 30 cm deep. Contours cross between every two treads and
+// between floor and first tread, never inside the noisy floor or a tread away from the
+// risers; each level gets
+// one height label within a voxel of its top; the drawn picture is dark along the lines.
+TEST(TopView, ContoursAndLabelsTellStairTreadsApartAndIgnoreFloorNoise) {
+  const double res = 0.02;
+  mapping::MobilityOcTree tree(res);
+  std::mt19937 rng(6);
+  std::uniform_real_distribution<double> u(0, 1);
+  // Columns i in [0, 100) along x: floor below x = 0.8, then treads every 15 columns.
+  const auto level = [](int i) { return i < 40 ? 0 : std::min(4, (i - 40) / 15 + 1); };
+  for (int i = 0; i < 100; ++i) {
+    for (int j = 0; j < 40; ++j) {
+      const int l = level(i);
+      // Tops at 0.04 + 0.17 l (to a voxel); noise lifts a floor top to 0.06, across the
+      // 0.05 m contour.
+      int top_k = 1 + static_cast<int>(std::lround(0.17 * l / res));
+      if (l == 0 && u(rng) < 0.1) top_k = 2;
+      for (int k = 0; k <= top_k; ++k) {
+        tree.updateNode(octomap::point3d((i + 0.5) * res, (j + 0.5) * res, (k + 0.5) * res), true)->fuse(k == top_k ? 1.0 : 0.0, 0.01, 100.0);
+      }
+    }
+  }
+  const TopView view = computeTopView(tree);
+  ASSERT_EQ(view.columns, 100);
+  ASSERT_EQ(view.rows, 40);
+  const Contours c = computeContours(view, res, 100);
+  EXPECT_DOUBLE_EQ(c.interval_m, 0.05);  // 0.68 m of heights: 14 intervals, and no finer than 2 voxels
+  for (int cy = 0; cy < view.rows; ++cy) {
+    for (int cx = 0; cx + 1 < view.columns; ++cx) {
+      const std::size_t i = view.cell(cx, cy);
+      // The smoothing reaches 2 cells: within that of a riser a line may stray.
+      const bool boundary = level(cx) != level(cx + 1);
+      bool near_riser = false;
+      for (int d = -2; d <= 3; ++d) near_riser = near_riser || (cx + d >= 1 && cx + d < 100 && level(cx + d) != level(cx + d - 1));
+      if (boundary) {
+        EXPECT_NE(c.right[i], 0) << cx << " " << cy;
+      } else if (!near_riser) {
+        EXPECT_EQ(c.right[i], 0) << cx << " " << cy;
+        if (cy + 1 < view.rows) {
+          EXPECT_EQ(c.up[i], 0) << cx << " " << cy;
+        }
+      }
+    }
+  }
+  // One label per level, at its height.
+  ASSERT_EQ(c.labels.size(), 5u);
+  std::vector<double> z;
+  for (const auto& l : c.labels) {
+    z.push_back(l.z_m);
+    EXPECT_NEAR(static_cast<double>(l.cells), (l.z_m < 0.1 ? 40 : 15) * 40, 0.05 * (l.z_m < 0.1 ? 40 : 15) * 40);
+  }
+  std::sort(z.begin(), z.end());
+  for (int l = 0; l <= 4; ++l) EXPECT_NEAR(z[static_cast<std::size_t>(l)], 0.04 + 0.17 * l, res) << l;
+  // Drawn: the cells just right of each riser are dark along their left edge; a floor
+  // cell's interior keeps its colour.
+  TopViewPicture pic;
+  const Canvas canvas = drawTopView(view, pic, 400);
+  const int ppv = 4;  // 100 columns in 400 pixels
+  ASSERT_EQ(describeTopView(view, canvas, 400).find("4 px per 2 cm voxel") != std::string::npos, true);
+  for (const int riser : {40, 55, 70, 85}) {
+    const Rgb edge = canvas.get(50 + riser * ppv, 50 + 20 * ppv + 1);
+    EXPECT_LT(static_cast<int>(edge[0]) + edge[1] + edge[2], 3 * 100) << riser;
+  }
+  const Rgb inside = canvas.get(50 + 10 * ppv + 1, 50 + 20 * ppv + 1);
+  EXPECT_EQ(inside, view.colour[view.cell(10, view.rows - 1 - 20)]);
 }
 
 }  // namespace

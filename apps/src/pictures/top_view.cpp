@@ -134,6 +134,124 @@ void requireSurfaceBelowCut(const TopView& view, const mapping::MobilityOcTree& 
   throw UsageError(msg);
 }
 
+Contours computeContours(const TopView& view, double voxel_m, std::size_t min_label_cells) {
+  Contours out;
+  const std::size_t n = view.top.size();
+  out.right.assign(n, 0);
+  out.up.assign(n, 0);
+  // The 5x5 median of the cells holding a surface around each such cell.
+  const double empty = -std::numeric_limits<double>::infinity();
+  std::vector<double> smooth(n, empty), window;
+  window.reserve(25);
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (int cy = 0; cy < view.rows; ++cy) {
+    for (int cx = 0; cx < view.columns; ++cx) {
+      if (view.empty(cx, cy)) continue;
+      window.clear();
+      for (int dy = -2; dy <= 2; ++dy) {
+        for (int dx = -2; dx <= 2; ++dx) {
+          const int x = cx + dx, y = cy + dy;
+          if (x >= 0 && y >= 0 && x < view.columns && y < view.rows && !view.empty(x, y)) window.push_back(view.top[view.cell(x, y)]);
+        }
+      }
+      const auto mid = window.begin() + static_cast<std::ptrdiff_t>(window.size() / 2);
+      std::nth_element(window.begin(), mid, window.end());
+      const double z = *mid;
+      smooth[view.cell(cx, cy)] = z;
+      lo = std::min(lo, z), hi = std::max(hi, z);
+    }
+  }
+  if (!(hi >= lo)) return out;
+  out.z_min = lo, out.z_max = hi;
+  // The interval: 1-2-5 steps from 1 cm up.
+  out.interval_m = 0.01;
+  for (double decade = 0.01;; decade *= 10) {
+    bool found = false;
+    for (const double f : {1.0, 2.0, 5.0}) {
+      const double step = decade * f;
+      if (step >= 2 * voxel_m - 1e-9 && (hi - lo) / step <= 20) {
+        out.interval_m = step;
+        found = true;
+        break;
+      }
+    }
+    if (found) break;
+  }
+  const double step = out.interval_m;
+  // A level crossed between heights a < b: some k with a < k step <= b (heights are voxel
+  // tops; a level on the lower top is not crossed).
+  const auto crossing = [step](double a, double b) -> std::uint8_t {
+    if (a > b) std::swap(a, b);
+    const double first = std::floor(a / step + 1e-9) + 1, last = std::floor(b / step + 1e-9);
+    if (last < first) return 0;
+    for (double k = first; k <= last; ++k) {
+      if (std::fmod(std::abs(k), 5.0) == 0) return 2;
+    }
+    return 1;
+  };
+  for (int cy = 0; cy < view.rows; ++cy) {
+    for (int cx = 0; cx < view.columns; ++cx) {
+      const std::size_t i = view.cell(cx, cy);
+      if (smooth[i] == empty) continue;
+      if (cx + 1 < view.columns && smooth[view.cell(cx + 1, cy)] != empty) out.right[i] = crossing(smooth[i], smooth[view.cell(cx + 1, cy)]);
+      if (cy + 1 < view.rows && smooth[view.cell(cx, cy + 1)] != empty) out.up[i] = crossing(smooth[i], smooth[view.cell(cx, cy + 1)]);
+    }
+  }
+  if (min_label_cells == 0) return out;
+  // Areas: cells joined across boundaries no contour crosses.
+  std::vector<int> area(n, -1);
+  std::vector<std::size_t> stack;
+  int areas = 0;
+  for (std::size_t start = 0; start < n; ++start) {
+    if (smooth[start] == empty || area[start] >= 0) continue;
+    std::vector<std::size_t> members;
+    area[start] = areas;
+    stack.assign(1, start);
+    while (!stack.empty()) {
+      const std::size_t i = stack.back();
+      stack.pop_back();
+      members.push_back(i);
+      const int cx = static_cast<int>(i % static_cast<std::size_t>(view.columns)), cy = static_cast<int>(i / static_cast<std::size_t>(view.columns));
+      const auto join = [&](int x, int y, bool open) {
+        if (!open || x < 0 || y < 0 || x >= view.columns || y >= view.rows) return;
+        const std::size_t j = view.cell(x, y);
+        if (smooth[j] == empty || area[j] >= 0) return;
+        area[j] = areas;
+        stack.push_back(j);
+      };
+      join(cx + 1, cy, cx + 1 < view.columns && !out.right[i]);
+      join(cx, cy + 1, cy + 1 < view.rows && !out.up[i]);
+      join(cx - 1, cy, cx > 0 && !out.right[view.cell(std::max(cx - 1, 0), cy)]);
+      join(cx, cy - 1, cy > 0 && !out.up[view.cell(cx, std::max(cy - 1, 0))]);
+    }
+    ++areas;
+    if (members.size() < min_label_cells) continue;
+    double sx = 0, sy = 0;
+    std::vector<double> zs;
+    for (const std::size_t i : members) {
+      sx += static_cast<double>(i % static_cast<std::size_t>(view.columns));
+      sy += static_cast<double>(i / static_cast<std::size_t>(view.columns));
+      zs.push_back(smooth[i]);
+    }
+    const double mx = sx / static_cast<double>(members.size()), my = sy / static_cast<double>(members.size());
+    // The member nearest the centroid (an L-shaped area's centroid may lie outside it).
+    std::size_t best = members.front();
+    double best_d = std::numeric_limits<double>::infinity();
+    for (const std::size_t i : members) {
+      const double dx = static_cast<double>(i % static_cast<std::size_t>(view.columns)) - mx;
+      const double dy = static_cast<double>(i / static_cast<std::size_t>(view.columns)) - my;
+      if (dx * dx + dy * dy < best_d) best_d = dx * dx + dy * dy, best = i;
+    }
+    const auto mid = zs.begin() + static_cast<std::ptrdiff_t>(zs.size() / 2);
+    std::nth_element(zs.begin(), mid, zs.end());
+    out.labels.push_back({static_cast<int>(best % static_cast<std::size_t>(view.columns)),
+                          static_cast<int>(best / static_cast<std::size_t>(view.columns)), *mid, members.size()});
+  }
+  std::sort(out.labels.begin(), out.labels.end(), [](const Contours::Label& a, const Contours::Label& b) { return a.cells > b.cells; });
+  if (out.labels.size() > 24) out.labels.resize(24);
+  return out;
+}
+
 Canvas drawTopView(const TopView& view, const TopViewPicture& pic, int max_pixels) {
   const double res = view.resolution, x0 = view.x0, y0 = view.y0;
   const double extent = std::max(view.columns, view.rows) * res;
@@ -142,7 +260,7 @@ Canvas drawTopView(const TopView& view, const TopViewPicture& pic, int max_pixel
   const int margin = 50;
   // The legend (colour bar, swatches, path and mark) and the title need room even when
   // the map is a thin strip (a corridor) or a small picture was asked for.
-  std::size_t longest_label = 11;  // "CAMERA PATH"
+  std::size_t longest_label = pic.contours ? 32 : 11;  // "(BOLD 0.5 M), Z -10.50..-10.45 M", "CAMERA PATH"
   for (const auto& s : pic.swatches) longest_label = std::max(longest_label, s.second.size());
   longest_label = std::max(longest_label, pic.mark_label.size());
   std::vector<std::pair<Rgb, std::string>> outline_labels;
@@ -153,7 +271,8 @@ Canvas drawTopView(const TopView& view, const TopViewPicture& pic, int max_pixel
     if (!known) outline_labels.emplace_back(o.colour, o.label), longest_label = std::max(longest_label, o.label.size());
   }
   const int right = std::max(110, 20 + 6 * static_cast<int>(longest_label));  // labels start 50 px right of the map
-  const int extra_rows = static_cast<int>(pic.swatches.size() + (pic.mark ? 1 : 0) + outline_labels.size());
+  const int extra_rows =
+      static_cast<int>(pic.swatches.size() + (pic.mark ? 1 : 0) + outline_labels.size() + (pic.contours ? 2 : 0));
   const int bar_h = std::clamp(h - 60 - 18 * extra_rows, 100, 200);
   const int legend_h = 20 + bar_h + 60 + 18 * extra_rows;
   Canvas c(std::max(w + 2 * margin + right, margin + 6 * static_cast<int>(pic.title.size()) + 10),
@@ -163,6 +282,38 @@ Canvas drawTopView(const TopView& view, const TopViewPicture& pic, int max_pixel
       const int px = margin + cx * ppv, py = margin + (view.rows - 1 - cy) * ppv;
       c.fillRect(px, py, px + ppv - 1, py + ppv - 1, view.colour[view.cell(cx, cy)]);
     }
+  }
+  // Contours: a line along the boundary between two cells a level lies between, drawn
+  // in the cell on the right of (above) the boundary.
+  Contours contours;
+  if (pic.contours) {
+    // A label ("Z -1.50", 7 characters) needs an area of about twice its own size.
+    const std::size_t label_px = 2 * static_cast<std::size_t>(Canvas::textWidth("Z -1.50") + 4) * 12;
+    contours = computeContours(view, view.resolution / view.columns_per_cell,
+                               std::max<std::size_t>(4, label_px / static_cast<std::size_t>(ppv * ppv)));
+    const Rgb minor{95, 95, 95};
+    for (int cy = 0; cy < view.rows; ++cy) {
+      for (int cx = 0; cx < view.columns; ++cx) {
+        const std::size_t i = view.cell(cx, cy);
+        const int px = margin + cx * ppv, py = margin + (view.rows - 1 - cy) * ppv;
+        if (contours.right[i]) {
+          const Rgb col = contours.right[i] == 2 ? kBlack : minor;
+          c.fillRect(px + ppv, py, px + ppv, py + ppv - 1, col);
+        }
+        if (contours.up[i]) {
+          const Rgb col = contours.up[i] == 2 ? kBlack : minor;
+          c.fillRect(px, py - 1, px + ppv - 1, py - 1, col);
+        }
+      }
+    }
+  }
+  for (const Contours::Label& l : contours.labels) {
+    char text[24];
+    std::snprintf(text, sizeof text, "Z %.2f", l.z_m);
+    const int tw = Canvas::textWidth(text);
+    const int px = margin + l.cx * ppv + ppv / 2 - tw / 2, py = margin + (view.rows - 1 - l.cy) * ppv + ppv / 2 - 4;
+    c.fillRect(px - 2, py - 2, px + tw + 1, py + 9, Rgb{255, 255, 255});
+    c.text(px, py, text, kBlack);
   }
   c.rect(margin - 1, margin - 1, margin + w, margin + h, kBlack);
   auto toPixel = [&](const Eigen::Vector2d& p) {
@@ -202,6 +353,16 @@ Canvas drawTopView(const TopView& view, const TopViewPicture& pic, int max_pixel
     c.rect(legend_x, legend_y, legend_x + 14, legend_y + 7, colour);
     c.rect(legend_x + 1, legend_y + 1, legend_x + 13, legend_y + 6, colour);
     c.text(legend_x + 20, legend_y, label, colour);
+    legend_y += 18;
+  }
+  if (contours.interval_m > 0) {
+    char text[96];
+    c.fillRect(legend_x, legend_y + 3, legend_x + 14, legend_y + 3, Rgb{95, 95, 95});
+    std::snprintf(text, sizeof text, "HEIGHT LINES EVERY %g M", contours.interval_m);
+    c.text(legend_x + 20, legend_y, text, kBlack);
+    legend_y += 12;
+    std::snprintf(text, sizeof text, "(BOLD %g M), Z %.2f..%.2f M", 5 * contours.interval_m, contours.z_min, contours.z_max);
+    c.text(legend_x + 20, legend_y, text, kBlack);
     legend_y += 18;
   }
   if (pic.mark) {

@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 
+#include <cstdint>
 #include <limits>
 #include <optional>
 #include <string>
@@ -54,6 +55,31 @@ TopView computeTopView(const mapping::MobilityOcTree& tree, const std::vector<Ei
 /// at z = ...)" when the cut left every cell of `view` empty.
 void requireSurfaceBelowCut(const TopView& view, const mapping::MobilityOcTree& tree, double max_z);
 
+/// Height contours of a top view, so that levels (stair treads, a table top, the floor)
+/// can be told apart where their mobility colours are alike. The cells' heights are
+/// smoothed by a 5x5 median over the cells that hold a surface (one voxel of noise on a
+/// floor draws no line; a step and a ramp keep their heights), then cut every interval_m.
+struct Contours {
+  /// A 1-2-5 step: the finest that gives at most 20 intervals over the smoothed heights,
+  /// and no finer than two of the map's voxels. 0 when the view is empty.
+  double interval_m = 0;
+  double z_min = 0, z_max = 0;  ///< of the smoothed heights
+  /// Per cell, between it and its +x / +y neighbour (both holding a surface): 0 no line,
+  /// 1 a contour crosses, 2 a major one (a multiple of 5 intervals) does.
+  std::vector<std::uint8_t> right, up;
+  /// Flat areas between contours that a height label fits in (largest first, at most
+  /// 24): the cell nearest their centroid and their median smoothed height.
+  struct Label {
+    int cx = 0, cy = 0;
+    double z_m = 0;
+    std::size_t cells = 0;
+  };
+  std::vector<Label> labels;
+};
+/// `voxel_m`: the map's resolution; `min_label_cells`: the fewest cells an area needs for
+/// a label.
+Contours computeContours(const TopView& view, double voxel_m, std::size_t min_label_cells = 0);
+
 /// What a top-view picture shows besides the cells: a title, the camera path, extra
 /// legend entries and one marked point.
 struct TopViewPicture {
@@ -72,6 +98,8 @@ struct TopViewPicture {
     std::string label;
   };
   std::vector<Outline> outlines;
+  /// Height contours over the cells (computeContours), with their interval in the legend.
+  bool contours = true;
 };
 
 /// The picture of `export --png` and `reach --png`: the cells (x right, y up), the camera
