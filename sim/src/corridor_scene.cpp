@@ -158,6 +158,19 @@ void validate(const CorridorParams& p) {
     fail("kinect.flying_pixel_probability", p.kinect.flying_pixel_probability, "must be in [0, 1]");
   }
   if (!(p.kinect.edge_jump_px > 0) || !std::isfinite(p.kinect.edge_jump_px)) fail("kinect.edge_jump_px", p.kinect.edge_jump_px, "must be > 0");
+  const RoughYardParams& y = p.yard;
+  if (!(y.ridge_pitch_m >= 0.02 && y.ridge_pitch_m <= 0.4)) fail("yard.ridge_pitch_m", y.ridge_pitch_m, "must be in [0.02, 0.4]");
+  if (!(y.ridge_height_m > 0 && y.ridge_height_m <= 0.3)) fail("yard.ridge_height_m", y.ridge_height_m, "must be in (0, 0.3]");
+  if (!(y.block_pitch_m >= 0.02 && y.block_pitch_m <= 0.4)) fail("yard.block_pitch_m", y.block_pitch_m, "must be in [0.02, 0.4]");
+  if (!(y.block_side_m > 0 && y.block_side_m < y.block_pitch_m)) fail("yard.block_side_m", y.block_side_m, "must be in (0, block_pitch_m)");
+  if (!(y.block_height_m > 0 && y.block_height_m <= 0.3)) fail("yard.block_height_m", y.block_height_m, "must be in (0, 0.3]");
+  if (!(y.stone_pitch_m >= 0.02 && y.stone_pitch_m <= 0.4)) fail("yard.stone_pitch_m", y.stone_pitch_m, "must be in [0.02, 0.4]");
+  if (!(y.stone_min_side_m > 0 && y.stone_min_side_m <= y.stone_max_side_m && y.stone_max_side_m < y.stone_pitch_m)) {
+    fail("yard.stone_max_side_m", y.stone_max_side_m, "must be at least stone_min_side_m (> 0) and under stone_pitch_m");
+  }
+  if (!(y.stone_min_height_m > 0 && y.stone_min_height_m <= y.stone_max_height_m && y.stone_max_height_m <= 0.3)) {
+    fail("yard.stone_max_height_m", y.stone_max_height_m, "must be at least stone_min_height_m (> 0) and at most 0.3");
+  }
   perception::validate(p.intrinsics);
 }
 
@@ -179,6 +192,175 @@ int CorridorScene::addSurface(Surface s) {
   }
   surfaces_.push_back(std::move(s));
   return surfaces_.back().id;
+}
+
+void CorridorScene::buildRoughYard(double x_begin, double x_end, double half_width) {
+  using V = Eigen::Vector3d;
+  const RoughYardParams& y = params_.yard;
+  struct Field {
+    std::string name;
+    double x0, x1, y0, y1;
+  };
+  // Beside the path (|y| >= 0.5), each field a whole number of its cells.
+  const auto cells = [](double pitch, double length) { return std::max(1, static_cast<int>(std::floor(length / pitch + 1e-9))); };
+  const double rp = y.ridge_pitch_m, bp = y.block_pitch_m, sp = y.stone_pitch_m;
+  const std::vector<Field> fields = {
+      {"pyramids", 1.4, 2.2, 0.5, 1.3},
+      {"ridges along the path", 2.8, 3.8, 0.5, 0.5 + cells(rp, 0.8) * rp},
+      {"ridges across the path", 2.8, 2.8 + cells(rp, 1.0) * rp, -1.3, -0.5},
+      {"blocks", 4.4, 4.4 + cells(bp, 1.0) * bp, 0.5, 0.5 + cells(bp, 0.8) * bp},
+      {"stones", 4.4, 4.4 + cells(sp, 1.0) * sp, -0.5 - cells(sp, 0.8) * sp, -0.5},
+  };
+  // The floor: the corridor's rectangle less the fields, in strips between their x edges.
+  {
+    std::vector<double> xs{x_begin, x_end};
+    for (const Field& f : fields) xs.push_back(f.x0), xs.push_back(f.x1);
+    std::sort(xs.begin(), xs.end());
+    Surface floor;
+    floor.name = "floor";
+    floor.kind = SurfaceKind::kFloor;
+    for (std::size_t i = 0; i + 1 < xs.size(); ++i) {
+      const double xa = xs[i], xb = xs[i + 1];
+      if (xb - xa < 1e-9) continue;
+      std::vector<std::pair<double, double>> holes;
+      for (const Field& f : fields) {
+        if (f.x0 < xb - 1e-9 && f.x1 > xa + 1e-9) holes.emplace_back(f.y0, f.y1);
+      }
+      std::sort(holes.begin(), holes.end());
+      double ya = -half_width;
+      holes.emplace_back(half_width, half_width);
+      for (const auto& [h0, h1] : holes) {
+        if (h0 > ya + 1e-9) floor.polygons.push_back({V(xa, ya, 0), V(xb, ya, 0), V(xb, h0, 0), V(xa, h0, 0)});
+        ya = std::max(ya, h1);
+      }
+    }
+    addSurface(std::move(floor));
+  }
+  // A field: its surface (footprint polygon, exact ratio) and its triangles.
+  const auto addField = [&](const Field& f, const std::string& description, const std::vector<Triangle>& tris) {
+    Surface s;
+    s.name = f.name;
+    s.kind = SurfaceKind::kRough;
+    s.normal = V::UnitZ();
+    s.description = description;
+    s.polygons.push_back({V(f.x0, f.y0, 0), V(f.x1, f.y0, 0), V(f.x1, f.y1, 0), V(f.x0, f.y1, 0)});
+    double area = 0;
+    for (const Triangle& t : tris) {
+      area += 0.5 * (t.b - t.a).cross(t.c - t.a).norm();
+      s.top_m = std::max({s.top_m, t.a.z(), t.b.z(), t.c.z()});
+    }
+    s.roughness = area / ((f.x1 - f.x0) * (f.y1 - f.y0));
+    const int id = addSurface(std::move(s));
+    for (Triangle t : tris) {
+      t.surface_id = id;
+      static_triangles_.push_back(t);
+    }
+  };
+  const auto quad = [](std::vector<Triangle>& tris, const V& a, const V& b, const V& c, const V& d) {
+    tris.push_back({a, b, c, 0});
+    tris.push_back({a, c, d, 0});
+  };
+  // A box standing on z = 0 over [xa, xb] x [ya, yb] inside the cell [cx0, cx1] x [cy0, cy1]:
+  // its top, four sides and the cell's floor around it.
+  const auto boxInCell = [&](std::vector<Triangle>& tris, double cx0, double cx1, double cy0, double cy1, double xa, double xb,
+                             double ya, double yb, double h) {
+    quad(tris, V(xa, ya, h), V(xb, ya, h), V(xb, yb, h), V(xa, yb, h));
+    quad(tris, V(xa, ya, 0), V(xb, ya, 0), V(xb, ya, h), V(xa, ya, h));
+    quad(tris, V(xb, ya, 0), V(xb, yb, 0), V(xb, yb, h), V(xb, ya, h));
+    quad(tris, V(xb, yb, 0), V(xa, yb, 0), V(xa, yb, h), V(xb, yb, h));
+    quad(tris, V(xa, yb, 0), V(xa, ya, 0), V(xa, ya, h), V(xa, yb, h));
+    const auto floorRect = [&](double x0, double x1, double y0, double y1) {
+      if (x1 - x0 > 1e-9 && y1 - y0 > 1e-9) quad(tris, V(x0, y0, 0), V(x1, y0, 0), V(x1, y1, 0), V(x0, y1, 0));
+    };
+    floorRect(cx0, xa, cy0, cy1);
+    floorRect(xb, cx1, cy0, cy1);
+    floorRect(xa, xb, cy0, ya);
+    floorRect(xa, xb, yb, cy1);
+  };
+  // Pyramids: the corridor's field.
+  {
+    const Field& f = fields[0];
+    rough_.x0 = f.x0, rough_.y0 = f.y0, rough_.nx = 8, rough_.ny = 8, rough_.pitch_m = 0.1;
+    rough_.height_m = 0.5 * rough_.pitch_m * std::sqrt(1.25);
+    std::vector<Triangle> tris;
+    const double p = rough_.pitch_m;
+    for (int i = 0; i < rough_.nx; ++i) {
+      for (int j = 0; j < rough_.ny; ++j) {
+        const double x = f.x0 + i * p, yy = f.y0 + j * p;
+        const V c00(x, yy, 0), c10(x + p, yy, 0), c11(x + p, yy + p, 0), c01(x, yy + p, 0);
+        const V apex(x + 0.5 * p, yy + 0.5 * p, rough_.height_m);
+        tris.push_back({c00, c10, apex, 0});
+        tris.push_back({c10, c11, apex, 0});
+        tris.push_back({c11, c01, apex, 0});
+        tris.push_back({c01, c00, apex, 0});
+      }
+    }
+    addField(f, "square pyramids, pitch 0.1 m, height 0.0559 m", tris);
+  }
+  // Ridges: triangular prisms, crests along x (the path) or along y, gable ends vertical.
+  for (const bool along : {true, false}) {
+    const Field& f = fields[along ? 1 : 2];
+    std::vector<Triangle> tris, ends;
+    const double h = y.ridge_height_m;
+    const double a0 = along ? f.y0 : f.x0, a1 = along ? f.y1 : f.x1;  // across the crests
+    const double l0 = along ? f.x0 : f.y0, l1 = along ? f.x1 : f.y1;  // along them
+    const auto at = [along](double across, double length, double z) { return along ? V(length, across, z) : V(across, length, z); };
+    for (double a = a0; a + rp <= a1 + 1e-9; a += rp) {
+      const double m = a + 0.5 * rp;
+      quad(tris, at(a, l0, 0), at(a, l1, 0), at(m, l1, h), at(m, l0, h));
+      quad(tris, at(m, l0, h), at(m, l1, h), at(a + rp, l1, 0), at(a + rp, l0, 0));
+      ends.push_back({at(a, l0, 0), at(a + rp, l0, 0), at(m, l0, h), 0});
+      ends.push_back({at(a, l1, 0), at(a + rp, l1, 0), at(m, l1, h), 0});
+    }
+    char text[160];
+    std::snprintf(text, sizeof text, "triangular ridges, crests along %s, pitch %.3f m, height %.3f m", along ? "x" : "y", rp, h);
+    addField(f, text, tris);
+    // The gable ends: upright triangles, drawn as a surface of their own.
+    Surface side;
+    side.name = f.name + " ends";
+    side.kind = SurfaceKind::kBoxSide;
+    for (const Triangle& t : ends) side.polygons.push_back({t.a, t.b, t.c});
+    for (auto& poly : side.polygons) {  // the end at l0 faces back along the crests, the other forward
+      const double l = along ? poly[0].x() : poly[0].y();
+      const V outward = (l > l0 + 1e-9 ? 1.0 : -1.0) * (along ? V::UnitX() : V::UnitY());
+      if (newellNormal(poly).dot(outward) < 0) std::reverse(poly.begin(), poly.end());
+    }
+    addSurface(std::move(side));
+  }
+  // Blocks: one square block per cell, centred.
+  {
+    const Field& f = fields[3];
+    std::vector<Triangle> tris;
+    const double w = y.block_side_m, m = 0.5 * (bp - w);
+    for (double x = f.x0; x + bp <= f.x1 + 1e-9; x += bp) {
+      for (double yy = f.y0; yy + bp <= f.y1 + 1e-9; yy += bp) boxInCell(tris, x, x + bp, yy, yy + bp, x + m, x + m + w, yy + m, yy + m + w, y.block_height_m);
+    }
+    char text[160];
+    std::snprintf(text, sizeof text, "square blocks, side %.3f m, height %.3f m, one per %.3f m cell", w, y.block_height_m, bp);
+    addField(f, text, tris);
+  }
+  // Stones: a box of random size at a random place in each cell.
+  {
+    const Field& f = fields[4];
+    std::vector<Triangle> tris;
+    std::mt19937_64 rng(y.stone_seed);
+    std::uniform_real_distribution<double> side(y.stone_min_side_m, y.stone_max_side_m), height(y.stone_min_height_m, y.stone_max_height_m),
+        unit(0.0, 1.0);
+    for (double x = f.x0; x + sp <= f.x1 + 1e-9; x += sp) {
+      for (double yy = f.y0; yy + sp <= f.y1 + 1e-9; yy += sp) {
+        const double wx = side(rng), wy = side(rng), h = height(rng);
+        const double xa = x + unit(rng) * (sp - wx), ya = yy + unit(rng) * (sp - wy);
+        boxInCell(tris, x, x + sp, yy, yy + sp, xa, xa + wx, ya, ya + wy, h);
+      }
+    }
+    char text[200];
+    std::snprintf(text, sizeof text, "stones: one box per %.3f m cell, sides %.3f-%.3f m, heights %.3f-%.3f m, seed %llu", sp,
+                  y.stone_min_side_m, y.stone_max_side_m, y.stone_min_height_m, y.stone_max_height_m,
+                  static_cast<unsigned long long>(y.stone_seed));
+    addField(f, text, tris);
+  }
+  moving_.start_frame = moving_.end_frame = 0;
+  moving_.size = V::Zero();
 }
 
 CorridorScene::CorridorScene(CorridorParams params) : params_(std::move(params)) {
@@ -214,21 +396,29 @@ CorridorScene::CorridorScene(CorridorParams params) : params_(std::move(params))
   const double px1 = rough_.x0 + rough_.nx * rough_.pitch_m;
   const double py1 = rough_.y0 + rough_.ny * rough_.pitch_m;
 
+  const auto addWalls = [&] {
+    planar("left wall", SurfaceKind::kWall,
+           {{V(x_begin, half_width, 0), V(x_end, half_width, 0), V(x_end, half_width, wall_h), V(x_begin, half_width, wall_h)}},
+           -V::UnitY());
+    planar("right wall", SurfaceKind::kWall,
+           {{V(x_begin, -half_width, 0), V(x_end, -half_width, 0), V(x_end, -half_width, wall_h), V(x_begin, -half_width, wall_h)}},
+           V::UnitY());
+    planar("end wall", SurfaceKind::kWall,
+           {{V(x_end, -half_width, 0), V(x_end, half_width, 0), V(x_end, half_width, wall_h), V(x_end, -half_width, wall_h)}},
+           -V::UnitX());
+  };
+  if (params_.layout == Layout::kRoughYard) {
+    buildRoughYard(x_begin, x_end, half_width);
+    addWalls();
+    return;
+  }
   planar("floor", SurfaceKind::kFloor,
          {rect_xy(x_begin, rough_.x0, -half_width, half_width, 0),
           rect_xy(px1, x_end, -half_width, half_width, 0),
           rect_xy(rough_.x0, px1, -half_width, rough_.y0, 0),
           rect_xy(rough_.x0, px1, py1, half_width, 0)},
          V::UnitZ());
-  planar("left wall", SurfaceKind::kWall,
-         {{V(x_begin, half_width, 0), V(x_end, half_width, 0), V(x_end, half_width, wall_h), V(x_begin, half_width, wall_h)}},
-         -V::UnitY());
-  planar("right wall", SurfaceKind::kWall,
-         {{V(x_begin, -half_width, 0), V(x_end, -half_width, 0), V(x_end, -half_width, wall_h), V(x_begin, -half_width, wall_h)}},
-         V::UnitY());
-  planar("end wall", SurfaceKind::kWall,
-         {{V(x_end, -half_width, 0), V(x_end, half_width, 0), V(x_end, half_width, wall_h), V(x_end, -half_width, wall_h)}},
-         -V::UnitX());
+  addWalls();
 
   // Ramps on the right, rising along +x towards the walker's direction of travel.
   const double ramp_angles[] = {5, 15, 25, 35, 45};
@@ -256,6 +446,7 @@ CorridorScene::CorridorScene(CorridorParams params) : params_(std::move(params))
     s.kind = SurfaceKind::kRough;
     s.normal = V::UnitZ();
     s.roughness = rough_.exactAreaRatio();
+    s.description = "square pyramids, pitch 0.1 m";
     s.polygons.push_back(oriented(rect_xy(rough_.x0, px1, rough_.y0, py1, 0), V::UnitZ()));
     const int id = addSurface(std::move(s));
     const double p = rough_.pitch_m;

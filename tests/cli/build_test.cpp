@@ -472,4 +472,36 @@ TEST(Cli, BuildMapsASingleDepthPngWithItsIntrinsics) {
 }
 
 }  // namespace
+
+// `simulate --scene rough`: the same walk past rough fields, whose ground truth `evaluate`
+// reads; the floor between them scores as floor, and every field gets voxels of its own.
+TEST(Cli, RoughYardIsSimulatedAndEvaluatedFieldByField) {
+  const std::string dir = tempDir("rough-yard");
+  const Result sim = run("simulate --scene rough --out " + dir + "/seq --frames 90 --noise none --quiet");
+  ASSERT_EQ(sim.code, 0) << sim.out;
+  EXPECT_NE(sim.out.find("frames of the rough yard"), std::string::npos) << sim.out;
+  const std::string map = dir + "/m.ot";
+  ASSERT_EQ(run("build " + dir + "/seq --frames 0:89:3 --out " + map + " --quiet").code, 0);
+  const Result ev = run("evaluate " + map + " --truth " + dir + "/seq/ground_truth.json --json");
+  ASSERT_EQ(ev.code, 0) << ev.out;
+  const auto j = nlohmann::json::parse(ev.out);
+  std::map<std::string, nlohmann::json> rows;
+  for (const auto& s : j["surfaces"]) rows[s["name"].get<std::string>()] = s;
+  EXPECT_LT(rows.at("floor")["mean_abs_error"].get<double>(), 0.05) << ev.out;
+  for (const char* field : {"pyramids", "ridges along the path", "ridges across the path"}) {
+    EXPECT_GT(rows.at(field)["voxels"].get<int>(), 100) << field << ": " << ev.out;
+    EXPECT_DOUBLE_EQ(rows.at(field)["expected_mobility"].get<double>(), 0.5) << field;
+  }
+  std::ifstream truth(dir + "/seq/ground_truth.json");
+  const auto t = nlohmann::json::parse(truth);
+  int fields = 0;
+  for (const auto& s : t["surfaces"]) {
+    if (s["kind"] != "rough") continue;
+    ++fields;
+    EXPECT_EQ(s["geometry"]["type"], "rough_field");
+    EXPECT_FALSE(s["geometry"]["description"].get<std::string>().empty());
+  }
+  EXPECT_EQ(fields, 5);
+  fs::remove_all(dir);
+}
 }  // namespace mobmap::cli_test

@@ -2,6 +2,8 @@
 #include "mobmap/sim/corridor_scene.hpp"
 
 #include <gtest/gtest.h>
+#include "mobmap/gp/rule_table.hpp"
+#include <map>
 
 #include <cmath>
 #include <set>
@@ -263,4 +265,68 @@ TEST(CorridorScene, RejectsUnusableParameters) {
 }
 
 }  // namespace
+
+// The rough yard: each field's area ratio is the analytic one (ridges, blocks) or, for the
+// stones, the sum over their boxes; the floor and the fields' footprints tile the
+// corridor without gap or overlap; every pixel a field shows lies on or over its
+// footprint, no higher than its top; the rule gives each field its expected mobility.
+TEST(RoughYard, FieldsHaveTheirExactAreaRatiosAndTileTheFloor) {
+  CorridorParams p;
+  p.layout = Layout::kRoughYard;
+  p.frames = 120;
+  const CorridorScene scene(p);
+  const RoughYardParams& y = p.yard;
+  std::map<std::string, const Surface*> by_name;
+  for (const Surface& s : scene.surfaces()) by_name[s.name] = &s;
+  ASSERT_EQ(by_name.count("pyramids") + by_name.count("ridges along the path") + by_name.count("ridges across the path") +
+                by_name.count("blocks") + by_name.count("stones"),
+            5u);
+  EXPECT_NEAR(by_name["pyramids"]->roughness, 1.5, 1e-9);
+  const double ridge = std::sqrt(1 + std::pow(2 * y.ridge_height_m / y.ridge_pitch_m, 2));
+  EXPECT_NEAR(by_name["ridges along the path"]->roughness, ridge, 1e-9);
+  EXPECT_NEAR(by_name["ridges across the path"]->roughness, ridge, 1e-9);
+  EXPECT_NEAR(by_name["blocks"]->roughness, 1 + 4 * y.block_side_m * y.block_height_m / (y.block_pitch_m * y.block_pitch_m), 1e-9);
+  const double stones = by_name["stones"]->roughness;
+  EXPECT_GT(stones, 1 + 2 * 2 * y.stone_min_side_m * y.stone_min_height_m / (y.stone_pitch_m * y.stone_pitch_m));
+  EXPECT_LT(stones, 1 + 2 * 2 * y.stone_max_side_m * y.stone_max_height_m / (y.stone_pitch_m * y.stone_pitch_m));
+  for (const auto& [name, s] : by_name) {
+    if (s->kind == SurfaceKind::kRough) {
+      EXPECT_NEAR(s->expected_mobility, gp::RuleTable::paper().lookup(0.0, s->roughness), 1e-12) << name;
+      EXPECT_GT(s->top_m, 0.0) << name;
+    }
+  }
+  // Floor and footprints: the corridor's 11 x 3 m, once.
+  const auto area = [](const std::vector<Eigen::Vector3d>& poly) {
+    Eigen::Vector3d n = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < poly.size(); ++i) n += poly[i].cross(poly[(i + 1) % poly.size()]);
+    return 0.5 * std::abs(n.z());
+  };
+  double covered = 0;
+  for (const Surface& s : scene.surfaces()) {
+    if (s.kind != SurfaceKind::kFloor && s.kind != SurfaceKind::kRough) continue;
+    for (const auto& poly : s.polygons) covered += area(poly);
+  }
+  EXPECT_NEAR(covered, 11.0 * 3.0, 1e-9);
+  // Pixels of a field lie over its footprint, between 0 and its top.
+  const RenderedFrame r = scene.render(80);
+  const auto& k = scene.params().intrinsics;
+  std::map<int, int> seen;
+  for (int v = 0; v < k.height; v += 2) {
+    for (int u = 0; u < k.width; u += 2) {
+      const int id = r.labels[static_cast<std::size_t>(v * k.width + u)];
+      if (id == 0 || scene.surface(id).kind != SurfaceKind::kRough) continue;
+      const Surface& s = scene.surface(id);
+      const Eigen::Vector3d q = r.T_world_camera * perception::backProject(k, u, v, r.exact_depth.at(u, v));
+      const auto& f = s.polygons.front();
+      EXPECT_GE(q.x(), f[0].x() - 1e-6);
+      EXPECT_LE(q.x(), f[2].x() + 1e-6);
+      EXPECT_GE(q.y(), std::min(f[0].y(), f[2].y()) - 1e-6);
+      EXPECT_LE(q.y(), std::max(f[0].y(), f[2].y()) + 1e-6);
+      EXPECT_GE(q.z(), -1e-6);
+      EXPECT_LE(q.z(), s.top_m + 1e-6);
+      ++seen[id];
+    }
+  }
+  EXPECT_GE(seen.size(), 3u);  // frame 80 shows the fields beside the walker
+}
 }  // namespace mobmap::sim

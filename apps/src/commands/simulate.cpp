@@ -25,7 +25,12 @@ Command addSimulateCommand(CLI::App& app) {
     bool quiet = false;
   };
   auto o = std::make_shared<Options>();
-  cmd->add_option("--scene", o->scene, "Scene to render")->check(CLI::IsMember({"corridor"}))->capture_default_str();
+  cmd->add_option("--scene", o->scene,
+                  "Scene to render: corridor (ramps, pyramids, box, stairs, a moving box) or rough (the same walk past "
+                  "fields of pyramids, ridges along and across the path, blocks and random stones, each with its exact "
+                  "area ratio in ground_truth.json)")
+      ->check(CLI::IsMember({"corridor", "rough"}))
+      ->capture_default_str();
   cmd->add_option("--out", o->out, "Output directory")->required();
   cmd->add_option("--frames", o->frames, "Number of frames (30 Hz)")->check(CLI::Range(1, 100000))->capture_default_str();
   cmd->add_option("--seed", o->seed, "Noise seed")->capture_default_str();
@@ -49,6 +54,7 @@ Command addSimulateCommand(CLI::App& app) {
     p.seed = o->seed;
     p.noise = o->noise == "kinect" ? sim::NoiseModel::kKinect : sim::NoiseModel::kNone;
     p.kinect.edge_window_px = o->edge_window;
+    p.layout = o->scene == "rough" ? sim::Layout::kRoughYard : sim::Layout::kCorridor;
     try {
       sim::validate(p);
     } catch (const std::invalid_argument& e) {
@@ -71,7 +77,7 @@ Command addSimulateCommand(CLI::App& app) {
     Progress progress("simulate", p.frames, o->quiet);
     const int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
     writeSimulation(scene, o->out, threads, [&](int done) { progress.update(done); });
-    std::cout << "wrote " << p.frames << " frames of the corridor (" << o->noise << " noise, seed "
+    std::cout << "wrote " << p.frames << " frames of the " << (o->scene == "rough" ? "rough yard" : "corridor") << " (" << o->noise << " noise, seed "
               << p.seed << ", " << scene.surfaces().size() << " surfaces) to " << o->out << "\n"
               << "  ground truth: " << (fs::path(o->out) / "ground_truth.json").string() << "\n";
     return 0;

@@ -5,6 +5,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -48,6 +50,16 @@ double TruthSurface::distance(const Eigen::Vector3d& p) const {
     const double h = height * (1.0 - 2.0 * std::max(std::abs(fu - 0.5), std::abs(fv - 0.5)));
     return std::abs(p.z() - h);  // vertical distance: facets are 48 degrees, a fair proxy
   }
+  if (rough_field) {  // the prism over the footprint's rectangle up to top_m
+    Eigen::AlignedBox2d box;
+    for (const auto& poly : polygons) {
+      for (const Eigen::Vector3d& v : poly) box.extend(v.head<2>());
+    }
+    const double dx = std::max({box.min().x() - p.x(), 0.0, p.x() - box.max().x()});
+    const double dy = std::max({box.min().y() - p.y(), 0.0, p.y() - box.max().y()});
+    const double dz = std::max({-p.z(), 0.0, p.z() - top_m});
+    return std::sqrt(dx * dx + dy * dy + dz * dz);
+  }
   double best = std::numeric_limits<double>::infinity();
   for (const auto& poly : polygons) best = std::min(best, polygonDistance(poly, p));
   return best;
@@ -80,6 +92,15 @@ GroundTruth loadGroundTruth(const std::string& path) {
         s.ny = g.at("ny").get<int>();
         s.pitch = g.at("pitch_m").get<double>();
         s.height = g.at("height_m").get<double>();
+      } else if (g.at("type") == "rough_field") {
+        s.rough_field = true;
+        s.top_m = g.at("top_m").get<double>();
+        for (const auto& jp : g.at("footprint")) {
+          std::vector<Eigen::Vector3d> poly;
+          for (const auto& v : jp) poly.push_back(vec(v));
+          if (poly.size() < 3) throw IoError(path, "surface " + std::to_string(s.id) + " has a polygon with fewer than 3 vertices");
+          s.polygons.push_back(std::move(poly));
+        }
       } else {
         for (const auto& jp : g.at("polygons")) {
           std::vector<Eigen::Vector3d> poly;

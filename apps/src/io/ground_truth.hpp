@@ -17,6 +17,9 @@ struct TruthSurface {
   bool seen = true;  ///< false when ground_truth.json says no frame shows it (pixels_seen 0)
   std::vector<std::vector<Eigen::Vector3d>> polygons;  ///< convex, world frame, final positions
   bool pyramid_field = false;
+  /// A rough field of the rough yard: the prism over its footprint (polygons) up to top_m.
+  bool rough_field = false;
+  double top_m = 0;
   double x0 = 0, y0 = 0, pitch = 0, height = 0;
   int nx = 0, ny = 0;
   /// Distance from `p` (world frame) to the surface.

@@ -67,7 +67,10 @@ nlohmann::json groundTruthJson(const sim::CorridorScene& scene, const std::vecto
       for (const auto& v : poly) jp.push_back(vec(v));
       polys.push_back(jp);
     }
-    if (s.kind == sim::SurfaceKind::kRough) {
+    if (s.kind == sim::SurfaceKind::kRough && scene.params().layout == sim::Layout::kRoughYard) {
+      js["geometry"] = {{"type", "rough_field"}, {"footprint", polys}, {"top_m", s.top_m}, {"description", s.description},
+                        {"area_ratio", "exact: the field's true area over its footprint"}};
+    } else if (s.kind == sim::SurfaceKind::kRough) {
       const auto& f = scene.roughPatch();
       js["geometry"] = {{"type", "pyramid_field"},
                         {"x0", f.x0}, {"y0", f.y0}, {"nx", f.nx}, {"ny", f.ny},

@@ -53,6 +53,10 @@ struct Surface {
   double roughness = 1.0;          ///< true area / projected area
   double expected_mobility = 0.0;  ///< paper's rule table at (slope, roughness)
   bool moving = false;             ///< part of the moving obstacle
+  /// A rough field's shape in words, with its parameters (ground_truth.json); empty otherwise.
+  std::string description;
+  double top_m = 0;  ///< a rough field's highest point above its footprint
+
 };
 
 /// The moving obstacle: a box translated linearly from `from` to `to` (its footprint
@@ -94,6 +98,29 @@ struct KinectNoiseParams {
   bool projector_shadow = true;
 };
 
+/// What the walk passes.
+enum class Layout {
+  /// Floor, walls, five ramps, a pyramid field, a box, stairs and a moving box.
+  kCorridor,
+  /// The same floor and walls with rough fields beside the path instead: square pyramids,
+  /// triangular ridges along and across the path, square blocks and random stones, each
+  /// with its exact area ratio (RoughYardParams).
+  kRoughYard,
+};
+
+/// The rough fields of Layout::kRoughYard. Every field tiles its footprint exactly, so its
+/// area ratio (true area over footprint) is exact: ridges sqrt(1 + (2 h / pitch)^2),
+/// blocks 1 + 4 side h / pitch^2, stones the sum over their cells.
+struct RoughYardParams {
+  double ridge_pitch_m = 0.12, ridge_height_m = 0.06;  ///< area ratio sqrt(2): the rule gives 0.5
+  double block_pitch_m = 0.15, block_side_m = 0.08, block_height_m = 0.06;  ///< area ratio 1.853
+  /// One stone (a box) per pitch cell, its sides and height drawn uniformly from these
+  /// ranges and its place in the cell at random (never touching the next cell's).
+  double stone_pitch_m = 0.15, stone_min_side_m = 0.04, stone_max_side_m = 0.11;
+  double stone_min_height_m = 0.02, stone_max_height_m = 0.08;
+  std::uint64_t stone_seed = 3;  ///< the stones' geometry (not the noise)
+};
+
 /// Parameters of the corridor walk.
 struct CorridorParams {
   int frames = 240;
@@ -108,6 +135,8 @@ struct CorridorParams {
   NoiseModel noise = NoiseModel::kNone;
   KinectNoiseParams kinect;
   perception::PinholeIntrinsics intrinsics;  ///< default: Kinect v1 as in 7-Scenes
+  Layout layout = Layout::kCorridor;
+  RoughYardParams yard;  ///< for Layout::kRoughYard
 };
 
 /// Throws std::invalid_argument naming the field when a parameter is unusable.
@@ -151,6 +180,7 @@ class CorridorScene {
 
  private:
   int addSurface(Surface s);
+  void buildRoughYard(double x_begin, double x_end, double half_width);
   CorridorParams params_;
   std::vector<Surface> surfaces_;
   std::vector<Triangle> static_triangles_;
