@@ -503,8 +503,10 @@ FootprintQuery MobilityMap::footprint(const Foot& f, double search_up_m, double 
     while (from > lo) {
       const auto q = snapDown({x, y, from}, from - lo);
       if (!q) return std::nullopt;
+      // The top of its run: snapDown walked down to it through voxels that are not surface,
+      // unless it holds the height the walk started from.
       const double top = q->centre.z() + q->size_m / 2;
-      if (top <= hi && query({x, y, top + res / 2}).state != VoxelState::kSurface) return q;
+      if (top <= hi && (top < from - 1e-9 || query({x, y, top + res / 2}).state != VoxelState::kSurface)) return q;
       double z = q->centre.z();
       while (z > lo && query({x, y, z}).state == VoxelState::kSurface) z -= res;
       from = z;
