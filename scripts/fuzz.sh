@@ -69,7 +69,7 @@ for target in "${targets[@]}"; do
              sources/src/png.cpp perception/src/camera.cpp mapping/src/gravity.cpp -- -lpng -lyaml-cpp "${mrpt[@]}" ;;
     pipeline) link pipeline tests/fuzz/fuzz_pipeline.cpp "${gp[@]}" "${perception[@]}" -- -lgmp -lmpfr ;;
     api) link api tests/fuzz/fuzz_api.cpp apps/src/serve/api.cpp apps/src/serve/viewer_assets.cpp apps/src/answers/answers.cpp \
-           apps/src/commands/levels.cpp "${mapping[@]}" "${perception[@]}" "${gp[@]}" \
+           "${mapping[@]}" "${perception[@]}" "${gp[@]}" \
            -- -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;
     mcap|cdr|db3) link "$target" "tests/fuzz/fuzz_$target.cpp" "${bag_sources[@]}" sources/src/rosbag1_missing.cpp perception/src/camera.cpp \
                     -- -lpng -lz -lyaml-cpp -lsqlite3 -llz4 -lzstd ;;
