@@ -260,14 +260,16 @@ std::string diagnose(const SurfaceColumns& cols, const Reachability& reach, cons
     const FootPlace& from = feet[path[i - 1]];
     const FootPlace& to = feet[path[i]];
     if (stepHeightOk(from.z, to.z, robot, res)) continue;
-    // The heights printed are the ones compared (to the millimetre).
-    const double rise = std::abs(to.z - from.z);
+    // The numbers add up as printed: the heights to a tenth of a millimetre, the rise and
+    // what the step needs from those.
+    const auto tenth = [](double v) { return std::round(v * 1e4) / 1e4; };
+    const double z0 = tenth(from.z), z1 = tenth(to.z), rise = std::abs(z1 - z0);
     return std::string(to.z > from.z ? "the step up" : "the step down") +
-           format(" on the easiest way there measures %.3f m, from a sole resting at z = %.3f m to one at z = %.3f m "
-                  "(near x = %.2f, y = %.2f; each height known to one voxel, %.3f m); ",
-                  rise, from.z, to.z, to.x, to.y, res) +
+           format(" on the easiest way there measures %.4f m, from a sole resting at z = %.4f m to one at z = %.4f m "
+                  "(near x = %.2f, y = %.2f; each height known to one voxel, %g m); ",
+                  rise, z0, z1, to.x, to.y, res) +
            "a step passes when its measured rise plus one voxel to spare is at most --max-step " +
-           formatLimit(robot.max_step_m) + format(": this one needs %.3f m", rise + res);
+           formatLimit(robot.max_step_m) + format(": this one needs %.4f m", rise + res);
   }
   return "the goal is cut off from the start (no step over the limits found on the way; --max-gap or --swing-clearance "
          "may block it)";

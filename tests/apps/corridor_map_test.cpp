@@ -276,11 +276,11 @@ void CorridorMap::footstepPlansAgreeWithTheTruth() const {
                           &rise, &z0, &z1, &x, &y, &voxel, limit_text, &needs),
               8)
         << low.reason;
-    EXPECT_NEAR(rise, z1 - z0, 0.0015) << low.reason;
+    EXPECT_NEAR(rise, z1 - z0, 1e-9) << low.reason;  // the numbers add up as printed
     EXPECT_NEAR(rise, 0.17, 0.02 + 1e-6) << low.reason;  // within a voxel of the true riser
     EXPECT_DOUBLE_EQ(voxel, 0.02);
     EXPECT_EQ(std::string(limit_text), limit == 0.15 ? "0.15" : "0.155");
-    EXPECT_NEAR(needs, rise + voxel, 0.0015);
+    EXPECT_NEAR(needs, rise + voxel, 1e-9);
     EXPECT_GT(needs, limit);
   }
   p.robot.max_step_m = 0.15;
