@@ -123,6 +123,23 @@ double PyramidField::heightAt(double x, double y) const {
   return height_m * (1.0 - 2.0 * std::max(std::abs(fu - 0.5), std::abs(fv - 0.5)));
 }
 
+std::vector<Triangle> PyramidField::triangles(int surface_id) const {
+  std::vector<Triangle> tris;
+  const double p = pitch_m;
+  for (int i = 0; i < nx; ++i) {
+    for (int j = 0; j < ny; ++j) {
+      const double x = x0 + i * p, y = y0 + j * p;
+      const Eigen::Vector3d c00(x, y, 0), c10(x + p, y, 0), c11(x + p, y + p, 0), c01(x, y + p, 0);
+      const Eigen::Vector3d apex(x + 0.5 * p, y + 0.5 * p, height_m);
+      tris.push_back({c00, c10, apex, surface_id});
+      tris.push_back({c10, c11, apex, surface_id});
+      tris.push_back({c11, c01, apex, surface_id});
+      tris.push_back({c01, c00, apex, surface_id});
+    }
+  }
+  return tris;
+}
+
 double PyramidField::exactAreaRatio() const {
   const double g = 2.0 * height_m / pitch_m;
   return std::sqrt(1.0 + g * g);
@@ -282,19 +299,7 @@ void CorridorScene::buildRoughYard(double x_begin, double x_end, double half_wid
     const Field& f = fields[0];
     rough_.x0 = f.x0, rough_.y0 = f.y0, rough_.nx = 8, rough_.ny = 8, rough_.pitch_m = 0.1;
     rough_.height_m = 0.5 * rough_.pitch_m * std::sqrt(1.25);
-    std::vector<Triangle> tris;
-    const double p = rough_.pitch_m;
-    for (int i = 0; i < rough_.nx; ++i) {
-      for (int j = 0; j < rough_.ny; ++j) {
-        const double x = f.x0 + i * p, yy = f.y0 + j * p;
-        const V c00(x, yy, 0), c10(x + p, yy, 0), c11(x + p, yy + p, 0), c01(x, yy + p, 0);
-        const V apex(x + 0.5 * p, yy + 0.5 * p, rough_.height_m);
-        tris.push_back({c00, c10, apex, 0});
-        tris.push_back({c10, c11, apex, 0});
-        tris.push_back({c11, c01, apex, 0});
-        tris.push_back({c01, c00, apex, 0});
-      }
-    }
+    const std::vector<Triangle> tris = rough_.triangles(0);
     addField(f, "square pyramids, pitch 0.1 m, height 0.0559 m", tris);
   }
   // Ridges: triangular prisms, crests along x (the path) or along y, gable ends vertical.
@@ -449,18 +454,7 @@ CorridorScene::CorridorScene(CorridorParams params) : params_(std::move(params))
     s.description = "square pyramids, pitch 0.1 m";
     s.polygons.push_back(oriented(rect_xy(rough_.x0, px1, rough_.y0, py1, 0), V::UnitZ()));
     const int id = addSurface(std::move(s));
-    const double p = rough_.pitch_m;
-    for (int i = 0; i < rough_.nx; ++i) {
-      for (int j = 0; j < rough_.ny; ++j) {
-        const double x = rough_.x0 + i * p, y = rough_.y0 + j * p;
-        const V c00(x, y, 0), c10(x + p, y, 0), c11(x + p, y + p, 0), c01(x, y + p, 0);
-        const V apex(x + 0.5 * p, y + 0.5 * p, rough_.height_m);
-        static_triangles_.push_back({c00, c10, apex, id});
-        static_triangles_.push_back({c10, c11, apex, id});
-        static_triangles_.push_back({c11, c01, apex, id});
-        static_triangles_.push_back({c01, c00, apex, id});
-      }
-    }
+    for (const Triangle& t : rough_.triangles(id)) static_triangles_.push_back(t);
   }
 
   // A static box on the left.

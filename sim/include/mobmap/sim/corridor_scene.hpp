@@ -39,6 +39,8 @@ struct PyramidField {
   double height_m = 0.0;
   [[nodiscard]] double heightAt(double x, double y) const;  ///< h(x,y), 0 outside
   [[nodiscard]] double exactAreaRatio() const;              ///< sqrt(1 + (2 h / pitch)^2)
+  /// Its triangles (four per pyramid), labelled `surface_id`.
+  [[nodiscard]] std::vector<Triangle> triangles(int surface_id) const;
 };
 
 /// One ground-truth surface: a planar face (one or more convex polygons in one plane)
