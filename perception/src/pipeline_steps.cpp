@@ -253,6 +253,7 @@ Eigen::MatrixX2d measureSurfaces(FrameResult& out, const KnnGraph& graph, const 
     features(static_cast<Eigen::Index>(s), 0) = seg.slope_deg;
     features(static_cast<Eigen::Index>(s), 1) = seg.roughness;
   }
+  if (p.foot_window_m > 0 && !out.segments.empty()) return scoreAtFootScale(out, features, reference, p);
   return features;
 }
 

@@ -41,4 +41,12 @@ std::size_t segment(FrameResult& out, const KnnGraph& graph, std::vector<int> gr
 Eigen::MatrixX2d measureSurfaces(FrameResult& out, const KnnGraph& graph, const std::vector<Eigen::Vector3f>& smoothed,
                                  const std::optional<Eigen::Vector3f>& up, const PerceptionParams& p);
 
+/// Roughness at foot scale (foot_scale.cpp): points of surfaces on which no flat square
+/// of foot_support_m fits, and of rough segments, leave their segments for new ones
+/// grouped by the slope and area ratio of the ground within foot_window_m of them.
+/// Empty segments go; out.segments and out.segment_of_point are renumbered. Takes the
+/// segments' (slope, roughness) rows and returns those of the segments that remain.
+Eigen::MatrixX2d scoreAtFootScale(FrameResult& out, const Eigen::MatrixX2d& features, const Eigen::Vector3f& reference,
+                                  const PerceptionParams& p);
+
 }  // namespace mobmap::perception::steps

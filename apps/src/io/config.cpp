@@ -80,6 +80,7 @@ static Config parseConfigUnchecked(const std::string& text, const std::string& o
          {"max_triangle_edge_m", bind(p.max_triangle_edge_m)}, {"triangulator", triangulator},
          {"roughness_smoothing", bind(p.roughness_smoothing)}, {"roughness_smoothing_passes", bind(p.roughness_smoothing_passes)},
          {"rough_smoothing_k", bind(p.rough_smoothing_k)},
+         {"foot_window_m", bind(p.foot_window_m)}, {"foot_support_m", bind(p.foot_support_m)},
          {"random_seed", bind(p.random_seed)}},
         origin);
   auto& m = c.mapping;

@@ -83,6 +83,14 @@ struct PerceptionParams {
   /// this many nearest neighbours (at most normal_k): their roughness is creases at
   /// the fragments' scale, which wider or repeated smoothing rounds off.
   int rough_smoothing_k = 30;
+  /// Roughness at foot scale (docs/ALGORITHM.md, "Roughness"): points of a surface on
+  /// which no flat square of foot_support_m fits (a ridge face, a block top, the floor
+  /// between stones, any rough segment) are scored by the ground around them: slope and
+  /// area ratio A/A' over all points within foot_window_m / 2, A/A' from the points'
+  /// normals against the window's mean plane. 0 switches it off (the paper: every
+  /// segment on its own).
+  double foot_window_m = 0.0;
+  double foot_support_m = 0.10;  ///< side of the flat square a surface must hold
   std::uint32_t random_seed = 42;         ///< RANSAC sampling (results are deterministic)
 };
 
