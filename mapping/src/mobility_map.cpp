@@ -1,5 +1,6 @@
 #include "mobmap/mapping/mobility_map.hpp"
 
+#include "mobmap/mapping/footholds.hpp"
 #include "mobmap/mapping/gravity.hpp"
 #include "param_error.hpp"
 #include "support_plane.hpp"
@@ -161,6 +162,19 @@ MobilityMap::MobilityMap(const MobilityMap& other)
       frames_(other.frames_),
       may_be_pruned_(other.may_be_pruned_) {}
 
+std::shared_ptr<const SurfaceColumns> MobilityMap::surfaceColumns() const {
+  if (auto kept = std::atomic_load(&columns_)) return kept;
+  // Two threads asking at once may both build; both results are the same.
+  auto built = std::make_shared<const SurfaceColumns>(*tree_);
+  std::atomic_store(&columns_, built);
+  return built;
+}
+
+HeightScan MobilityMap::heightScan(const std::vector<HeightScanPose>& poses, const HeightScanGrid& grid) const {
+  checkHeightScanGrid(grid, poses.size());
+  return mapping::heightScan(*surfaceColumns(), poses, grid);
+}
+
 void MobilityMap::setOriginWorld(const Eigen::Vector3d& origin_world) {
   if (tree_->size() > 0) throw std::logic_error("MobilityMap::setOriginWorld: the map already holds data");
   checkOrigin(origin_world);
@@ -182,6 +196,7 @@ IntegrationReport MobilityMap::integrate(const perception::FrameResult& frame, c
 
 IntegrationReport MobilityMap::integrate(const perception::FrameResult& frame, const Eigen::Isometry3d& T_world_camera,
                                          const perception::DepthImage* depth, const perception::PinholeIntrinsics* k) {
+  forgetColumns();
   // In double until the points are near the map origin: a world frame in UTM
   // coordinates (~10^6 m) would lose the centimetres in float.
   Eigen::Isometry3d T_map_camera = T_world_camera;
@@ -374,6 +389,7 @@ void MobilityMap::castFreeRays(const Eigen::Isometry3d& T_map_camera, const perc
 }
 
 void MobilityMap::finalize() {
+  forgetColumns();
   tree_->updateInnerOccupancy();
   tree_->prune();
   may_be_pruned_ = true;

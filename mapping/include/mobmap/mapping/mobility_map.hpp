@@ -3,6 +3,7 @@
 /// Fusing scored frames into a MobilityOcTree, and the queries a footstep planner asks.
 
 #include "mobmap/mapping/foot.hpp"
+#include "mobmap/mapping/height_scan.hpp"
 #include "mobmap/mapping/map_metadata.hpp"
 #include "mobmap/mapping/mobility_octree.hpp"
 #include "mobmap/perception/camera.hpp"
@@ -27,6 +28,8 @@ class CPose3D;
 }
 
 namespace mobmap::mapping {
+
+class SurfaceColumns;
 
 /// Map parameters, units in the names. OctoMap's sensor model (hit 0.7, miss 0.4) with
 /// a lower upper clamp than OctoMap's 0.97: at 0.9 a voxel needs ~5 misses instead of
@@ -182,6 +185,16 @@ class MobilityMap {
   /// default RobotParams (their band is within 1 mm of 0.1 m) the two agree.
   [[nodiscard]] FootprintQuery footprint(const Foot& foot, double search_up_m = 0.1, double search_down_m = 0.1) const;
 
+  /// The surface columns of the map as it is now (footholds.hpp): built on first use
+  /// (one pass over the leaves) and kept until the map changes (integrate(), finalize(),
+  /// the non-const tree()). Costs SurfaceColumns::memoryBytes() while kept: ~4 bytes per
+  /// column of the map's extent and ~20 per run of occupied voxels (1.5 MB for the
+  /// 1000-frame redkitchen at 2 cm, built in ~20 ms). Safe to call from several threads at once.
+  [[nodiscard]] std::shared_ptr<const SurfaceColumns> surfaceColumns() const;
+  /// Height scans (height_scan.hpp) of poses in the map frame, over surfaceColumns().
+  /// std::invalid_argument for a bad grid or a pose that is not finite.
+  [[nodiscard]] HeightScan heightScan(const std::vector<HeightScanPose>& poses, const HeightScanGrid& grid = {}) const;
+
   /// Converts a point of the data's world frame into the map frame.
   [[nodiscard]] Eigen::Vector3d worldToMap(const Eigen::Vector3d& p_world) const {
     return R_map_world_ * (p_world - origin_world_);
@@ -212,7 +225,10 @@ class MobilityMap {
   [[nodiscard]] double extentM() const;
 
   [[nodiscard]] const MobilityOcTree& tree() const { return *tree_; }
-  [[nodiscard]] MobilityOcTree& tree() { return *tree_; }
+  [[nodiscard]] MobilityOcTree& tree() {
+    forgetColumns();
+    return *tree_;
+  }
   [[nodiscard]] const MapParams& params() const { return params_; }
   [[nodiscard]] const Eigen::Matrix3d& rotationMapWorld() const { return R_map_world_; }
   [[nodiscard]] int framesIntegrated() const { return frames_; }
@@ -227,6 +243,7 @@ class MobilityMap {
   void addOccupied(const octomap::OcTreeKey& key);
   void expandPrunedAncestors(const octomap::OcTreeKey& key);
   void removeOccupied(const octomap::OcTreeKey& key);
+  void forgetColumns() { std::atomic_store(&columns_, std::shared_ptr<const SurfaceColumns>()); }
 
   MapParams params_;
   Eigen::Matrix3d R_map_world_;
@@ -238,6 +255,8 @@ class MobilityMap {
   std::unordered_set<octomap::OcTreeKey, octomap::OcTreeKey::KeyHash> occupied_;
   std::unordered_map<std::uint64_t, std::vector<octomap::OcTreeKey>> occupied_blocks_;
   int frames_ = 0;
+  /// surfaceColumns()' cache, read and written with std::atomic_load / atomic_store.
+  mutable std::shared_ptr<const SurfaceColumns> columns_;
   /// finalize() has run or the tree was loaded: some voxels may sit in pruned nodes.
   bool may_be_pruned_ = false;
 };
