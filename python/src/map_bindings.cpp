@@ -8,6 +8,7 @@
 #include <pybind11/eigen.h>
 #include <pybind11/stl.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -140,6 +141,40 @@ py::dict footprint(const MapHandle& h, const py::object& soles, const std::strin
   return out;
 }
 
+// Poses (N, 4) x y z yaw -> float32 arrays (N, ny, nx); the pose taken to the map frame
+// first when it is in the world frame (heights are along the map's z, gravity's up).
+py::dict heightScan(const MapHandle& h, const py::object& poses, const std::pair<double, double>& size, double resolution,
+                    const std::string& frame_name) {
+  const Frame frame = parseFrame(frame_name);
+  const auto p = rows(poses, 4, "poses");
+  const mapping::MobilityMap& map = *h.map;
+  std::vector<mapping::HeightScanPose> in(static_cast<std::size_t>(p.shape(0)));
+  const auto a = p.unchecked<2>();
+  for (py::ssize_t i = 0; i < p.shape(0); ++i) {
+    for (py::ssize_t k = 0; k < 4; ++k) {
+      if (!std::isfinite(a(i, k))) throw py::value_error("height_scan: poses[" + std::to_string(i) + "] holds a value that is not finite");
+    }
+    const Eigen::Vector3d c = toMap(map, Eigen::Vector3d(a(i, 0), a(i, 1), a(i, 2)), frame);
+    in[static_cast<std::size_t>(i)] = {c.x(), c.y(), c.z(), frame == Frame::kWorld ? map.worldYawToMap(a(i, 3)) : a(i, 3)};
+  }
+  const mapping::HeightScanGrid grid{size.first, size.second, resolution};
+  mapping::HeightScan scan;
+  try {
+    py::gil_scoped_release unlocked;
+    scan = map.heightScan(in, grid);
+  } catch (const std::invalid_argument& e) {
+    throw py::value_error(e.what());
+  }
+  const std::vector<py::ssize_t> shape{static_cast<py::ssize_t>(scan.poses), scan.ny, scan.nx};
+  py::array_t<float> height(shape), mobility(shape);
+  std::copy(scan.height.begin(), scan.height.end(), height.mutable_data());
+  std::copy(scan.mobility.begin(), scan.mobility.end(), mobility.mutable_data());
+  py::dict out;
+  out["height"] = height;
+  out["mobility"] = mobility;
+  return out;
+}
+
 void save(const MapHandle& h, const std::string& path) {
   if (std::filesystem::path(path).extension() != ".ot") throw py::value_error("save: the path must end in .ot, got " + path);
   mapping::MapMetadata meta = h.metadata.value_or(mapping::MapMetadata{});
@@ -199,6 +234,13 @@ void bindMap(py::module_& m) {
            "up or down) -> dict of arrays: min_mobility, mean_mobility, known_fraction, "
            "max_height_difference, support_height and support_tilt_deg (NaN without a support plane; "
            "heights in the map frame, z up).")
+      .def("height_scan", &heightScan, py::arg("poses"), py::arg("size") = std::make_pair(1.6, 1.0),
+           py::arg("resolution") = 0.1, py::arg("frame") = "map",
+           "Poses (N, 4): x y z yaw of robot bases -> dict of float32 arrays height and mobility, shape "
+           "(N, ny, nx): the surface a foot lowered from each pose's height meets at each point of a grid "
+           "of size (length, width) metres centred on the pose, its x along the yaw, nx = length / "
+           "resolution + 1, x varying fastest. height is relative to the pose's z (map frame, z up); NaN "
+           "where unknown. The map's surface columns are built on the first call and kept.")
       .def("save", &save, py::arg("path"),
            "Writes the map to PATH.ot (and its frame to PATH.json beside it) atomically; `mobmap info`, "
            "`query` and open_map read it.")

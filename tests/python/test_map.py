@@ -149,3 +149,91 @@ def test_a_map_json_nested_past_the_limit_is_an_os_error_naming_it(corridor, tmp
     (tmp_path / "deep.json").write_text(text)
     with pytest.raises(OSError, match=r"deep\.json.*nested more than 64 deep"):
         mobmap.open_map(str(tmp_path / "deep.ot"))
+
+
+def column_scan(m, poses, size, resolution):
+    """Height scans the slow way, from Map.query: each grid point's column of voxels from
+    30 above the pose's voxel down to the bottom of the map, the first occupied voxel at
+    or below the pose, the top of its run (no higher than the pose) and the run's highest
+    mobility going down from that top."""
+    res = m.resolution
+    nx, ny = round(size[0] / resolution) + 1, round(size[1] / resolution) + 1
+    bottom = m.info()["bounds_min"][2]
+    height = np.full((len(poses), ny, nx), np.nan)
+    mobility = np.full((len(poses), ny, nx), np.nan)
+    for p, (x, y, z, yaw) in enumerate(poses):
+        kz = int(np.floor(z / res))
+        levels = np.arange(kz + 30, int(np.floor(bottom / res)) - 1, -1)  # highest first
+        gx, gy = np.meshgrid((np.arange(nx) - (nx - 1) / 2) * resolution, (np.arange(ny) - (ny - 1) / 2) * resolution)
+        px, py = x + np.cos(yaw) * gx - np.sin(yaw) * gy, y + np.sin(yaw) * gx + np.cos(yaw) * gy
+        pts = np.column_stack([np.repeat(px.ravel(), len(levels)), np.repeat(py.ravel(), len(levels)),
+                               np.tile((levels + 0.5) * res, px.size)])
+        q = m.query(pts)
+        occupied = (q["state"] == mobmap.SURFACE).reshape(px.size, len(levels))
+        mob = q["mobility"].reshape(px.size, len(levels))
+        for g in range(px.size):
+            below = np.nonzero(occupied[g] & (levels <= kz))[0]
+            if len(below) == 0:
+                continue
+            top = below[0]
+            while top > 0 and occupied[g, top - 1]:
+                top -= 1
+            height.flat[p * px.size + g] = min((levels[top] + 1) * res, z) - z
+            for k in range(top, len(levels)):
+                if not occupied[g, k]:
+                    break
+                if not np.isnan(mob[g, k]):
+                    mobility.flat[p * px.size + g] = mob[g, k]
+                    break
+    return height, mobility
+
+
+def test_height_scans_equal_a_column_search_through_point_queries(corridor):
+    m = mobmap.open_map(str(corridor["map"]))
+    rng = np.random.default_rng(54)
+    n = 12
+    # Bases 0.3-0.6 m above the floor anywhere in the corridor (over ramps, the box and the
+    # stairs), facing anywhere.
+    poses = np.column_stack([rng.uniform(0.5, 4.5, n), rng.uniform(-1.6, 1.6, n), rng.uniform(0.3, 0.6, n),
+                             rng.uniform(-np.pi, np.pi, n)])
+    for size, resolution in (((1.6, 1.0), 0.1), ((0.3, 0.2), 0.02)):
+        got = m.height_scan(poses, size=size, resolution=resolution)
+        want_h, want_m = column_scan(m, poses, size, resolution)
+        assert got["height"].dtype == np.float32 and got["height"].shape == want_h.shape
+        assert np.isfinite(want_h).sum() > want_h.size // 3  # the poses see ground
+        np.testing.assert_allclose(got["height"], want_h, atol=1e-6)  # float32 of the same double
+        np.testing.assert_array_equal(np.isnan(got["mobility"]), np.isnan(want_m))
+        np.testing.assert_allclose(got["mobility"], want_m, atol=1e-6)
+    # The default grid is legged_gym's: 17 x 11 points.
+    assert m.height_scan(poses[:2])["height"].shape == (2, 11, 17)
+
+
+def test_height_scans_in_the_world_frame_go_through_the_map_frame(corridor):
+    m = mobmap.open_map(str(corridor["map"]))
+    pts = corridor_points(40, 6)
+    pts[:, 2] += 0.4
+    poses = np.column_stack([pts, np.zeros(len(pts))])
+    world = np.column_stack([m.map_to_world(pts), np.zeros(len(pts))])
+    a = m.height_scan(poses, size=(0, 0))
+    b = m.height_scan(world, size=(0, 0), frame="world")
+    np.testing.assert_allclose(a["height"], b["height"], atol=1e-5)
+    np.testing.assert_array_equal(np.isnan(a["mobility"]), np.isnan(b["mobility"]))
+
+
+@pytest.mark.parametrize("poses, kwargs, message", [
+    (np.zeros((2, 3)), {}, r"shape \(N, 4\)"),
+    (np.array([[1.0, np.nan, 0.3, 0.0]]), {}, r"poses\[0\].*not finite"),
+    (np.zeros((1, 4)), {"resolution": 0.0}, "resolution"),
+    (np.zeros((1, 4)), {"size": (-1.0, 1.0)}, "size"),
+    (np.zeros((1, 4)), {"size": (1e9, 1.0)}, "points"),
+    (np.zeros((40000, 4)), {"size": (10.0, 10.0), "resolution": 0.01}, "batches"),
+])
+def test_unusable_height_scans_are_value_errors(corridor, poses, kwargs, message):
+    m = mobmap.open_map(str(corridor["map"]))
+    with pytest.raises(ValueError, match=message):
+        m.height_scan(poses, **kwargs)
+
+
+def test_no_pose_is_an_empty_scan(corridor):
+    m = mobmap.open_map(str(corridor["map"]))
+    assert m.height_scan(np.zeros((0, 4)))["height"].shape == (0, 11, 17)
