@@ -27,8 +27,14 @@ def test_a_live_map_saves_the_bytes_mobmap_build_writes(corridor, tmp_path):
     out = tmp_path / "live.ot"
     mapper.snapshot().save(str(out))
     assert out.read_bytes() == corridor["map"].read_bytes()
-    info = mobmap.open_map(str(out)).info()
-    assert info["frames"] == 30
+    saved = mobmap.open_map(str(out))
+    assert saved.info()["frames"] == 30
+    # Height scans of the snapshot are those of the saved map.
+    poses = np.array([[1.5, 0.0, 0.45, 0.0], [2.5, 0.6, 0.45, 2.0], [3.2, -0.5, 0.6, -1.0]])
+    live, disk = mapper.snapshot().height_scan(poses), saved.height_scan(poses)
+    assert np.isfinite(disk["height"]).sum() > 100
+    for key in ("height", "mobility"):
+        np.testing.assert_array_equal(live[key], disk[key])
 
 
 def test_a_thread_queries_while_another_pushes(corridor):
