@@ -63,7 +63,7 @@ for target in "${targets[@]}"; do
     map_reader) link map_reader tests/fuzz/fuzz_map_reader.cpp "${mapping[@]}" "${perception[@]}" "${gp[@]}" \
                   -- -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;
     config) link config tests/fuzz/fuzz_config.cpp apps/src/io/config.cpp apps/src/io/files.cpp sources/src/text.cpp "${gp[@]}" "${perception[@]}" \
-              mapping/src/mobility_map.cpp mapping/src/mobility_octree.cpp mapping/src/gravity.cpp \
+              "${mapping[@]}" \
               -- -lyaml-cpp -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;
     poses) link poses tests/fuzz/fuzz_poses.cpp sources/src/trajectory_files.cpp sources/src/dataset.cpp sources/src/text.cpp \
              sources/src/png.cpp perception/src/camera.cpp mapping/src/gravity.cpp -- -lpng -lyaml-cpp "${mrpt[@]}" ;;

@@ -1,6 +1,6 @@
 // libFuzzer target: `mobmap serve`'s API (serve::Api::handle) on any request. The first
 // byte picks the path and method; the rest is the body, or the query string of
-// /api/voxels. With bit 0x40 of the first byte set, the body is a valid request with the
+// /api/voxels (/api/height_scan: see kPaths). With bit 0x40 of the first byte set, the body is a valid request with the
 // rest put as the value of one of its fields (the second byte picks which) inside arrays
 // nested up to 76,500 deep (the third byte): nesting a recursion would overflow on.
 // Every answer must be a status the API documents with a JSON body (or a viewer file):
@@ -62,7 +62,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (size == 0) return 0;
   static const char* const kPaths[] = {"/api/query", "/api/foot", "/api/plan", "/api/voxels", "/api/info",
                                        "/api/camera_path", "/", "/nothing"};
-  const std::string path = kPaths[data[0] % 8];
+  // /nothing with bit 0x20 set is the height scans (added after the corpus was grown).
+  const std::string path = data[0] % 8 == 7 && (data[0] & 0x20) ? "/api/height_scan" : kPaths[data[0] % 8];
   const std::string method = (data[0] & 0x80) ? "GET" : "POST";
   std::string rest(reinterpret_cast<const char*>(data + 1), size - 1);
   if ((data[0] & 0x40) && size >= 3) {
@@ -77,7 +78,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         R"({"from": [0.2, 0.5, 0.1], "to": [0.8, 0.5, 0.1], "max_step_m": @})",
         R"({"from": @, "to": [0.8, 0.5, 0.1]})",
     };
-    const std::string t = kTemplates[data[1] % 8];
+    static const char* const kScanTemplates[] = {
+        R"({"poses": [[0.5, 0.5, 0.3, @]]})",
+        R"({"poses": [[0.5, 0.5, 0.3, 0]], "size": @})",
+        R"({"poses": [[0.5, 0.5, 0.3, 0]], "resolution": @, "frame": "world"})",
+    };
+    const std::string t = path == "/api/height_scan" ? kScanTemplates[data[1] % 3] : kTemplates[data[1] % 8];
     const std::size_t depth = static_cast<std::size_t>(data[2]) * 300;
     const std::string value = std::string(depth, '[') + rest.substr(2) + std::string(depth, ']');
     rest = t.substr(0, t.find('@')) + value + t.substr(t.find('@') + 1);

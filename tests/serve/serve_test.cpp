@@ -10,6 +10,7 @@
 
 #include "serve_support.hpp"
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -54,6 +55,33 @@ std::vector<nlohmann::json> cliAnswers(const std::string& dir, const std::string
   const Result r = mobmap(args + " < " + input);
   EXPECT_EQ(r.code, 0) << r.out;
   return jsonLines(r.out);
+}
+
+// The library's height scan of `poses` (map frame) against a server's answer: the same
+// floats, null where the library says NaN.
+void expectScanIs(const nlohmann::json& body, const mapping::HeightScan& want) {
+  ASSERT_EQ(body["nx"], want.nx);
+  ASSERT_EQ(body["ny"], want.ny);
+  for (const char* field : {"height", "mobility"}) {
+    const std::vector<float>& values = std::string(field) == "height" ? want.height : want.mobility;
+    ASSERT_EQ(body[field].size(), want.poses) << field;
+    std::size_t at = 0;
+    for (std::size_t p = 0; p < want.poses; ++p) {
+      ASSERT_EQ(body[field][p].size(), static_cast<std::size_t>(want.ny));
+      for (int j = 0; j < want.ny; ++j) {
+        ASSERT_EQ(body[field][p][j].size(), static_cast<std::size_t>(want.nx));
+        for (int i = 0; i < want.nx; ++i, ++at) {
+          const nlohmann::json& v = body[field][p][j][i];
+          if (std::isnan(values[at])) {
+            EXPECT_TRUE(v.is_null()) << field << " pose " << p << " point " << i << ", " << j;
+          } else {
+            ASSERT_TRUE(v.is_number()) << field << " pose " << p << " point " << i << ", " << j;
+            EXPECT_EQ(static_cast<float>(v.get<double>()), values[at]) << field << " pose " << p << " point " << i << ", " << j;
+          }
+        }
+      }
+    }
+  }
 }
 
 // A noise-free corridor of 40 frames (walls and a box in view) mapped with its origin
@@ -113,6 +141,62 @@ TEST_F(ServedCorridor, PointAndSoleAnswersAreTheClis) {
   // The comparison covered surfaces and supported soles, not only empty space.
   EXPECT_GT(surfaces, 100);
   EXPECT_GT(supported, 50);
+  EXPECT_EQ(server.stop(), 0);
+}
+
+TEST_F(ServedCorridor, HeightScansAreTheLibrarys) {
+  ServeProcess server({"serve", map(), "--port", "0"}, dir() + "/scan.err");
+  const int port = server.port();
+  ASSERT_GT(port, 0) << server.output();
+  auto c = client(port);
+  const mapping::MobilityMap library = mapping::openMap(map());
+  // Bases over the floor, the ramps, the box and the stairs, facing four ways.
+  std::vector<std::vector<double>> poses;
+  for (double x = 0.6; x <= 3.41; x += 0.7)
+    for (double y = -1.2; y <= 1.21; y += 0.8) poses.push_back({x, y, 0.45, 0.6 * x + y});
+  std::vector<mapping::HeightScanPose> in_map;
+  for (const auto& p : poses) in_map.push_back({p[0], p[1], p[2], p[3]});
+  for (const std::string frame : {"map", "world"}) {
+    for (const auto& [size, resolution] : {std::make_pair(std::array<double, 2>{1.6, 1.0}, 0.1),
+                                          std::make_pair(std::array<double, 2>{0.4, 0.3}, 0.02)}) {
+      nlohmann::json request{{"poses", poses}, {"frame", frame}, {"size", size}, {"resolution", resolution}};
+      if (frame == "world") {
+        // The same bases given in the world frame.
+        for (std::size_t i = 0; i < poses.size(); ++i) {
+          const Eigen::Vector3d w = library.mapToWorld({poses[i][0], poses[i][1], poses[i][2]});
+          const double yaw = library.mapYawToWorld(poses[i][3]);
+          request["poses"][i] = {w.x(), w.y(), w.z(), yaw};
+        }
+      }
+      const Reply r = post(*c, "/api/height_scan", request.dump());
+      ASSERT_EQ(r.status, 200) << r.raw.substr(0, 300);
+      EXPECT_EQ(r.body["frames"], 40);
+      const mapping::HeightScan want = library.heightScan(in_map, {size[0], size[1], resolution});
+      if (frame == "map") {
+        expectScanIs(r.body, want);
+        continue;
+      }
+      // Through the world frame the poses carry rounding: the heights agree to a micrometre.
+      std::size_t known = 0, at = 0;
+      for (const auto& pose : r.body["height"])
+        for (const auto& row : pose)
+          for (const auto& v : row) {
+            ASSERT_EQ(v.is_null(), std::isnan(want.height[at])) << "point " << at;
+            if (!v.is_null()) {
+              EXPECT_NEAR(v.get<double>(), want.height[at], 1e-5) << "point " << at;
+              ++known;
+            }
+            ++at;
+          }
+      EXPECT_EQ(at, want.height.size());
+      EXPECT_GT(known, at / 3);
+    }
+  }
+  // The default grid is legged_gym's 17 x 11.
+  const Reply d = post(*c, "/api/height_scan", R"({"poses": [[1.5, 0, 0.45, 0]]})");
+  ASSERT_EQ(d.status, 200) << d.raw;
+  EXPECT_EQ(d.body["nx"], 17);
+  EXPECT_EQ(d.body["ny"], 11);
   EXPECT_EQ(server.stop(), 0);
 }
 
@@ -256,6 +340,13 @@ TEST_F(ServedCorridor, BadRequestsAreRefusedAndTheServerGoesOn) {
       {"/api/plan", R"({"from": [1,0,0.1], "to": [2,0,0.1], "wings": 2})", 400},
       {"/api/plan", R"({"from": [1,0,0.1], "to": [2,0,0.1], "time_limit_s": 1e9})", 400},
       {"/api/plan", R"({"from": [50,50,0.1], "to": [2,0,0.1]})", 400},  // no surface at the start
+      {"/api/height_scan", R"({"poses": [[1,0,0.4]]})", 400},           // three numbers
+      {"/api/height_scan", R"({"poses": [[1,0,0.4,null]]})", 400},
+      {"/api/height_scan", R"({"poses": [[1,0,0.4,0]], "resolution": 0})", 400},
+      {"/api/height_scan", R"({"poses": [[1,0,0.4,0]], "size": [1e9, 1]})", 400},
+      {"/api/height_scan", R"({"poses": [[1,0,0.4,0]], "size": [1]})", 400},
+      {"/api/height_scan", R"({"poses": [[1,0,0.4,0]], "grid": 1})", 400},
+      {"/api/height_scan", R"({"poses": [[1,0,0.4,0]], "size": [10, 10], "resolution": 0.01})", 413},  // 1 million points
       {"/api/nothing", "{}", 404},
   };
   for (const Bad& b : bad) {
@@ -539,6 +630,11 @@ TEST(ServeLive, FrameCountGrowsWhileQueriesAreAnswered) {
         surfaces += cli[i]["state"] == "surface";
       }
       EXPECT_GT(surfaces, 20);
+      // Height scans of the snapshot are the library's on the same map.
+      const Reply scan = post(*c, "/api/height_scan", R"({"poses": [[1.5, 0, 0.45, 0], [2.5, 0.5, 0.45, 1]]})");
+      ASSERT_EQ(scan.status, 200) << scan.raw;
+      EXPECT_EQ(scan.body["frames"], 4);
+      expectScanIs(scan.body, mapping::openMap(dir + "/four.ot").heightScan({{1.5, 0, 0.45, 0}, {2.5, 0.5, 0.45, 1}}));
     }
   }
   server.closeInput();

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <charconv>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -182,6 +183,33 @@ Eigen::Vector3d point(const nlohmann::json& body, const std::string& field) {
   const nlohmann::json& a = body[field];
   if (!a.is_array() || a.size() != 3) throw Refusal(400, "\"" + field + "\" must be an array of 3 numbers");
   return {finiteNumber(a[0], field + "[0]"), finiteNumber(a[1], field + "[1]"), finiteNumber(a[2], field + "[2]")};
+}
+
+// A height scan's values as nested arrays (poses, ny, nx), null where NaN, each number the
+// shortest text that reads back as the same float.
+void appendScanValues(std::string& out, const std::vector<float>& values, const mapping::HeightScan& scan) {
+  out += '[';
+  std::size_t at = 0;
+  char digits[32];
+  for (std::size_t p = 0; p < scan.poses; ++p) {
+    out += p == 0 ? "[" : ",[";
+    for (int j = 0; j < scan.ny; ++j) {
+      out += j == 0 ? "[" : ",[";
+      for (int i = 0; i < scan.nx; ++i, ++at) {
+        if (i > 0) out += ',';
+        const float v = values[at];
+        if (std::isnan(v)) {
+          out += "null";
+          continue;
+        }
+        const auto r = std::to_chars(digits, digits + sizeof digits, v);
+        out.append(digits, r.ptr);
+      }
+      out += ']';
+    }
+    out += ']';
+  }
+  out += ']';
 }
 
 // A non-negative whole number from the query string.
@@ -462,6 +490,53 @@ Response Api::handle(const std::string& method, const std::string& path,
       }
       return json({{"answers", std::move(answers)}, {"frames", served->frames}});
     }
+    if (path == "/api/height_scan") {
+      // Heights and mobilities around many robot bases at once (mapping/height_scan.hpp).
+      expect("POST");
+      const nlohmann::json b = parseBody(body, limits_);
+      onlyKnownFields(b, {"poses", "size", "resolution", "frame"});
+      const InputFrame frame = frameOf(b);
+      const auto batch = rows(b, "poses", 4, limits_.max_batch);
+      mapping::HeightScanGrid grid;
+      if (b.contains("size") && !b["size"].is_null()) {
+        const nlohmann::json& size = b["size"];
+        if (!size.is_array() || size.size() != 2) throw Refusal(400, "\"size\" must be an array of 2 numbers (length, width)");
+        grid.length_m = finiteNumber(size[0], "size[0]");
+        grid.width_m = finiteNumber(size[1], "size[1]");
+      }
+      if (b.contains("resolution") && !b["resolution"].is_null()) grid.resolution_m = finiteNumber(b["resolution"], "\"resolution\"");
+      try {
+        mapping::checkHeightScanGrid(grid, batch.size());
+      } catch (const std::invalid_argument& e) {
+        throw Refusal(400, e.what());
+      }
+      // The answer's size: about 20 bytes of JSON a point.
+      const double points = static_cast<double>(batch.size()) * grid.nx() * grid.ny();
+      const double max_points = 10.0 * static_cast<double>(limits_.max_batch);
+      if (points > max_points) {
+        char message[300];
+        std::snprintf(message, sizeof message,
+                      "this request asks for %.0f points (%zu poses x %d x %d); at most %.0f per request: ask in smaller "
+                      "batches or a coarser grid",
+                      points, batch.size(), grid.nx(), grid.ny(), max_points);
+        throw Refusal(413, message);
+      }
+      if (points > limits_.heavy_work) takeHeavySlot();
+      std::vector<mapping::HeightScanPose> poses;
+      poses.reserve(batch.size());
+      for (const auto& q : batch) {
+        const Eigen::Vector3d c = frame == InputFrame::kWorld ? map.worldToMap({q[0], q[1], q[2]}) : Eigen::Vector3d(q[0], q[1], q[2]);
+        poses.push_back({c.x(), c.y(), c.z(), frame == InputFrame::kWorld ? map.worldYawToMap(q[3]) : q[3]});
+      }
+      const mapping::HeightScan scan = map.heightScan(poses, grid);
+      std::string out = "{\"nx\":" + std::to_string(scan.nx) + ",\"ny\":" + std::to_string(scan.ny) + ",\"height\":";
+      out.reserve(out.size() + 24 * scan.height.size());
+      appendScanValues(out, scan.height, scan);
+      out += ",\"mobility\":";
+      appendScanValues(out, scan.mobility, scan);
+      out += ",\"frames\":" + std::to_string(served->frames) + "}";
+      return {200, "application/json", std::move(out)};
+    }
     if (path == "/api/plan") {
       expect("POST");
       const nlohmann::json b = parseBody(body, limits_);
@@ -579,7 +654,7 @@ Response Api::handle(const std::string& method, const std::string& path,
     }
     throw Refusal(404, "no such path: " + path.substr(0, 200) +
                            " (the API: GET /api/info, /api/voxels, /api/camera_path; POST /api/query, /api/foot, "
-                           "/api/plan; the viewer: GET /)");
+                           "/api/plan, /api/height_scan; the viewer: GET /)");
   } catch (const Refusal& r) {
     return {r.status, "application/json", errorBody(r.what())};
   } catch (const mapping::BudgetExceeded& e) {
