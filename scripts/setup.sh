@@ -11,6 +11,8 @@ packages=(
   libcli11-dev libpng-dev nlohmann-json3-dev libyaml-cpp-dev
   pybind11-dev python3-dev python3-numpy python3-pytest
   libcpp-httplib-dev libjs-three
+  # `export --layers` writes GeoTIFF through GDAL; the tests read it back with gdalinfo
+  libgdal-dev gdal-bin
   # ROS 2 bags: sqlite3 storage, MCAP chunks compressed with lz4 or zstd
   libsqlite3-dev liblz4-dev libzstd-dev
   # ROS 1 bags: Debian's rosbag_storage (catkin: its CMake configuration needs it); the

@@ -2,6 +2,7 @@
 // of the input (`overlay`, paper eq. 13 and Figs. 4 and 6).
 #include "pictures/canvas.hpp"
 #include "commands/commands.hpp"
+#include "commands/export_layers.hpp"
 #include "io/extrinsics.hpp"
 #include "io/files.hpp"
 #include "io/frame_source.hpp"
@@ -21,11 +22,13 @@
 
 namespace mobmap::app {
 Command addExportCommand(CLI::App& app) {
-  auto* cmd = app.add_subcommand("export", "Export a map: a top-view PNG and/or surface voxels as PCD");
+  auto* cmd = app.add_subcommand(
+      "export", "Export a map: a top-view PNG, surface voxels as PCD, and/or 2.5D layers per level (GeoTIFF, nav2 map_server)");
   struct Options {
     std::string map, png, pcd;
     int max_pixels = 1400;
     double max_z = std::numeric_limits<double>::infinity();
+    LayersOptions layers;
   };
   auto o = std::make_shared<Options>();
   cmd->add_option("MAP", o->map, "A .ot map")->required();
@@ -39,8 +42,12 @@ Command addExportCommand(CLI::App& app) {
   auto* max_z = cmd->add_option("--max-z", o->max_z,
                                 "Top view: draw the highest surface at or below this height (map frame, z up, metres; "
                                 "`info` gives the bounds) to see the floor under tables or a room under its ceiling");
+  addLayersOptions(*cmd, o->layers);
   return [o, max_z]() {
-    if (o->png.empty() && o->pcd.empty()) throw UsageError("export needs --png OUT.png and/or --pcd OUT.pcd");
+    if (o->png.empty() && o->pcd.empty() && o->layers.dir.empty()) {
+      throw UsageError("export needs --png OUT.png, --pcd OUT.pcd and/or --layers DIR");
+    }
+    resolveLayersOptions(o->layers);
     if (max_z->count() > 0 && o->png.empty()) throw UsageError("--max-z cuts the top view: it needs --png");
     if (!std::isfinite(o->max_z) && max_z->count() > 0) throw UsageError("--max-z must be a finite height in metres");
     refuseToOverwriteInputs({{"--png", o->png}, {"--pcd", o->pcd}}, mapFilesAsInputs(o->map));
@@ -49,6 +56,14 @@ Command addExportCommand(CLI::App& app) {
     const mapping::MobilityMap& map = opened.map;
     const auto& t = map.tree();
     if (!o->pcd.empty()) mapping::saveSurfacePcd(t, o->pcd);
+    if (!o->layers.dir.empty()) {
+      std::error_code failed;
+      std::filesystem::create_directories(o->layers.dir, failed);
+      if (failed) throw IoError(o->layers.dir, "cannot create the folder for --layers: " + failed.message());
+      refuseToOverwriteInputs({{"--layers", (std::filesystem::path(o->layers.dir) / "layers.json").string()}},
+                              mapFilesAsInputs(o->map));
+      exportLayers(o->layers, opened, o->map);
+    }
     if (o->png.empty()) return 0;
     // The camera path may run outside the mapped surfaces: draw all of it. A map extended
     // by later runs: each run's path starts afresh, marked by a square like the first.

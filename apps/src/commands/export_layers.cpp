@@ -1,0 +1,193 @@
+#include "commands/export_layers.hpp"
+
+#include "io/files.hpp"
+#include "io/io_error.hpp"
+#include "io/layer_files.hpp"
+
+#include "mobmap/mapping/layers.hpp"
+#include "mobmap/mapping/reachability.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <limits>
+
+namespace mobmap::app {
+namespace {
+
+// The levels --level names: floor (the one reach starts on), all, or the one nearest a
+// height within 0.25 m.
+std::vector<std::size_t> chosenLevels(const std::string& choice, const std::vector<mapping::LayerLevel>& levels,
+                                      const mapping::Reachability& reach, const std::string& map_path) {
+  std::string listed;
+  for (const auto& l : levels) {
+    char z[32];
+    std::snprintf(z, sizeof z, "%s%.2f", listed.empty() ? "" : ", ", l.z_m);
+    listed += z;
+  }
+  if (levels.empty()) throw std::runtime_error(map_path + ": the map has no walkable level (no surface of mobility >= 0.75)");
+  if (choice == "all") {
+    std::vector<std::size_t> all(levels.size());
+    for (std::size_t k = 0; k < all.size(); ++k) all[k] = k;
+    return all;
+  }
+  double z = 0;
+  double within = 0.25;
+  if (choice == "floor") {
+    if (reach.start()) {
+      z = reach.footPlaces()[*reach.start()].z;
+    } else if (reach.startLevel()) {
+      z = reach.startLevel()->z_m;
+    } else {
+      throw std::runtime_error(map_path + ": no level for the robot to start on (give --level all or a height; levels at z = " +
+                               listed + " m)");
+    }
+    within = std::numeric_limits<double>::infinity();
+  } else {
+    char* end = nullptr;
+    z = std::strtod(choice.c_str(), &end);
+    if (end == choice.c_str() || *end != '\0' || !std::isfinite(z)) {
+      throw UsageError("--level must be floor, all or a height in metres, got '" + choice + "'");
+    }
+  }
+  std::size_t best = 0;
+  for (std::size_t k = 1; k < levels.size(); ++k) {
+    if (std::abs(levels[k].z_m - z) < std::abs(levels[best].z_m - z)) best = k;
+  }
+  if (std::abs(levels[best].z_m - z) > within) {
+    char msg[160];
+    std::snprintf(msg, sizeof msg, ": no level at z = %.2f m (within 0.25 m); the levels are at z = ", z);
+    throw UsageError(map_path + msg + listed + " m");
+  }
+  return {best};
+}
+
+nlohmann::json settingsJson(const LayersOptions& o, double cell_m) {
+  nlohmann::json robot;
+  const auto& r = o.reach.params.robot;
+  robot["sole_length_m"] = r.sole_length_m;
+  robot["sole_width_m"] = r.sole_width_m;
+  robot["min_mobility"] = r.min_mobility;
+  robot["max_step_m"] = r.max_step_m;
+  robot["max_tilt_deg"] = r.max_tilt_deg;
+  robot["max_unevenness_m"] = r.max_unevenness_m;
+  robot["min_support_fraction"] = r.min_support_fraction;
+  robot["max_poor_fraction"] = r.max_poor_fraction;
+  robot["clearance_m"] = r.clearance_m;
+  return {{"cell_m", cell_m}, {"level_clearance_m", o.clearance_m}, {"level", o.level}, {"robot", robot}};
+}
+
+}  // namespace
+
+void addLayersOptions(CLI::App& cmd, LayersOptions& o) {
+  cmd.add_option("--layers", o.dir,
+                 "Write 2.5D layers per level into DIR: level_K.tif (GeoTIFF, float32 bands elevation, elevation_variance, "
+                 "mobility, mobility_variance, step, slope_deg, known), level_K.yaml + level_K.png (nav2 map_server: free "
+                 "where a sole stands), layers.json");
+  o.options.push_back(cmd.add_option("--cell", o.cell_m, "Layers: cell size in metres (default: the map's resolution)"));
+  o.options.push_back(cmd.add_option("--level", o.level,
+                                     "Layers: floor (the level reach starts on), all, or a level's height in metres")
+                          ->capture_default_str());
+  o.options.push_back(cmd.add_option("--level-clearance", o.clearance_m,
+                                     "Layers: the robot's height; a surface it cannot stand under is elevation on the level "
+                                     "below, one it fits under is a level of its own")
+                          ->capture_default_str());
+  addReachOptions(cmd, o.reach, "the map frame");
+  for (CLI::Option* opt : o.reach.options) o.options.push_back(opt);
+}
+
+void resolveLayersOptions(LayersOptions& o) {
+  if (o.dir.empty()) {
+    for (const CLI::Option* opt : o.options) {
+      if (opt->count() > 0) throw UsageError(opt->get_name() + " is a setting of the layers: it needs --layers DIR");
+    }
+    return;
+  }
+  if (!std::isfinite(o.clearance_m) || !(o.clearance_m > 0) || o.clearance_m > 100) {
+    throw UsageError("--level-clearance must be a height in (0, 100] m");
+  }
+  if (o.cell_m != 0 && (!std::isfinite(o.cell_m) || o.cell_m < 0 || o.cell_m > mapping::kMaxLayerCellM)) {
+    char msg[128];
+    std::snprintf(msg, sizeof msg, "--cell must be from the map's resolution to %g m", mapping::kMaxLayerCellM);
+    throw UsageError(msg);
+  }
+  resolveReachOptions(o.reach);
+}
+
+void exportLayers(const LayersOptions& o, const OpenedMap& opened, const std::string& map_path) {
+  const mapping::MobilityMap& map = opened.map;
+  const auto columns = map.surfaceColumns();
+  const double res = columns->resolution();
+  const double cell = o.cell_m == 0 ? res : o.cell_m;
+  try {
+    mapping::checkLayerCell(cell, res);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--cell: ") + e.what());
+  }
+  // Where a sole stands (the nav2 image) and the level the robot starts on.
+  Eigen::Vector3d from = Eigen::Vector3d::Zero();
+  const CameraPath camera = cameraPath(opened.metadata);
+  if (!o.reach.from.empty()) {
+    from = Eigen::Vector3d(o.reach.from[0], o.reach.from[1], o.reach.from[2]);
+  } else if (!camera.positions.empty()) {
+    from = camera.positions.front();
+  } else if (o.level == "floor") {
+    throw UsageError(map_path + ": no camera path in " + mapping::mapFileStem(map_path) +
+                     ".json to find the floor from; give --from X Y Z, --level all or a height");
+  }
+  mapping::Reachability reach;
+  try {
+    reach = mapping::computeReachability(columns, from, o.reach.params);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+  const std::vector<mapping::LayerLevel> levels = mapping::layerLevels(*columns, o.clearance_m);
+  const std::vector<std::size_t> chosen = chosenLevels(o.level, levels, reach, map_path);
+
+  std::vector<mapping::LevelLayers> made;
+  for (std::size_t k : chosen) {
+    try {
+      made.push_back(mapping::levelLayers(*columns, levels[k], cell, &reach));
+    } catch (const std::length_error& e) {
+      throw UsageError(std::string("--cell: ") + e.what());
+    }
+  }
+  const std::filesystem::path dir(o.dir);
+  nlohmann::json index = settingsJson(o, cell);
+  index["format"] = "mobmap-layers";
+  index["map"] = map_path;
+  index["frame"] = "map";
+  index["levels"] = nlohmann::json::array();
+  std::vector<PendingFile> files;
+  for (std::size_t i = 0; i < made.size(); ++i) {
+    const mapping::LevelLayers& l = made[i];
+    const std::string stem = "level_" + std::to_string(chosen[i]);
+    nlohmann::json entry{{"index", chosen[i]},
+                         {"z_m", l.level.z_m},
+                         {"share", l.level.share},
+                         {"band", {{"min_top_m", std::isfinite(l.level.min_top_m) ? nlohmann::json(l.level.min_top_m) : nullptr},
+                                   {"max_bottom_m", l.level.max_bottom_m}}},
+                         {"extent", {{"x_min", l.x_min}, {"y_min", l.y_min}, {"x_max", l.x_min + l.cols * l.cell_m},
+                                     {"y_max", l.y_min + l.rows * l.cell_m}, {"cols", l.cols}, {"rows", l.rows}}},
+                         {"files", {{"geotiff", stem + ".tif"}, {"nav2_yaml", stem + ".yaml"}, {"nav2_image", stem + ".png"}}}};
+    index["levels"].push_back(entry);
+    const std::string tif = (dir / (stem + ".tif")).string(), png = (dir / (stem + ".png")).string(),
+                      yaml = (dir / (stem + ".yaml")).string();
+    if (l.cols == 0) continue;
+    files.push_back({tif, [&l, tif](const std::string& tmp) { writeLayersGeoTiff(tmp, l, tif); }});
+    files.push_back({png, [&l](const std::string& tmp) { writeNav2Image(tmp, l); }});
+    files.push_back({yaml, [&l, stem](const std::string& tmp) { writeTextFileAtomically(tmp, nav2Yaml(stem + ".png", l)); }});
+  }
+  files.push_back({(dir / "layers.json").string(), [&index](const std::string& tmp) { writeTextFileAtomically(tmp, index.dump(2) + "\n"); }});
+  writeFilesTogether(files);
+  for (const mapping::LevelLayers& l : made) {
+    std::printf("level at z = %.2f m: %d x %d cells of %.3g m from (%.2f, %.2f)\n", l.level.z_m, l.cols, l.rows, l.cell_m,
+                l.x_min, l.y_min);
+  }
+  std::printf("wrote %zu files into %s (layers.json lists them)\n", files.size(), o.dir.c_str());
+}
+
+}  // namespace mobmap::app
