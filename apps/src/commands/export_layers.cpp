@@ -86,7 +86,7 @@ void addLayersOptions(CLI::App& cmd, LayersOptions& o) {
   cmd.add_option("--layers", o.dir,
                  "Write 2.5D layers per level into DIR: level_K.tif (GeoTIFF, float32 bands elevation, elevation_variance, "
                  "mobility, mobility_variance, step, slope_deg, known), level_K.yaml + level_K.png (nav2 map_server: free "
-                 "where a sole stands), layers.json");
+                 "where a sole stands and no neighbour is more than --max-step away), layers.json (docs/MAPPING.md)");
   o.options.push_back(cmd.add_option("--cell", o.cell_m, "Layers: cell size in metres (default: the map's resolution)"));
   o.options.push_back(cmd.add_option("--level", o.level,
                                      "Layers: floor (the level reach starts on), all, or a level's height in metres")
