@@ -97,7 +97,7 @@ TEST(Layers, CorridorLayersMatchItsGeometry) {
   ASSERT_EQ(run("simulate --out " + dir + "/seq --noise none --quiet").code, 0);
   const std::string map_path = dir + "/c.ot";
   ASSERT_EQ(run("build " + dir + "/seq --frames 0:239:3 --out " + map_path + " --quiet").code, 0);
-  const Result exported = run("export " + map_path + " --layers " + dir + "/layers");
+  const Result exported = run("export " + map_path + " --layers " + dir + "/layers --layer-pictures");
   ASSERT_EQ(exported.code, 0) << exported.out;
 
   // layers.json: one level (the box top and treads are elevation for a robot 1 m tall).
@@ -107,6 +107,11 @@ TEST(Layers, CorridorLayersMatchItsGeometry) {
   EXPECT_NEAR(level["z_m"].get<double>(), 0.02, 0.011);
   EXPECT_EQ(index["cell_m"], 0.02);
   const std::string tif = dir + "/layers/" + level["files"]["geotiff"].get<std::string>();
+  // The picture of the level, listed with the level's files.
+  ASSERT_TRUE(level["files"].contains("picture")) << level.dump(2);
+  const auto [picture_w, picture_h] = pngSize(dir + "/layers/" + level["files"]["picture"].get<std::string>());
+  EXPECT_GT(picture_w, 1000);
+  EXPECT_GT(picture_h, 300);
 
   // gdalinfo reads the band names, the georeferencing and the unit. (-json also tries a
   // WGS 84 extent, which a local metric frame has not, and says so on standard error.)

@@ -3,6 +3,7 @@
 #include "io/files.hpp"
 #include "io/io_error.hpp"
 #include "io/layer_files.hpp"
+#include "pictures/top_view.hpp"
 
 #include "mobmap/mapping/layers.hpp"
 #include "mobmap/mapping/reachability.hpp"
@@ -80,6 +81,50 @@ nlohmann::json settingsJson(const LayersOptions& o, double cell_m) {
   return {{"cell_m", cell_m}, {"level_clearance_m", o.clearance_m}, {"level", o.level}, {"robot", robot}};
 }
 
+// A level seen from above: the mobility colour of each cell shaded by the elevation's
+// relief (light from the upper left, 45 degrees up), with contours and height labels.
+Canvas levelPicture(const mapping::LevelLayers& l, std::size_t index, int max_pixels) {
+  TopView view;
+  view.resolution = l.cell_m;
+  view.columns = l.cols;
+  view.rows = l.rows;
+  view.x0 = l.x_min + l.cell_m / 2;
+  view.y0 = l.y_min + l.cell_m / 2;
+  const std::size_t n = static_cast<std::size_t>(l.cols) * static_cast<std::size_t>(l.rows);
+  view.top.assign(n, -std::numeric_limits<double>::infinity());
+  view.colour.assign(n, Rgb{255, 255, 255});
+  view.top_key.assign(n, octomap::OcTreeKey(0, 0, 0));
+  const auto elevationAt = [&](int col, int row_up, float fallback) {
+    if (col < 0 || row_up < 0 || col >= l.cols || row_up >= l.rows) return fallback;
+    const float e = l.elevation[l.index(l.rows - 1 - row_up, col)];
+    return std::isnan(e) ? fallback : e;
+  };
+  const Eigen::Vector3d light = Eigen::Vector3d(-1, 1, std::sqrt(2.0)).normalized();
+  for (int row_up = 0; row_up < l.rows; ++row_up) {
+    for (int col = 0; col < l.cols; ++col) {
+      const std::size_t at = l.index(l.rows - 1 - row_up, col);
+      const float e = l.elevation[at];
+      if (std::isnan(e)) continue;
+      const std::size_t cell = view.cell(col, row_up);
+      view.top[cell] = e;
+      const double gx = (elevationAt(col + 1, row_up, e) - elevationAt(col - 1, row_up, e)) / (2 * l.cell_m);
+      const double gy = (elevationAt(col, row_up + 1, e) - elevationAt(col, row_up - 1, e)) / (2 * l.cell_m);
+      const double shade = std::max(0.0, Eigen::Vector3d(-gx, -gy, 1).normalized().dot(light));
+      const Rgb base = std::isnan(l.mobility[at]) ? kUnknownGrey : mobilityColour(l.mobility[at]);
+      const double k = 0.35 + 0.65 * shade / light.z();  // flat ground keeps its colour
+      for (std::size_t c = 0; c < 3; ++c) {
+        view.colour[cell][c] = static_cast<std::uint8_t>(std::clamp(base[c] * k, 0.0, 255.0));
+      }
+    }
+  }
+  TopViewPicture picture;
+  char title[160];
+  std::snprintf(title, sizeof title, "LEVEL %zu AT Z = %.2f M: MOBILITY, SHADED BY ELEVATION (X RIGHT, Y UP, MAP FRAME)", index,
+                l.level.z_m);
+  picture.title = title;
+  return drawTopView(view, picture, max_pixels);
+}
+
 }  // namespace
 
 void addLayersOptions(CLI::App& cmd, LayersOptions& o) {
@@ -95,6 +140,9 @@ void addLayersOptions(CLI::App& cmd, LayersOptions& o) {
                                      "Layers: the robot's height; a surface it cannot stand under is elevation on the level "
                                      "below, one it fits under is a level of its own")
                           ->capture_default_str());
+  o.options.push_back(cmd.add_flag("--layer-pictures", o.pictures,
+                                   "Layers: also level_K_view.png, each level from above: mobility colours shaded by the "
+                                   "elevation's relief, with height contours"));
   addReachOptions(cmd, o.reach, "the map frame");
   for (CLI::Option* opt : o.reach.options) o.options.push_back(opt);
 }
@@ -180,6 +228,14 @@ void exportLayers(const LayersOptions& o, const OpenedMap& opened, const std::st
     files.push_back({tif, [&l, tif](const std::string& tmp) { writeLayersGeoTiff(tmp, l, tif); }});
     files.push_back({png, [&l](const std::string& tmp) { writeNav2Image(tmp, l); }});
     files.push_back({yaml, [&l, stem](const std::string& tmp) { writeTextFileAtomically(tmp, nav2Yaml(stem + ".png", l)); }});
+    if (o.pictures) {
+      const std::size_t k = chosen[i];
+      entry["files"]["picture"] = stem + "_view.png";
+      index["levels"].back() = entry;
+      files.push_back({(dir / (stem + "_view.png")).string(), [&l, k, &o](const std::string& tmp) {
+                         levelPicture(l, k, o.max_pixels).save(tmp);
+                       }});
+    }
   }
   files.push_back({(dir / "layers.json").string(), [&index](const std::string& tmp) { writeTextFileAtomically(tmp, index.dump(2) + "\n"); }});
   writeFilesTogether(files);

@@ -17,6 +17,8 @@ struct LayersOptions {
   double cell_m = 0;  ///< 0: the map's resolution
   std::string level = "floor";
   double clearance_m = 1.0;
+  bool pictures = false;  ///< also level_K_view.png
+  int max_pixels = 1400;
   ReachOptions reach;
   std::vector<CLI::Option*> options;  ///< every option but --layers, which needs it
 };

@@ -62,6 +62,7 @@ Command addExportCommand(CLI::App& app) {
       if (failed) throw IoError(o->layers.dir, "cannot create the folder for --layers: " + failed.message());
       refuseToOverwriteInputs({{"--layers", (std::filesystem::path(o->layers.dir) / "layers.json").string()}},
                               mapFilesAsInputs(o->map));
+      o->layers.max_pixels = o->max_pixels;
       exportLayers(o->layers, opened, o->map);
     }
     if (o->png.empty()) return 0;
