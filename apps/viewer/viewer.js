@@ -2,7 +2,8 @@
 // path, a click that asks the server about a voxel, and a refresh while a live map grows.
 // Map frame: z up, metres. Query string: ?max=N caps the voxels drawn (default 300000;
 // the server coarsens the grid to stay under it); ?click=FX,FY clicks at that point of
-// the view (fractions of its width and height) once the map is drawn.
+// the view (fractions of its width and height) once the map is drawn; ?level=K shows
+// level K's elevation (GET /api/layer) instead of the voxels.
 (function () {
   'use strict';
 
@@ -11,6 +12,8 @@
   const statusEl = document.getElementById('status');
   const titleEl = document.getElementById('title');
   const answerEl = document.getElementById('answer');
+  const levelsEl = document.getElementById('levels');
+  const elevationLegendEl = document.getElementById('elevation-legend');
 
   // mobmap's colour scale (as the octovis export and the pictures): red 0, yellow 0.5,
   // green 1; unknown grey.
@@ -133,6 +136,86 @@
     scene.add(pathHead);
   }
 
+  // A level's elevation (GET /api/layer): each cell a flat tile at its height, coloured
+  // from blue (the level's lowest) to yellow (its highest), tiles of one height shaded
+  // alike so that steps read as edges. The voxels are hidden while it is shown.
+  let levelMesh = null;
+  let shownLevel = null;
+  function elevationRgb(t) {
+    t = Math.min(1, Math.max(0, t));
+    return [Math.round(40 + 210 * t), Math.round(80 + 140 * t), Math.round(220 - 180 * t)];
+  }
+  function setLevel(layer) {
+    if (levelMesh) { scene.remove(levelMesh); levelMesh.geometry.dispose(); levelMesh = null; }
+    let lo = Infinity, hi = -Infinity, n = 0;
+    layer.elevation.forEach(function (row) {
+      row.forEach(function (e) { if (e !== null) { lo = Math.min(lo, e); hi = Math.max(hi, e); ++n; } });
+    });
+    const positions = new Float32Array(n * 18), colours = new Float32Array(n * 18);
+    const s = layer.cell_m;
+    let at = 0;
+    for (let r = 0; r < layer.rows; ++r) {
+      for (let c = 0; c < layer.cols; ++c) {
+        const e = layer.elevation[r][c];
+        if (e === null) continue;
+        const x0 = layer.x_min + c * s, y0 = layer.y_min + (layer.rows - 1 - r) * s;
+        const rgb = elevationRgb(hi > lo ? (e - lo) / (hi - lo) : 0);
+        const corners = [[x0, y0], [x0 + s, y0], [x0 + s, y0 + s], [x0, y0], [x0 + s, y0 + s], [x0, y0 + s]];
+        corners.forEach(function (p) {
+          positions[at] = p[0]; positions[at + 1] = p[1]; positions[at + 2] = e;
+          colours[at] = rgb[0] / 255; colours[at + 1] = rgb[1] / 255; colours[at + 2] = rgb[2] / 255;
+          at += 3;
+        });
+      }
+    }
+    const g = new THREE.BufferGeometry();
+    g.setAttribute('position', new THREE.BufferAttribute(positions, 3));
+    g.setAttribute('color', new THREE.BufferAttribute(colours, 3));
+    levelMesh = new THREE.Mesh(g, new THREE.MeshBasicMaterial({ vertexColors: true, side: THREE.DoubleSide }));
+    scene.add(levelMesh);
+    if (voxelMesh) voxelMesh.visible = false;
+    shownLevel = layer.level;
+    elevationLegendEl.style.display = 'block';
+    document.getElementById('elevation-low').textContent = n ? lo.toFixed(2) : '';
+    document.getElementById('elevation-high').textContent = n ? hi.toFixed(2) + ' m' : '';
+    statusEl.textContent = 'level ' + layer.level + ' at z = ' + layer.z_m.toFixed(2) + ' m: ' + n + ' cells of ' +
+                           (s * 100).toFixed(0) + ' cm';
+    render();
+  }
+  function showVoxels() {
+    if (levelMesh) { scene.remove(levelMesh); levelMesh.geometry.dispose(); levelMesh = null; }
+    if (voxelMesh) voxelMesh.visible = true;
+    shownLevel = null;
+    elevationLegendEl.style.display = 'none';
+    render();
+  }
+  function listLevels(levels) {
+    levelsEl.textContent = '';
+    const add = function (label, onClick) {
+      const a = document.createElement('a');
+      a.href = '#';
+      a.textContent = label;
+      a.style.marginRight = '8px';
+      a.addEventListener('click', function (e) { e.preventDefault(); onClick(); });
+      levelsEl.appendChild(a);
+    };
+    add('voxels', showVoxels);
+    levels.forEach(function (l) {
+      add('level ' + l.index + ' (z ' + l.z_m.toFixed(2) + ')', function () { loadLevel(l.index); });
+    });
+  }
+  function loadLevel(k) {
+    return getJson('api/layer?level=' + k).then(function (layer) {
+      listLevels(layer.levels);
+      if (layer.level === null) return;
+      setLevel(layer);
+      // Tests wait for this: the level is drawn.
+      requestAnimationFrame(function () { document.body.setAttribute('data-drawn-level', String(layer.level)); });
+    }).catch(function (e) {
+      statusEl.textContent = 'error: ' + e.message;
+    });
+  }
+
   // The first time there is something to see: look at it from above and behind.
   let framed = false;
   function frameView() {
@@ -206,7 +289,16 @@
         shownFrames = v.head.frames;
         shownBuilding = v.head.building;
         statusEl.textContent = describe(info, v.head);
+        if (voxelMesh && shownLevel !== null) voxelMesh.visible = false;
         render();
+        const asked = params.get('level');
+        if (asked !== null && !levelAsked) {
+          levelAsked = true;
+          loadLevel(parseInt(asked, 10) || 0);
+        } else if (!levelAsked) {
+          levelAsked = true;
+          getJson('api/layer?max=1').then(function (layer) { listLevels(layer.levels); }).catch(function () {});
+        }
         // Tests wait for this: the map is drawn.
         requestAnimationFrame(function () {
           document.body.setAttribute('data-drawn-frames', String(shownFrames));
@@ -328,5 +420,6 @@
     });
   }
 
+  let levelAsked = false;
   refresh();
 })();

@@ -1,6 +1,6 @@
 // libFuzzer target: `mobmap serve`'s API (serve::Api::handle) on any request. The first
 // byte picks the path and method; the rest is the body, or the query string of
-// /api/voxels (/api/height_scan: see kPaths). With bit 0x40 of the first byte set, the body is a valid request with the
+// /api/voxels and /api/layer (/api/height_scan and /api/layer: see kPaths). With bit 0x40 of the first byte set, the body is a valid request with the
 // rest put as the value of one of its fields (the second byte picks which) inside arrays
 // nested up to 76,500 deep (the third byte): nesting a recursion would overflow on.
 // Every answer must be a status the API documents with a JSON body (or a viewer file):
@@ -62,8 +62,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (size == 0) return 0;
   static const char* const kPaths[] = {"/api/query", "/api/foot", "/api/plan", "/api/voxels", "/api/info",
                                        "/api/camera_path", "/", "/nothing"};
-  // /nothing with bit 0x20 set is the height scans (added after the corpus was grown).
-  const std::string path = data[0] % 8 == 7 && (data[0] & 0x20) ? "/api/height_scan" : kPaths[data[0] % 8];
+  // /nothing and / with bit 0x20 set are the height scans and the layers (added after
+  // the corpus was grown).
+  std::string path = kPaths[data[0] % 8];
+  if (data[0] & 0x20) {
+    if (data[0] % 8 == 7) path = "/api/height_scan";
+    if (data[0] % 8 == 6) path = "/api/layer";
+  }
+  const bool query_string = path == "/api/voxels" || path == "/api/layer";
   const std::string method = (data[0] & 0x80) ? "GET" : "POST";
   std::string rest(reinterpret_cast<const char*>(data + 1), size - 1);
   if ((data[0] & 0x40) && size >= 3) {
@@ -89,7 +95,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     rest = t.substr(0, t.find('@')) + value + t.substr(t.find('@') + 1);
   }
   std::multimap<std::string, std::string> params;
-  if (path == "/api/voxels") {
+  if (query_string) {
     // "key=value&key=value"
     std::size_t at = 0;
     while (at <= rest.size()) {
@@ -100,7 +106,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       at = end + 1;
     }
   }
-  const app::serve::Response r = api.handle(method, path, params, path == "/api/voxels" ? std::string() : rest);
+  const app::serve::Response r = api.handle(method, path, params, query_string ? std::string() : rest);
   const bool documented =
       r.status == 200 || r.status == 400 || r.status == 404 || r.status == 405 || r.status == 413 || r.status == 503;
   if (!documented) std::abort();  // 500 is an internal error: a bug

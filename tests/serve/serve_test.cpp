@@ -6,6 +6,7 @@
 #include "io/png_io.hpp"
 #include "serve/api.hpp"
 
+#include "mobmap/mapping/layers.hpp"
 #include "mobmap/mapping/mobility_map.hpp"
 
 #include "serve_support.hpp"
@@ -566,6 +567,80 @@ TEST_F(ServedCorridor, ViewerDrawsTheGreenFloorAndRedWallsInChromium) {
   EXPECT_GT(shown["answer"]["mobility"].get<double>(), 0.9) << "the floor";
   const Reply direct = post(*c, "/api/query", nlohmann::json{{"points", {shown["centre"]}}}.dump());
   EXPECT_EQ(shown["answer"], direct.body["answers"][0]);
+  EXPECT_EQ(server.stop(), 0);
+}
+
+// GET /api/layer: a level's elevation and mobility as the library makes them, at the
+// finest power-of-two cell within `max`; headless Chromium draws it (?level=0) in
+// elevation colours with the voxels hidden.
+TEST_F(ServedCorridor, ALevelsElevationIsTheLibrarysAndTheViewerDrawsIt) {
+  ServeProcess server({"serve", map(), "--port", "0"}, dir() + "/layer.err");
+  const int port = server.port();
+  ASSERT_GT(port, 0) << server.output();
+  auto c = client(port);
+  const mapping::MobilityMap library = mapping::openMap(map());
+  const auto columns = library.surfaceColumns();
+  const auto levels = mapping::layerLevels(*columns, 1.0);
+  ASSERT_FALSE(levels.empty());
+  for (const std::size_t max : {250000u, 2000u}) {
+    const Reply r = get(*c, "/api/layer?level=0&max=" + std::to_string(max));
+    ASSERT_EQ(r.status, 200) << r.raw.substr(0, 300);
+    ASSERT_EQ(r.body["levels"].size(), levels.size());
+    EXPECT_NEAR(r.body["z_m"].get<double>(), levels[0].z_m, 1e-5);
+    const double cell = r.body["cell_m"];
+    const mapping::LevelLayers want = mapping::levelLayers(*columns, levels[0], cell);
+    ASSERT_EQ(r.body["cols"], want.cols);
+    ASSERT_EQ(r.body["rows"], want.rows);
+    EXPECT_LE(want.cols * want.rows, static_cast<int>(max) + want.cols + want.rows + 1);
+    // The next finer cell would have been over `max` (unless this is the map's own).
+    if (cell > library.tree().getResolution() * 1.5) {
+      const mapping::LevelLayers finer = mapping::levelLayers(*columns, levels[0], cell / 2);
+      EXPECT_GT(static_cast<std::size_t>(finer.cols) * finer.rows, max / 2);
+    }
+    for (int row = 0; row < want.rows; ++row) {
+      for (int col = 0; col < want.cols; ++col) {
+        const std::size_t at = want.index(row, col);
+        const nlohmann::json& e = r.body["elevation"][row][col];
+        ASSERT_EQ(e.is_null(), std::isnan(want.elevation[at])) << row << ", " << col;
+        if (!e.is_null()) {
+          ASSERT_EQ(static_cast<float>(e.get<double>()), want.elevation[at]);
+        }
+        const nlohmann::json& m = r.body["mobility"][row][col];
+        ASSERT_EQ(m.is_null(), std::isnan(want.mobility[at]));
+        if (!m.is_null()) {
+          ASSERT_EQ(static_cast<float>(m.get<double>()), want.mobility[at]);
+        }
+      }
+    }
+  }
+  EXPECT_EQ(get(*c, "/api/layer?level=" + std::to_string(levels.size())).status, 400);
+  EXPECT_EQ(get(*c, "/api/layer?max=0").status, 400);
+  EXPECT_EQ(get(*c, "/api/layer?max=abc").status, 400);
+
+  if (runShell("command -v chromium").code != 0) {
+    GTEST_SKIP() << "chromium is not installed (scripts/setup.sh installs it): the level is not drawn";
+  }
+  const std::string url = "http://127.0.0.1:" + std::to_string(port) + "/?level=0";
+  const std::string chromium = "timeout 600 chromium --headless --no-sandbox --use-angle=swiftshader "
+                               "--enable-unsafe-swiftshader --hide-scrollbars --no-first-run --user-data-dir=" +
+                               dir() + "/chromium-layer --window-size=800,600 --virtual-time-budget=30000 ";
+  const Result dom = runShell(chromium + "--dump-dom '" + url + "'");
+  ASSERT_NE(dom.out.find("data-drawn-level=\"0\""), std::string::npos) << dom.out.substr(0, 3000);
+  const std::string png = dir() + "/level.png";
+  const Result shot = runShell(chromium + "--screenshot=" + png + " '" + url + "'");
+  ASSERT_TRUE(fs::exists(png)) << shot.out;
+  const app::ImageRgb image = app::readPngRgb(png);
+  std::size_t blue = 0, green = 0, scene = 0;
+  for (int y = 160; y < image.height; ++y) {  // below the panels
+    for (int x = 0; x < image.width; ++x) {
+      const auto& p = image.pixels[static_cast<std::size_t>(y) * static_cast<std::size_t>(image.width) + static_cast<std::size_t>(x)];
+      ++scene;
+      blue += p[2] > 150 && p[0] < 110 && p[1] < 140;
+      green += p[1] > 150 && p[0] < 90 && p[2] < 90;
+    }
+  }
+  EXPECT_GT(static_cast<double>(blue) / scene, 0.10) << "the floor in the level's lowest colour";
+  EXPECT_LT(static_cast<double>(green) / scene, 0.005) << "the voxels are hidden";
   EXPECT_EQ(server.stop(), 0);
 }
 

@@ -5,6 +5,7 @@
 
 #include "mobmap/mapping/footstep_planner.hpp"
 #include "mobmap/mapping/json_limits.hpp"
+#include "mobmap/mapping/layers.hpp"
 #include "mobmap/mapping/reachability.hpp"
 
 #include <nlohmann/json.hpp>
@@ -584,6 +585,53 @@ Response Api::handle(const std::string& method, const std::string& path,
       }
       return json(planJson(map, plan, plan_params, frame));
     }
+    if (path == "/api/layer") {
+      // A level's elevation and mobility on a grid (mapping/layers.hpp), for the viewer.
+      expect("GET");
+      const std::size_t max_cells = count(params, "max", 4000000).value_or(250000);
+      if (max_cells == 0) throw Refusal(400, "query parameter max must be at least 1");
+      const auto columns = map.surfaceColumns();
+      const std::vector<mapping::LayerLevel> levels = mapping::layerLevels(*columns, 1.0);
+      nlohmann::json listed = nlohmann::json::array();
+      for (std::size_t k = 0; k < levels.size(); ++k) {
+        listed.push_back({{"index", k}, {"z_m", levels[k].z_m}, {"share", levels[k].share}});
+      }
+      if (levels.empty()) {
+        return json({{"levels", listed}, {"level", nullptr}, {"frames", served->frames}});
+      }
+      const std::size_t k = count(params, "level", std::numeric_limits<std::uint32_t>::max()).value_or(0);
+      if (k >= levels.size()) {
+        throw Refusal(400, "query parameter level must be below " + std::to_string(levels.size()) + " (the map's levels)");
+      }
+      // The finest cell, a power of two voxels, that keeps the map's whole extent (and so
+      // any level in it) within `max` cells, up to cells of 100 m.
+      const double res = columns->resolution();
+      const double extent = static_cast<double>(columns->columnsX() + 1) * static_cast<double>(columns->columnsY() + 1);
+      int voxels = 1;
+      while (extent / (static_cast<double>(voxels) * voxels) > static_cast<double>(max_cells) &&
+             2 * voxels * res <= mapping::kMaxLayerCellM) {
+        voxels *= 2;
+      }
+      const mapping::LevelLayers l = mapping::levelLayers(*columns, levels[k], voxels * res);
+      std::string out = "{\"frames\":" + std::to_string(served->frames) + ",\"levels\":" + text(listed) +
+                        ",\"level\":" + std::to_string(k);
+      char head[256];
+      std::snprintf(head, sizeof head, ",\"z_m\":%.6g,\"cell_m\":%.6g,\"x_min\":%.9g,\"y_min\":%.9g,\"cols\":%d,\"rows\":%d",
+                    l.level.z_m, l.cell_m, l.x_min, l.y_min, l.cols, l.rows);
+      out += head;
+      mapping::HeightScan grid;  // appendScanValues' shape: one "pose" of rows x cols, unwrapped
+      grid.poses = 1;
+      grid.ny = l.rows;
+      grid.nx = l.cols;
+      for (const char* name : {"elevation", "mobility"}) {
+        std::string values;
+        appendScanValues(values, name == std::string("elevation") ? l.elevation : l.mobility, grid);
+        out += ",\"" + std::string(name) + "\":";
+        out.append(values, 1, values.size() - 2);
+      }
+      out += '}';
+      return {200, "application/json", std::move(out)};
+    }
     if (path == "/api/voxels") {
       expect("GET");
       const std::size_t most = limits_.max_voxels;
@@ -653,7 +701,7 @@ Response Api::handle(const std::string& method, const std::string& path,
       return {200, asset->content_type, std::string(asset->bytes, asset->size)};
     }
     throw Refusal(404, "no such path: " + path.substr(0, 200) +
-                           " (the API: GET /api/info, /api/voxels, /api/camera_path; POST /api/query, /api/foot, "
+                           " (the API: GET /api/info, /api/voxels, /api/camera_path, /api/layer; POST /api/query, /api/foot, "
                            "/api/plan, /api/height_scan; the viewer: GET /)");
   } catch (const Refusal& r) {
     return {r.status, "application/json", errorBody(r.what())};
