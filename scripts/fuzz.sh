@@ -27,14 +27,21 @@ done
 # Each source is compiled once, again when it or any first-party header is newer than
 # its object (a header change can change a struct's layout under an old object).
 newest_header=$(ls -t $(find gp perception mapping sources apps sim tests/fuzz -name '*.hpp') | head -n 1)
+# The stale ones are compiled on every core at once; a failed compile stops the script.
+compile_flags=$(printf '%q ' "${flags[@]}")
+export compile_flags
 objects() {
+  local stale=()
   for src in "$@"; do
     local o="build-fuzz/obj/${src//\//_}.o"
-    if [ ! -f "$o" ] || [ "$src" -nt "$o" ] || [ "$newest_header" -nt "$o" ]; then
-      clang++ "${flags[@]}" -fsanitize=fuzzer-no-link -c "$src" -o "$o"
-    fi
-    echo "$o"
+    if [ ! -f "$o" ] || [ "$src" -nt "$o" ] || [ "$newest_header" -nt "$o" ]; then stale+=("$src"); fi
   done
+  if [ ${#stale[@]} -gt 0 ]; then
+    printf '%s\n' "${stale[@]}" | xargs -P "$(nproc)" -I{} bash -c \
+      'src={}; eval clang++ $compile_flags -fsanitize=fuzzer-no-link -c "$src" -o "build-fuzz/obj/${src//\//_}.o"' >&2 ||
+      return 1
+  fi
+  for src in "$@"; do echo "build-fuzz/obj/${src//\//_}.o"; done
 }
 # A module's sources as its CMakeLists.txt lists them (SOURCES up to the *_DEPS line), so
 # a file added there is never missing here.
@@ -55,7 +62,8 @@ link() {  # link TARGET SOURCES... -- LIBS...
   [ $# -gt 0 ] && shift
   libs=("$@")
   echo "== building fuzz_$target"
-  mapfile -t objs < <(objects "${srcs[@]}")
+  objects "${srcs[@]}" > build-fuzz/objects.txt
+  mapfile -t objs < build-fuzz/objects.txt
   clang++ "${flags[@]}" -fsanitize=fuzzer "${objs[@]}" "${libs[@]}" -o "build-fuzz/fuzz_$target"
 }
 for target in "${targets[@]}"; do

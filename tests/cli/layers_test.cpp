@@ -310,6 +310,7 @@ TEST(Layers, BadLayerSettingsAreRefusedNamingThem) {
       {"--cell 0.01", "--cell"},          // finer than the map's 2 cm voxels
       {"--cell 1e9", "--cell"},           // absurd
       {"--cell nan", "--cell"},
+      {"--cell 0", "--cell"},
       {"--level 5", "no level at z = 5.00"},  // no such level: the levels are listed
       {"--level upstairs", "--level"},
       {"--level-clearance 0", "--level-clearance"},

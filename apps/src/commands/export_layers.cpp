@@ -132,7 +132,8 @@ void addLayersOptions(CLI::App& cmd, LayersOptions& o) {
                  "Write 2.5D layers per level into DIR: level_K.tif (GeoTIFF, float32 bands elevation, elevation_variance, "
                  "mobility, mobility_variance, step, slope_deg, known), level_K.yaml + level_K.png (nav2 map_server: free "
                  "where a sole stands and no neighbour is more than --max-step away), layers.json (docs/MAPPING.md)");
-  o.options.push_back(cmd.add_option("--cell", o.cell_m, "Layers: cell size in metres (default: the map's resolution)"));
+  o.cell_option = cmd.add_option("--cell", o.cell_m, "Layers: cell size in metres (default: the map's resolution)");
+  o.options.push_back(o.cell_option);
   o.options.push_back(cmd.add_option("--level", o.level,
                                      "Layers: floor (the level reach starts on), all, or a level's height in metres")
                           ->capture_default_str());
@@ -157,7 +158,7 @@ void resolveLayersOptions(LayersOptions& o) {
   if (!std::isfinite(o.clearance_m) || !(o.clearance_m > 0) || o.clearance_m > 100) {
     throw UsageError("--level-clearance must be a height in (0, 100] m");
   }
-  if (o.cell_m != 0 && (!std::isfinite(o.cell_m) || o.cell_m < 0 || o.cell_m > mapping::kMaxLayerCellM)) {
+  if (o.cell_option->count() > 0 && (!std::isfinite(o.cell_m) || !(o.cell_m > 0) || o.cell_m > mapping::kMaxLayerCellM)) {
     char msg[128];
     std::snprintf(msg, sizeof msg, "--cell must be from the map's resolution to %g m", mapping::kMaxLayerCellM);
     throw UsageError(msg);

@@ -21,6 +21,7 @@ struct LayersOptions {
   int max_pixels = 1400;
   ReachOptions reach;
   std::vector<CLI::Option*> options;  ///< every option but --layers, which needs it
+  CLI::Option* cell_option = nullptr;
 };
 
 /// Adds --layers, --cell, --level, --level-clearance and the robot's options of `reach`.
