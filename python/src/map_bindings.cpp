@@ -4,6 +4,7 @@
 #include "map_handle.hpp"
 
 #include "mobmap/mapping/foot.hpp"
+#include "mobmap/mapping/layers.hpp"
 
 #include <pybind11/eigen.h>
 #include <pybind11/stl.h>
@@ -175,6 +176,46 @@ py::dict heightScan(const MapHandle& h, const py::object& poses, const std::pair
   return out;
 }
 
+// One level's 2.5D layers (mapping/layers.hpp) as float32 arrays (rows, cols), north up.
+py::dict layers(const MapHandle& h, std::size_t level, std::optional<double> cell, double clearance) {
+  const mapping::MobilityMap& map = *h.map;
+  std::vector<mapping::LayerLevel> levels;
+  mapping::LevelLayers l;
+  {
+    py::gil_scoped_release unlocked;
+    const auto columns = map.surfaceColumns();
+    levels = mapping::layerLevels(*columns, clearance);  // std::invalid_argument: ValueError
+    if (level >= levels.size()) {
+      throw std::invalid_argument("layers: level " + std::to_string(level) + " of a map with " +
+                                  std::to_string(levels.size()) + " levels (lowest first)");
+    }
+    l = mapping::levelLayers(*columns, levels[level], cell.value_or(columns->resolution()));
+  }
+  py::list listed;
+  for (std::size_t k = 0; k < levels.size(); ++k) {
+    py::dict d;
+    d["index"] = k;
+    d["z_m"] = levels[k].z_m;
+    d["share"] = levels[k].share;
+    listed.append(d);
+  }
+  py::dict out;
+  out["levels"] = listed;
+  out["level"] = level;
+  out["z_m"] = l.level.z_m;
+  out["cell"] = l.cell_m;
+  out["x_min"] = l.x_min;
+  out["y_min"] = l.y_min;
+  const std::vector<py::ssize_t> shape{l.rows, l.cols};
+  for (const std::string& name : mapping::layerNames()) {
+    const std::vector<float>& values = mapping::layerByName(l, name);
+    py::array_t<float> a(shape);
+    std::copy(values.begin(), values.end(), a.mutable_data());
+    out[name.c_str()] = a;
+  }
+  return out;
+}
+
 void save(const MapHandle& h, const std::string& path) {
   if (std::filesystem::path(path).extension() != ".ot") throw py::value_error("save: the path must end in .ot, got " + path);
   mapping::MapMetadata meta = h.metadata.value_or(mapping::MapMetadata{});
@@ -241,6 +282,12 @@ void bindMap(py::module_& m) {
            "of size (length, width) metres centred on the pose, its x along the yaw, nx = length / "
            "resolution + 1, x varying fastest. height is relative to the pose's z (map frame, z up); NaN "
            "where unknown. The map's surface columns are built on the first call and kept.")
+      .def("layers", &layers, py::arg("level") = 0, py::arg("cell") = py::none(), py::arg("clearance") = 1.0,
+           "2.5D layers of one level (index into levels, lowest first) for a robot `clearance` metres tall, "
+           "in square cells of `cell` metres (default: the map's resolution) -> dict: levels (index, z_m, share), "
+           "level, z_m, cell, x_min, y_min (the grid's lower-left corner, map frame) and float32 arrays (rows, "
+           "cols), row 0 the highest y: elevation, elevation_variance, mobility, mobility_variance, step, "
+           "slope_deg, known; NaN where unknown. As `mobmap export --layers` (docs/MAPPING.md).")
       .def("save", &save, py::arg("path"),
            "Writes the map to PATH.ot (and its frame to PATH.json beside it) atomically; `mobmap info`, "
            "`query` and open_map read it.")

@@ -237,3 +237,52 @@ def test_unusable_height_scans_are_value_errors(corridor, poses, kwargs, message
 def test_no_pose_is_an_empty_scan(corridor):
     m = mobmap.open_map(str(corridor["map"]))
     assert m.height_scan(np.zeros((0, 4)))["height"].shape == (0, 11, 17)
+
+
+def test_layers_equal_a_column_search_through_point_queries(corridor):
+    m = mobmap.open_map(str(corridor["map"]))
+    res = m.resolution
+    got = m.layers()
+    assert got["level"] == 0 and got["cell"] == res and len(got["levels"]) >= 1
+    level_top = got["levels"][0]["z_m"] + 1.0  # a robot 1 m tall fits under nothing lower
+    rows, cols = got["elevation"].shape
+    assert got["elevation"].dtype == np.float32 and rows > 50 and cols > 50
+    for name in ("elevation_variance", "mobility", "mobility_variance", "step", "slope_deg", "known"):
+        assert got[name].shape == (rows, cols)
+    lo, hi = m.info()["bounds_min"][2], m.info()["bounds_max"][2]
+    ks = np.arange(int(np.floor(hi / res)), int(np.floor(lo / res)) - 1, -1)  # voxel keys, highest first
+    checked = 0
+    for r in range(0, rows, 5):
+        for c in range(0, cols, 5):
+            x, y = got["x_min"] + (c + 0.5) * res, got["y_min"] + (rows - r - 0.5) * res
+            q = m.query(np.column_stack([np.full(len(ks), x), np.full(len(ks), y), (ks + 0.5) * res]))
+            occupied = q["state"] == mobmap.SURFACE
+            want = np.nan
+            k = 0
+            while k < len(ks):  # runs from the top down: the first whose bottom lies below the band's top
+                if not occupied[k]:
+                    k += 1
+                    continue
+                top = k
+                while k + 1 < len(ks) and occupied[k + 1]:
+                    k += 1
+                if ks[k] * res < level_top - 1e-9:
+                    want = (ks[top] + 1) * res
+                    break
+                k += 1
+            e = got["elevation"][r, c]
+            assert np.isnan(e) == np.isnan(want), (x, y, e, want)
+            if not np.isnan(want):
+                assert e == np.float32(want), (x, y, e, want)
+                checked += 1
+    assert checked > 300
+
+
+def test_layers_of_a_level_the_map_has_not_are_value_errors(corridor):
+    m = mobmap.open_map(str(corridor["map"]))
+    with pytest.raises(ValueError, match="levels"):
+        m.layers(level=7)
+    with pytest.raises(ValueError, match="cell size"):
+        m.layers(cell=0.001)
+    with pytest.raises(ValueError, match="clearance"):
+        m.layers(clearance=0.0)
