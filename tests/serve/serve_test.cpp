@@ -616,6 +616,7 @@ TEST_F(ServedCorridor, ALevelsElevationIsTheLibrarysAndTheViewerDrawsIt) {
   EXPECT_EQ(get(*c, "/api/layer?level=" + std::to_string(levels.size())).status, 400);
   EXPECT_EQ(get(*c, "/api/layer?max=0").status, 400);
   EXPECT_EQ(get(*c, "/api/layer?max=abc").status, 400);
+  EXPECT_EQ(get(*c, "/api/layer?max=1000001").status, 413);
 
   if (runShell("command -v chromium").code != 0) {
     GTEST_SKIP() << "chromium is not installed (scripts/setup.sh installs it): the level is not drawn";

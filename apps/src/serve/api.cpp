@@ -588,7 +588,7 @@ Response Api::handle(const std::string& method, const std::string& path,
     if (path == "/api/layer") {
       // A level's elevation and mobility on a grid (mapping/layers.hpp), for the viewer.
       expect("GET");
-      const std::size_t max_cells = count(params, "max", 4000000).value_or(250000);
+      const std::size_t max_cells = count(params, "max", 1000000).value_or(250000);
       if (max_cells == 0) throw Refusal(400, "query parameter max must be at least 1");
       const auto columns = map.surfaceColumns();
       const std::vector<mapping::LayerLevel> levels = mapping::layerLevels(*columns, 1.0);
