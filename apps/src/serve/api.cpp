@@ -186,29 +186,36 @@ Eigen::Vector3d point(const nlohmann::json& body, const std::string& field) {
   return {finiteNumber(a[0], field + "[0]"), finiteNumber(a[1], field + "[1]"), finiteNumber(a[2], field + "[2]")};
 }
 
-// A height scan's values as nested arrays (poses, ny, nx), null where NaN, each number the
-// shortest text that reads back as the same float.
-void appendScanValues(std::string& out, const std::vector<float>& values, const mapping::HeightScan& scan) {
-  out += '[';
-  std::size_t at = 0;
+// `rows` x `cols` floats from values[first], row by row, as nested arrays, null where NaN,
+// each number the shortest text that reads back as the same float.
+void appendGrid(std::string& out, const std::vector<float>& values, std::size_t first, int rows, int cols) {
   char digits[32];
-  for (std::size_t p = 0; p < scan.poses; ++p) {
-    out += p == 0 ? "[" : ",[";
-    for (int j = 0; j < scan.ny; ++j) {
-      out += j == 0 ? "[" : ",[";
-      for (int i = 0; i < scan.nx; ++i, ++at) {
-        if (i > 0) out += ',';
-        const float v = values[at];
-        if (std::isnan(v)) {
-          out += "null";
-          continue;
-        }
-        const auto r = std::to_chars(digits, digits + sizeof digits, v);
-        out.append(digits, r.ptr);
+  std::size_t at = first;
+  out += '[';
+  for (int j = 0; j < rows; ++j) {
+    out += j == 0 ? "[" : ",[";
+    for (int i = 0; i < cols; ++i, ++at) {
+      if (i > 0) out += ',';
+      const float v = values[at];
+      if (std::isnan(v)) {
+        out += "null";
+        continue;
       }
-      out += ']';
+      const auto r = std::to_chars(digits, digits + sizeof digits, v);
+      out.append(digits, r.ptr);
     }
     out += ']';
+  }
+  out += ']';
+}
+
+// A height scan's values as nested arrays (poses, ny, nx).
+void appendScanValues(std::string& out, const std::vector<float>& values, const mapping::HeightScan& scan) {
+  const std::size_t per_pose = static_cast<std::size_t>(scan.ny) * static_cast<std::size_t>(scan.nx);
+  out += '[';
+  for (std::size_t p = 0; p < scan.poses; ++p) {
+    if (p > 0) out += ',';
+    appendGrid(out, values, p * per_pose, scan.ny, scan.nx);
   }
   out += ']';
 }
@@ -619,16 +626,10 @@ Response Api::handle(const std::string& method, const std::string& path,
       std::snprintf(head, sizeof head, ",\"z_m\":%.6g,\"cell_m\":%.6g,\"x_min\":%.9g,\"y_min\":%.9g,\"cols\":%d,\"rows\":%d",
                     l.level.z_m, l.cell_m, l.x_min, l.y_min, l.cols, l.rows);
       out += head;
-      mapping::HeightScan grid;  // appendScanValues' shape: one "pose" of rows x cols, unwrapped
-      grid.poses = 1;
-      grid.ny = l.rows;
-      grid.nx = l.cols;
-      for (const char* name : {"elevation", "mobility"}) {
-        std::string values;
-        appendScanValues(values, name == std::string("elevation") ? l.elevation : l.mobility, grid);
-        out += ",\"" + std::string(name) + "\":";
-        out.append(values, 1, values.size() - 2);
-      }
+      out += ",\"elevation\":";
+      appendGrid(out, l.elevation, 0, l.rows, l.cols);
+      out += ",\"mobility\":";
+      appendGrid(out, l.mobility, 0, l.rows, l.cols);
       out += '}';
       return {200, "application/json", std::move(out)};
     }
