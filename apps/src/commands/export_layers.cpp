@@ -177,19 +177,16 @@ void exportLayers(const LayersOptions& o, const OpenedMap& opened, const std::st
     throw UsageError(std::string("--cell: ") + e.what());
   }
   // Where a sole stands (the nav2 image) and the level the robot starts on.
-  Eigen::Vector3d from = Eigen::Vector3d::Zero();
-  const CameraPath camera = cameraPath(opened.metadata);
-  if (!o.reach.from.empty()) {
-    from = Eigen::Vector3d(o.reach.from[0], o.reach.from[1], o.reach.from[2]);
-  } else if (!camera.positions.empty()) {
-    from = camera.positions.front();
-  } else if (o.level == "floor") {
+  // Without a start (no --from, no camera path) the standable soles are still found; only
+  // --level floor needs one.
+  const std::optional<Eigen::Vector3d> from = reachFrom(o.reach, map, false, cameraPath(opened.metadata));
+  if (!from && o.level == "floor") {
     throw UsageError(map_path + ": no camera path in " + mapping::mapFileStem(map_path) +
                      ".json to find the floor from; give --from X Y Z, --level all or a height");
   }
   mapping::Reachability reach;
   try {
-    reach = mapping::computeReachability(columns, from, o.reach.params);
+    reach = mapping::computeReachability(columns, from.value_or(Eigen::Vector3d::Zero()), o.reach.params);
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }

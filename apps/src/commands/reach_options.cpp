@@ -122,18 +122,25 @@ std::string sparseStartNote(const mapping::Reachability& r, const ReachOptions& 
   return msg + sparseLevelReason(r);
 }
 
+std::optional<Eigen::Vector3d> reachFrom(const ReachOptions& o, const mapping::MobilityMap& map, bool from_in_world,
+                                         const CameraPath& camera) {
+  if (!o.from.empty()) {
+    const Eigen::Vector3d from(o.from[0], o.from[1], o.from[2]);
+    return from_in_world ? map.worldToMap(from) : from;
+  }
+  if (!camera.positions.empty()) return camera.positions.front();
+  return std::nullopt;
+}
+
 ReachRun runReach(const ReachOptions& o, const mapping::MobilityMap& map, const std::string& map_path, bool from_in_world,
                   const CameraPath& camera) {
   ReachRun run;
-  if (!o.from.empty()) {
-    run.from = Eigen::Vector3d(o.from[0], o.from[1], o.from[2]);
-    if (from_in_world) run.from = map.worldToMap(run.from);
-  } else if (!camera.positions.empty()) {
-    run.from = camera.positions.front();
-  } else {
+  const std::optional<Eigen::Vector3d> from = reachFrom(o, map, from_in_world, camera);
+  if (!from) {
     throw UsageError(map_path + ": no camera path in " + mapping::mapFileStem(map_path) +
                      ".json to start from; give --from X Y Z");
   }
+  run.from = *from;
   try {
     run.result = mapping::computeReachability(map.tree(), run.from, o.params);
   } catch (const std::invalid_argument& e) {  // a step under two voxels of this map

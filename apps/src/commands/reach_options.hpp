@@ -11,6 +11,7 @@
 
 #include <Eigen/Core>
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -53,6 +54,11 @@ struct ReachRun {
 /// near the start lie under a whole standable sole: what that means and what helps (a
 /// sentence without a "note:" prefix). Empty otherwise.
 std::string sparseStartNote(const mapping::Reachability& r, const ReachOptions& o);
+
+/// Where a walk starts (map frame): --from (in the world frame when `from_in_world`), else
+/// the first position of `camera`; nullopt when there is neither.
+std::optional<Eigen::Vector3d> reachFrom(const ReachOptions& o, const mapping::MobilityMap& map, bool from_in_world,
+                                         const CameraPath& camera);
 
 ReachRun runReach(const ReachOptions& o, const mapping::MobilityMap& map, const std::string& map_path, bool from_in_world,
                   const CameraPath& camera);
