@@ -58,9 +58,6 @@ std::vector<std::uint8_t> opening(const std::vector<std::uint8_t>& full, int w, 
   return out;
 }
 
-// Marks in `unsupported` the points of `seg` that no flat square of side `support_m`
-// within the segment covers. Cells are the voxel size; one closing step fills the
-// gaps between sampled rows first.
 // What the frame saw: the cone of its points' directions and the range limit. Beyond
 // them a surface is unknown, not absent: a tread cut by the image's edge still holds a
 // foot.
@@ -91,6 +88,9 @@ View viewOf(const FrameResult& out, double max_range_m, double margin_m) {
   return v;
 }
 
+// Marks in `unsupported` the points of `seg` that no flat square of side `support_m`
+// within the segment covers. Cells are the voxel size; one closing step fills the
+// gaps between sampled rows first.
 void markUnsupported(const FrameResult& out, const Segment& seg, const View& view, double cell_m, double support_m,
                      std::vector<std::uint8_t>& unsupported) {
   const Eigen::Vector3f n = seg.normal;
