@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cstdint>
+#include <deque>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -13,7 +15,6 @@
 #include <optional>
 #include <set>
 #include <tuple>
-#include <unordered_map>
 
 namespace mobmap::mapping {
 namespace {
@@ -77,15 +78,46 @@ struct State {
   [[nodiscard]] std::uint64_t key() const {
     return (static_cast<std::uint64_t>(run) << 5) | (static_cast<std::uint64_t>(heading) << 1) | (side == Side::kRight ? 1u : 0u);
   }
+  [[nodiscard]] static State fromKey(std::uint64_t key) {
+    return State{static_cast<std::size_t>(key >> 5), static_cast<int>((key >> 1) & 15u), (key & 1u) ? Side::kRight : Side::kLeft};
+  }
+};
+
+// A state's search record: cost so far, the state it was reached from, whether expanded.
+// g = infinity: not reached yet.
+struct Node {
+  double g = std::numeric_limits<double>::infinity();
+  std::uint64_t parent = 0;
+  bool closed = false;
+};
+
+// What the search has learnt about one run it touched: its centre, its soles' verdicts
+// (index into Search::footholds_ per heading modulo half a turn; a sole reads the same
+// turned by 180 degrees) and its states' records. Made the first time the search asks
+// for the run; ~0.8 KB each.
+struct RunRecord {
+  double x = 0, y = 0;
+  std::array<std::int32_t, kHeadings / 2> foothold;
+  std::array<Node, 2 * kHeadings> nodes;  ///< by heading * 2 + side
+};
+
+// A swing-foot placement relative to the stance foot: a lattice offset, its horizontal
+// stride, and per change of heading (-1, 0, +1) whether the two soles overlap.
+struct Move {
+  long di = 0, dj = 0;
+  double stride = 0;
+  std::array<bool, 3> overlaps{};
 };
 
 class Search {
  public:
-  Search(const SurfaceColumns& cols, const RobotParams& robot) : cols_(cols), r_(robot), res_(cols.resolution()) {
+  Search(const SurfaceColumns& cols, const RobotParams& robot)
+      : cols_(cols), r_(robot), res_(cols.resolution()), record_of_run_(cols.runs().size(), -1) {
     s_ = std::max(1L, std::lround(r_.lattice_m / res_));
     // Swing-foot placements relative to the stance foot, per heading and side, as distinct
     // lattice offsets: forward -2..9 lattice steps, sideways the stance width -1..+2
-    // lattice steps.
+    // lattice steps. Offsets longer than a stride, after rounding to the lattice, are
+    // dropped here rather than at every expansion.
     const double cell = s_ * res_;
     for (int k = 0; k < kHeadings; ++k) {
       const double t = headingYaw(k), c = std::cos(t), s = std::sin(t);
@@ -97,25 +129,51 @@ class Search {
             const double a = fx * cell, b = sgn * (r_.stance_width_m + fy * cell);
             if (std::hypot(a, b) > r_.max_stride_m + 1e-9) continue;
             const long di = std::lround((c * a - s * b) / cell), dj = std::lround((s * a + c * b) / cell);
-            if (seen.insert({di, dj}).second) moves_[k][side].emplace_back(di, dj);
+            if (!seen.insert({di, dj}).second) continue;
+            Move m;
+            m.di = di, m.dj = dj;
+            m.stride = std::hypot(di * cell, dj * cell);
+            if (m.stride > r_.max_stride_m + 1e-6) continue;
+            for (int dk = -1; dk <= 1; ++dk) {
+              m.overlaps[static_cast<std::size_t>(dk + 1)] =
+                  solesOverlap(0, 0, t, di * cell, dj * cell, headingYaw((k + dk + kHeadings) % kHeadings), r_.sole_length_m, r_.sole_width_m);
+            }
+            moves_[k][side].push_back(m);
           }
         }
       }
     }
   }
 
-  const Foothold& foothold(std::size_t run, int heading) {
-    const std::uint64_t key = (static_cast<std::uint64_t>(run) << 3) | static_cast<std::uint64_t>(heading % (kHeadings / 2));
-    const auto it = cache_.find(key);
-    if (it != cache_.end()) return it->second;
-    const auto [x, y] = centre(run);
-    return cache_.emplace(key, evaluateFoothold(cols_, x, y, headingYaw(heading), cols_.topFace(cols_.runs()[run]), r_))
-        .first->second;
+  RunRecord& record(std::size_t run) {
+    std::int32_t& i = record_of_run_[run];
+    if (i < 0) {
+      i = static_cast<std::int32_t>(records_.size());
+      RunRecord& r = records_.emplace_back();
+      const long col = static_cast<long>(cols_.runColumn(run));
+      r.x = cols_.centreOf(cols_.keyX0() + col / cols_.columnsY());
+      r.y = cols_.centreOf(cols_.keyY0() + col % cols_.columnsY());
+      r.foothold.fill(-1);
+      return r;
+    }
+    return records_[static_cast<std::size_t>(i)];
   }
 
-  [[nodiscard]] std::pair<double, double> centre(std::size_t run) const {
-    const long col = static_cast<long>(cols_.runColumn(run));
-    return {cols_.centreOf(cols_.keyX0() + col / cols_.columnsY()), cols_.centreOf(cols_.keyY0() + col % cols_.columnsY())};
+  Node& node(const State& st) { return record(st.run).nodes[static_cast<std::size_t>(st.heading * 2 + (st.side == Side::kRight ? 1 : 0))]; }
+
+  const Foothold& foothold(std::size_t run, int heading) { return foothold(run, record(run), heading); }
+  const Foothold& foothold(std::size_t run, RunRecord& rec, int heading) {
+    std::int32_t& i = rec.foothold[static_cast<std::size_t>(heading % (kHeadings / 2))];
+    if (i < 0) {
+      i = static_cast<std::int32_t>(footholds_.size());
+      footholds_.push_back(evaluateFoothold(cols_, rec.x, rec.y, headingYaw(heading), cols_.topFace(cols_.runs()[run]), r_));
+    }
+    return footholds_[static_cast<std::size_t>(i)];
+  }
+
+  [[nodiscard]] std::pair<double, double> centre(std::size_t run) {
+    const RunRecord& r = record(run);
+    return {r.x, r.y};
   }
 
   /// Lattice column nearest (x, y): its key pair.
@@ -161,8 +219,12 @@ class Search {
   const RobotParams& r_;
   double res_;
   long s_ = 1;
-  std::array<std::array<std::vector<std::pair<long, long>>, 2>, kHeadings> moves_;
-  std::unordered_map<std::uint64_t, Foothold> cache_;
+  std::array<std::array<std::vector<Move>, 2>, kHeadings> moves_;
+
+ private:
+  std::vector<std::int32_t> record_of_run_;  ///< per run, into records_ (-1: not touched)
+  std::deque<RunRecord> records_;            ///< a deque: references stay valid as it grows
+  std::deque<Foothold> footholds_;
 };
 
 // The surface height under a point: the highest top at most kLevelSlack above it, within
@@ -446,22 +508,14 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
     return std::hypot(goal.x() - x, goal.y() - y) <= params.goal_tolerance_m + 1e-9 &&
            std::abs(search.foothold(st.run, st.heading).z - *z_goal) <= kLevelSlack + robot.max_unevenness_m;
   };
-  struct Node {
-    double g;
-    std::uint64_t parent;
-    State state;
-    bool closed;
-  };
   constexpr std::uint64_t kNoParent = std::numeric_limits<std::uint64_t>::max();
-  std::unordered_map<std::uint64_t, Node> nodes;
-  nodes.reserve(1u << 16);
   // Equal f: the deeper node first (larger g), which keeps A* from widening over the
   // lattice's many paths of equal cost.
   using Item = std::tuple<double, double, std::uint64_t>;
   std::priority_queue<Item, std::vector<Item>, std::greater<Item>> open;
   // Either foot may step first: each start sole is a root, the other foot standing beside it.
   const auto root_of = [&](const State& stance) {
-    nodes[stance.key()] = Node{0.0, kNoParent, stance, false};
+    search.node(stance) = Node{0.0, kNoParent, false};
     open.push({heuristic(stance), 0.0, stance.key()});
   };
   root_of(left);
@@ -495,10 +549,11 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
     // does not let a lambda capture a structured binding; clang refuses it).
     const std::uint64_t key = std::get<2>(open.top());
     open.pop();
-    Node& node = nodes[key];
+    const State st = State::fromKey(key);
+    RunRecord& rec = search.record(st.run);
+    Node& node = rec.nodes[static_cast<std::size_t>(st.heading * 2 + (st.side == Side::kRight ? 1 : 0))];
     if (node.closed) continue;
     node.closed = true;
-    const State st = node.state;
     const double g = node.g;
     if (atGoal(st)) {
       goal_key = key;
@@ -517,37 +572,39 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
       if (!checkReach()) return outOfTime();
       if (!goalReachable(*reach, goal_feet)) break;  // diagnosed below
     }
-    const Foothold& from = search.foothold(st.run, st.heading);
-    const auto centre = search.centre(st.run);
-    const double x = centre.first, y = centre.second;
+    const Foothold& from = search.foothold(st.run, rec, st.heading);
+    const double x = rec.x, y = rec.y;
     const auto lattice = search.latticeKey(x, y);
     const long kx = lattice.first, ky = lattice.second;
     const Side next = st.side == Side::kLeft ? Side::kRight : Side::kLeft;
     const int side_index = next == Side::kLeft ? 0 : 1;
-    for (const int dk : {-1, 0, 1}) {
-      const int k = ((st.heading + dk) % kHeadings + kHeadings) % kHeadings;
-      for (const auto& [di, dj] : search.moves_[static_cast<std::size_t>(st.heading)][static_cast<std::size_t>(side_index)]) {
-        const long nkx = kx + di * search.s_, nky = ky + dj * search.s_;
-        const double nx = cols.centreOf(nkx), ny = cols.centreOf(nky);
-        search.runsNear(nkx, nky, from.z, robot.max_step_m + robot.max_unevenness_m + res, [&](std::size_t run) {
+    const double slack = robot.max_step_m + robot.max_unevenness_m + res;
+    for (const Move& m : search.moves_[static_cast<std::size_t>(st.heading)][static_cast<std::size_t>(side_index)]) {
+      const long nkx = kx + m.di * search.s_, nky = ky + m.dj * search.s_;
+      const long col = cols.columnIndex(nkx, nky);
+      if (cols.runBegin(col) == cols.runEnd(col)) continue;
+      const double nx = cols.centreOf(nkx), ny = cols.centreOf(nky);
+      const double stride = std::hypot(nx - x, ny - y);
+      if (stride > robot.max_stride_m + 1e-9) continue;
+      search.runsNear(nkx, nky, from.z, slack, [&](std::size_t run) {
+        RunRecord& to_rec = search.record(run);
+        for (int dk = -1; dk <= 1; ++dk) {
+          if (m.overlaps[static_cast<std::size_t>(dk + 1)]) continue;
+          const int k = ((st.heading + dk) % kHeadings + kHeadings) % kHeadings;
           const State to{run, k, next};
-          const std::uint64_t to_key = to.key();
-          const auto it = nodes.find(to_key);
-          if (it != nodes.end() && it->second.closed) return;
-          const Foothold& f = search.foothold(run, k);
-          if (!f.standable() || !stepHeightOk(from.z, f.z, robot, res)) return;
-          const double stride = std::hypot(nx - x, ny - y);
-          if (stride > robot.max_stride_m + 1e-9) return;
-          if (solesOverlap(x, y, headingYaw(st.heading), nx, ny, headingYaw(k), robot.sole_length_m, robot.sole_width_m)) return;
+          Node& to_node = to_rec.nodes[static_cast<std::size_t>(k * 2 + side_index)];
+          if (to_node.closed) continue;
+          const Foothold& f = search.foothold(run, to_rec, k);
+          if (!f.standable() || !stepHeightOk(from.z, f.z, robot, res)) continue;
           const double cost = std::hypot(stride, f.z - from.z) + params.step_cost_m +
                               params.mobility_weight_m * (1.0 - f.min_mobility) + params.variance_weight_m * f.mean_variance;
           const double g_to = g + cost;
-          if (it != nodes.end() && it->second.g <= g_to) return;
-          if (swingProblem(cols, x, y, from.z, nx, ny, f.z, robot) != FootholdProblem::kNone) return;
-          nodes[to_key] = Node{g_to, key, to, false};
-          open.push({g_to + heuristic(to), -g_to, to_key});
-        });
-      }
+          if (to_node.g <= g_to) continue;
+          if (swingProblem(cols, x, y, from.z, nx, ny, f.z, robot) != FootholdProblem::kNone) continue;
+          to_node = Node{g_to, key, false};
+          open.push({g_to + heuristic(to), -g_to, to.key()});
+        }
+      });
     }
   }
   if (!goal_key) {
@@ -556,11 +613,11 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
   }
   // The footsteps: the other start sole, then the chain from the root.
   std::vector<State> chain;
-  for (std::uint64_t k = *goal_key; k != kNoParent; k = nodes[k].parent) chain.push_back(nodes[k].state);
+  for (std::uint64_t k = *goal_key; k != kNoParent; k = search.node(State::fromKey(k)).parent) chain.push_back(State::fromKey(k));
   std::reverse(chain.begin(), chain.end());
   plan.footsteps.push_back(footstepOf(chain.front().side == Side::kLeft ? right : left));
   for (const State& st : chain) plan.footsteps.push_back(footstepOf(st));
-  plan.cost = nodes[*goal_key].g;
+  plan.cost = search.node(State::fromKey(*goal_key)).g;
   // Square up at the goal: the other foot beside the last one, if it can stand there.
   {
     const State& last = chain.back();

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdint>
 #include <cstdlib>
 #include <memory>
 #include <vector>
@@ -26,6 +27,22 @@ double ms(Clock::time_point a, Clock::time_point b) { return std::chrono::durati
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
+// FNV-1a over the footsteps' bits: equal prints mean byte-identical plans, so runs of
+// two builds can be compared.
+std::uint64_t footstepsHash(const mapping::Plan& plan) {
+  std::uint64_t h = 1469598103934665603ull;
+  const auto mix = [&](const void* p, std::size_t n) {
+    for (std::size_t i = 0; i < n; ++i) h = (h ^ static_cast<const unsigned char*>(p)[i]) * 1099511628211ull;
+  };
+  for (const mapping::Footstep& f : plan.footsteps) {
+    const int side = f.side == mapping::Side::kLeft ? 0 : 1;
+    mix(&side, sizeof side);
+    for (const double v : {f.x, f.y, f.z, f.yaw, f.min_mobility, f.mean_mobility, f.poor_fraction, f.tilt_deg}) mix(&v, sizeof v);
+  }
+  mix(&plan.cost, sizeof plan.cost);
+  return h;
 }
 
 }  // namespace
@@ -72,7 +89,8 @@ int main(int argc, char** argv) {
   }
   const double reach = median(reach_ms);
   std::printf("reference: computeReachability over the whole map: median %.1f ms\n", reach);
-  std::printf("%-48s %6s %9s %9s %11s %10s %8s\n", "plan", "found", "length_m", "steps", "expansions", "median_ms", "/reach");
+  std::printf("%-48s %6s %9s %9s %11s %10s %8s %9s %16s\n", "plan", "found", "length_m", "steps", "expansions", "median_ms", "/reach",
+              "cost", "footsteps_hash");
   const double weight = argc > 2 ? std::atof(argv[2]) : 1.0;
   std::printf("heuristic weight %.2f\n", weight);
   for (const Case& c : cases) {
@@ -86,8 +104,9 @@ int main(int argc, char** argv) {
       plan = mapping::planFootsteps(columns, c.from, c.to, pp);
       t.push_back(ms(t0, Clock::now()));
     }
-    std::printf("%-48s %6s %9.2f %9zu %11zu %10.1f %8.2f\n", c.name, plan.found ? "yes" : "no", plan.length_m,
-                plan.footsteps.size() >= 2 ? plan.footsteps.size() - 2 : 0, plan.expansions, median(t), median(t) / reach);
+    std::printf("%-48s %6s %9.2f %9zu %11zu %10.1f %8.2f %9.4f %016llx\n", c.name, plan.found ? "yes" : "no", plan.length_m,
+                plan.footsteps.size() >= 2 ? plan.footsteps.size() - 2 : 0, plan.expansions, median(t), median(t) / reach,
+                plan.cost, static_cast<unsigned long long>(footstepsHash(plan)));
     if (!plan.found) std::printf("    reason: %s\n", plan.reason.c_str());
   }
   return 0;
