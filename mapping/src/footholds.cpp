@@ -100,18 +100,6 @@ const char* toString(FootholdProblem p) {
 
 // ---- SurfaceColumns -------------------------------------------------------------
 
-long SurfaceColumns::keyOf(double c) const {
-  return static_cast<long>(std::floor(inv_res_ * static_cast<double>(static_cast<float>(c)))) + 32768L;
-}
-
-double SurfaceColumns::centreOf(long key) const { return (static_cast<double>(key - 32768L) + 0.5) * res_; }
-
-long SurfaceColumns::columnIndex(long kx, long ky) const {
-  const long i = kx - kx0_, j = ky - ky0_;
-  if (i < 0 || j < 0 || i >= nx_ || j >= ny_) return -1;
-  return i * ny_ + j;
-}
-
 long SurfaceColumns::runBelow(double x, double y, double z_max, double z_min) const {
   const long col = columnIndex(keyOf(x), keyOf(y));
   for (std::size_t r = runEnd(col); r > runBegin(col); --r) {
@@ -211,7 +199,8 @@ Foothold evaluateFoothold(const SurfaceColumns& cols, double x, double y, double
   if (supports) supports->clear();
   const double res = cols.resolution();
   if (!(res > 0) || !std::isfinite(z_ref)) return f;
-  const std::vector<SoleSample> samples = soleSamples(Foot{x, y, 0, yaw, robot.sole_length_m, robot.sole_width_m}, res);
+  thread_local std::vector<SoleSample> samples;
+  soleSamples(Foot{x, y, 0, yaw, robot.sole_length_m, robot.sole_width_m}, res, samples);
   f.samples = static_cast<int>(samples.size());
   if (samples.empty()) return f;
   const double tan_tilt = std::tan(robot.max_tilt_deg * kPi / 180);

@@ -481,13 +481,19 @@ void describeSupportPlane(const std::vector<detail::SupportSample>& support, dou
 }  // namespace
 
 std::vector<SoleSample> soleSamples(const Foot& f, double res) {
+  std::vector<SoleSample> out;
+  soleSamples(f, res, out);
+  return out;
+}
+
+void soleSamples(const Foot& f, double res, std::vector<SoleSample>& out) {
+  out.clear();
   const bool valid = std::isfinite(f.x) && std::isfinite(f.y) && std::isfinite(f.yaw) && f.length > 0 && f.width > 0 &&
                      res > 0 && f.length / res <= kMaxSoleSamplesPerSide && f.width / res <= kMaxSoleSamplesPerSide;
-  if (!valid) return {};
+  if (!valid) return;
   const int nl = std::max(1, static_cast<int>(std::ceil(f.length / res)));
   const int nw = std::max(1, static_cast<int>(std::ceil(f.width / res)));
   const double c = std::cos(f.yaw), s = std::sin(f.yaw);
-  std::vector<SoleSample> out;
   out.reserve(static_cast<std::size_t>(nl) * static_cast<std::size_t>(nw));
   for (int i = 0; i < nl; ++i) {
     for (int j = 0; j < nw; ++j) {
@@ -496,7 +502,6 @@ std::vector<SoleSample> soleSamples(const Foot& f, double res) {
       out.push_back({a, b, f.x + c * a - s * b, f.y + s * a + c * b});
     }
   }
-  return out;
 }
 
 FootprintQuery MobilityMap::footprint(const Foot& f, double search_up_m, double search_down_m) const {

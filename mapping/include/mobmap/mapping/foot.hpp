@@ -35,5 +35,7 @@ inline constexpr double kMaxSoleSamplesPerSide = 10000;
 /// length, width or resolution is not positive, or a side is longer than
 /// kMaxSoleSamplesPerSide voxels.
 [[nodiscard]] std::vector<SoleSample> soleSamples(const Foot& foot, double resolution);
+/// The same into `out` (cleared first; its storage is reused).
+void soleSamples(const Foot& foot, double resolution, std::vector<SoleSample>& out);
 
 }  // namespace mobmap::mapping

@@ -87,12 +87,20 @@ class SurfaceColumns {
   /// Key of the voxel holding coordinate c (not clamped: may lie outside the tree), found
   /// as the tree finds it (the coordinate as a float, times 1 / resolution, floored), so a
   /// point on a voxel face falls in the same voxel for the columns and for the tree.
-  [[nodiscard]] long keyOf(double c) const;
-  [[nodiscard]] double centreOf(long key) const;  ///< coordinate of a key's voxel centre
+  [[nodiscard]] long keyOf(double c) const {
+    const double v = inv_res_ * static_cast<double>(static_cast<float>(c));
+    const long k = static_cast<long>(v);  // floor, without a call into libm
+    return (static_cast<double>(k) > v ? k - 1 : k) + 32768L;
+  }
+  /// Coordinate of a key's voxel centre.
+  [[nodiscard]] double centreOf(long key) const { return (static_cast<double>(key - 32768L) + 0.5) * res_; }
   [[nodiscard]] double topFace(const Run& r) const { return centreOf(r.top) + res_ / 2; }
   [[nodiscard]] double bottomFace(const Run& r) const { return centreOf(r.bottom) - res_ / 2; }
   /// Index of column (kx, ky) or -1 outside the occupied area.
-  [[nodiscard]] long columnIndex(long kx, long ky) const;
+  [[nodiscard]] long columnIndex(long kx, long ky) const {
+    const long i = kx - kx0_, j = ky - ky0_;
+    return i < 0 || j < 0 || i >= nx_ || j >= ny_ ? -1 : i * ny_ + j;
+  }
   /// The runs of column `index` (columnIndex), lowest first; run ids are indices into runs().
   [[nodiscard]] std::size_t runBegin(long index) const { return index < 0 ? 0 : offsets_[static_cast<std::size_t>(index)]; }
   [[nodiscard]] std::size_t runEnd(long index) const { return index < 0 ? 0 : offsets_[static_cast<std::size_t>(index) + 1]; }
