@@ -89,6 +89,9 @@ struct Node {
   double g = std::numeric_limits<double>::infinity();
   std::uint64_t parent = 0;
   bool closed = false;
+  bool pulled = false;  ///< its sole judged and every expanded state that steps to it tried
+  /// The lowest lower bound at which the state waits in the open list to be judged.
+  double bound = std::numeric_limits<double>::infinity();
 };
 
 // What the search has learnt about one run it touched: its centre, its soles' verdicts
@@ -159,6 +162,12 @@ class Search {
     return records_[static_cast<std::size_t>(i)];
   }
 
+  /// The record of a run if the search has touched it, else null.
+  [[nodiscard]] RunRecord* touched(std::size_t run) {
+    const std::int32_t i = record_of_run_[run];
+    return i < 0 ? nullptr : &records_[static_cast<std::size_t>(i)];
+  }
+
   Node& node(const State& st) { return record(st.run).nodes[static_cast<std::size_t>(st.heading * 2 + (st.side == Side::kRight ? 1 : 0))]; }
 
   const Foothold& foothold(std::size_t run, int heading) { return foothold(run, record(run), heading); }
@@ -169,6 +178,12 @@ class Search {
       footholds_.push_back(evaluateFoothold(cols_, rec.x, rec.y, headingYaw(heading), cols_.topFace(cols_.runs()[run]), r_));
     }
     return footholds_[static_cast<std::size_t>(i)];
+  }
+
+  /// The sole of `heading` on a run if it has been judged, else null.
+  [[nodiscard]] const Foothold* judged(const RunRecord& rec, int heading) const {
+    const std::int32_t i = rec.foothold[static_cast<std::size_t>(heading % (kHeadings / 2))];
+    return i < 0 ? nullptr : &footholds_[static_cast<std::size_t>(i)];
   }
 
   [[nodiscard]] std::pair<double, double> centre(std::size_t run) {
@@ -503,23 +518,76 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
     const auto [x, y] = search.centre(st.run);
     return per_metre * std::max(0.0, std::hypot(goal.x() - x, goal.y() - y) - params.goal_tolerance_m);
   };
+  const auto stepCost = [&](double stride, const Foothold& from, const Foothold& to) {
+    return std::hypot(stride, to.z - from.z) + params.step_cost_m + params.mobility_weight_m * (1.0 - to.min_mobility) +
+           params.variance_weight_m * to.mean_variance;
+  };
   const auto atGoal = [&](const State& st) {
     const auto [x, y] = search.centre(st.run);
     return std::hypot(goal.x() - x, goal.y() - y) <= params.goal_tolerance_m + 1e-9 &&
            std::abs(search.foothold(st.run, st.heading).z - *z_goal) <= kLevelSlack + robot.max_unevenness_m;
   };
   constexpr std::uint64_t kNoParent = std::numeric_limits<std::uint64_t>::max();
-  // Equal f: the deeper node first (larger g), which keeps A* from widening over the
+  // Soles are judged lazily. A step to a state whose sole is judged is judged at once
+  // (its cost, its swing); a step to a state whose sole is not judged yet puts the state
+  // in the open list at a lower bound of the step's cost (stride and step cost: the other
+  // terms are >= 0). When such an entry comes to the top, the state is judged and pulls
+  // its cost from every expanded state that steps to it. Most soles the search looks at
+  // are never judged, and the open list holds one waiting entry per state, not one per step.
+  // Equal f: the deeper entry first (larger g), which keeps A* from widening over the
   // lattice's many paths of equal cost.
-  using Item = std::tuple<double, double, std::uint64_t>;
+  struct Item {
+    double f, neg_g;
+    std::uint64_t key;
+    bool waiting;  ///< the state waits to be judged (g is a lower bound)
+    bool operator>(const Item& o) const { return std::tie(f, neg_g, key, waiting) > std::tie(o.f, o.neg_g, o.key, o.waiting); }
+  };
   std::priority_queue<Item, std::vector<Item>, std::greater<Item>> open;
   // Either foot may step first: each start sole is a root, the other foot standing beside it.
   const auto root_of = [&](const State& stance) {
-    search.node(stance) = Node{0.0, kNoParent, false};
-    open.push({heuristic(stance), 0.0, stance.key()});
+    Node& n = search.node(stance);
+    n = Node{};
+    n.g = 0.0, n.parent = kNoParent, n.pulled = true;
+    open.push({heuristic(stance), 0.0, stance.key(), false});
   };
   root_of(left);
   root_of(right);
+  const double slack = robot.max_step_m + robot.max_unevenness_m + res;  // of a step's rise, at a glance
+  // The state `to` (its sole judged here) takes the cheapest step from the expanded states.
+  const auto pull = [&](const State& to, RunRecord& to_rec, Node& to_node) {
+    to_node.pulled = true;
+    const Foothold& f = search.foothold(to.run, to_rec, to.heading);
+    if (!f.standable()) return;
+    const auto [kx, ky] = search.latticeKey(to_rec.x, to_rec.y);
+    const double top = cols.topFace(cols.runs()[to.run]);
+    const std::size_t side_index = to.side == Side::kLeft ? 0 : 1;
+    const std::size_t from_side = 1 - side_index;
+    bool improved = false;
+    for (int dk = -1; dk <= 1; ++dk) {
+      const int kq = ((to.heading - dk) % kHeadings + kHeadings) % kHeadings;
+      for (const Move& m : search.moves_[static_cast<std::size_t>(kq)][side_index]) {
+        if (m.overlaps[static_cast<std::size_t>(dk + 1)]) continue;
+        const long col = cols.columnIndex(kx - m.di * search.s_, ky - m.dj * search.s_);
+        for (std::size_t r = cols.runBegin(col); r < cols.runEnd(col); ++r) {
+          RunRecord* from_rec = search.touched(r);
+          if (!from_rec) continue;
+          const Node& from_node = from_rec->nodes[static_cast<std::size_t>(kq) * 2 + from_side];
+          if (!from_node.closed) continue;
+          const Foothold& from = search.foothold(r, *from_rec, kq);
+          if (std::abs(top - from.z) > slack || !stepHeightOk(from.z, f.z, robot, res)) continue;
+          const double stride = std::hypot(to_rec.x - from_rec->x, to_rec.y - from_rec->y);
+          if (stride > robot.max_stride_m + 1e-9) continue;
+          const double g_to = from_node.g + stepCost(stride, from, f);
+          if (g_to >= to_node.g) continue;
+          if (swingProblem(cols, from_rec->x, from_rec->y, from.z, to_rec.x, to_rec.y, f.z, robot) != FootholdProblem::kNone) continue;
+          to_node.g = g_to;
+          to_node.parent = State{r, kq, to.side == Side::kLeft ? Side::kRight : Side::kLeft}.key();
+          improved = true;
+        }
+      }
+    }
+    if (improved) open.push({to_node.g + heuristic(to), -to_node.g, to.key(), false});
+  };
   std::optional<std::uint64_t> goal_key;
   bool expansions_spent = false;
   // A goal the robot cannot get to at all would have the search expand every state it
@@ -547,12 +615,18 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
   while (!open.empty()) {
     // Plain variables, not structured bindings: the lambda below captures them (C++17
     // does not let a lambda capture a structured binding; clang refuses it).
-    const std::uint64_t key = std::get<2>(open.top());
+    const Item item = open.top();
     open.pop();
+    const std::uint64_t key = item.key;
     const State st = State::fromKey(key);
     RunRecord& rec = search.record(st.run);
     Node& node = rec.nodes[static_cast<std::size_t>(st.heading * 2 + (st.side == Side::kRight ? 1 : 0))];
     if (node.closed) continue;
+    if (item.waiting) {
+      if (!node.pulled) pull(st, rec, node);
+      continue;
+    }
+    if (-item.neg_g != node.g) continue;  // superseded by a cheaper way here
     node.closed = true;
     const double g = node.g;
     if (atGoal(st)) {
@@ -578,7 +652,6 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
     const long kx = lattice.first, ky = lattice.second;
     const Side next = st.side == Side::kLeft ? Side::kRight : Side::kLeft;
     const int side_index = next == Side::kLeft ? 0 : 1;
-    const double slack = robot.max_step_m + robot.max_unevenness_m + res;
     for (const Move& m : search.moves_[static_cast<std::size_t>(st.heading)][static_cast<std::size_t>(side_index)]) {
       const long nkx = kx + m.di * search.s_, nky = ky + m.dj * search.s_;
       const long col = cols.columnIndex(nkx, nky);
@@ -594,15 +667,21 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
           const State to{run, k, next};
           Node& to_node = to_rec.nodes[static_cast<std::size_t>(k * 2 + side_index)];
           if (to_node.closed) continue;
-          const Foothold& f = search.foothold(run, to_rec, k);
-          if (!f.standable() || !stepHeightOk(from.z, f.z, robot, res)) continue;
-          const double cost = std::hypot(stride, f.z - from.z) + params.step_cost_m +
-                              params.mobility_weight_m * (1.0 - f.min_mobility) + params.variance_weight_m * f.mean_variance;
-          const double g_to = g + cost;
-          if (to_node.g <= g_to) continue;
-          if (swingProblem(cols, x, y, from.z, nx, ny, f.z, robot) != FootholdProblem::kNone) continue;
-          to_node = Node{g_to, key, false};
-          open.push({g_to + heuristic(to), -g_to, to.key()});
+          const Foothold* f = search.judged(to_rec, k);
+          if (!f) {
+            // Not judged yet: the state waits (once, at its lowest bound) to be judged.
+            const double g_bound = g + stride + params.step_cost_m;
+            if (g_bound >= to_node.g || g_bound >= to_node.bound) continue;
+            to_node.bound = g_bound;
+            open.push({g_bound + heuristic(to), -g_bound, to.key(), true});
+            continue;
+          }
+          if (!f->standable() || !stepHeightOk(from.z, f->z, robot, res)) continue;
+          const double g_to = g + stepCost(stride, from, *f);
+          if (g_to >= to_node.g) continue;
+          if (swingProblem(cols, x, y, from.z, nx, ny, f->z, robot) != FootholdProblem::kNone) continue;
+          to_node.g = g_to, to_node.parent = key;
+          open.push({g_to + heuristic(to), -g_to, to.key(), false});
         }
       });
     }
