@@ -5,6 +5,10 @@
 #include "mobmap/mapping/mobility_map.hpp"
 
 #include <algorithm>
+#include <atomic>
+#include <exception>
+#include <mutex>
+#include <thread>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -54,7 +58,10 @@ std::optional<mapping::DownObservation> floorVote(const perception::FrameResult&
 FloorSample sampleFloors(const Sequence& dir, const std::vector<int>& frames, const perception::FramePipeline& finder,
                          const std::function<Eigen::Vector3f(const Eigen::Matrix3d&)>& down_in_camera, bool skip_unreadable) {
   FloorSample sample;
+  // Read in turn (a recording is read from one place), perceived on every core: the
+  // sample is the wait before a run's first frame.
   const std::size_t samples = std::min<std::size_t>(8, frames.size());
+  std::vector<Frame> loaded;
   for (std::size_t i = 0; i < samples; ++i) {
     const std::size_t at = samples == 1 ? 0 : i * (frames.size() - 1) / (samples - 1);
     Frame f;
@@ -65,9 +72,32 @@ FloorSample sampleFloors(const Sequence& dir, const std::vector<int>& frames, co
       continue;
     }
     if (!f.T_world_camera) continue;
-    const Eigen::Matrix3d r_wc = f.T_world_camera->linear();
-    sample.rotations.push_back(r_wc);
-    if (auto vote = floorVote(perceive(finder, dir, f, down_in_camera(r_wc)), r_wc)) sample.floors.push_back(*vote);
+    sample.rotations.push_back(f.T_world_camera->linear());
+    loaded.push_back(std::move(f));
+  }
+  std::vector<std::optional<mapping::DownObservation>> votes(loaded.size());
+  std::atomic<std::size_t> next{0};
+  std::exception_ptr failure;
+  std::mutex failure_lock;
+  const auto work = [&] {
+    for (std::size_t i; (i = next++) < loaded.size();) {
+      try {
+        const Eigen::Matrix3d& r_wc = sample.rotations[i];
+        votes[i] = floorVote(perceive(finder, dir, loaded[i], down_in_camera(r_wc)), r_wc);
+      } catch (...) {
+        const std::lock_guard<std::mutex> lock(failure_lock);
+        if (!failure) failure = std::current_exception();
+      }
+    }
+  };
+  const std::size_t threads = std::min<std::size_t>(loaded.size(), std::max(1u, std::thread::hardware_concurrency()));
+  std::vector<std::thread> pool;
+  for (std::size_t t = 1; t < threads; ++t) pool.emplace_back(work);
+  work();
+  for (std::thread& t : pool) t.join();
+  if (failure) std::rethrow_exception(failure);
+  for (const auto& v : votes) {
+    if (v) sample.floors.push_back(*v);
   }
   return sample;
 }
