@@ -40,6 +40,40 @@ float knnCell(double voxel_m, int k) {
   return static_cast<float>(voxel_m * (std::sqrt(k / M_PI) + 0.6));
 }
 
+// Stages 5-8 of a frame perceived through stage 4 (its points, normals, colours), for
+// the params `p` (whose ground cone may differ from the pipeline's).
+void finishFrame(FrameResult& out, const KnnGraph& graph, const std::vector<Eigen::Vector3f>& smoothed,
+                 const std::optional<Eigen::Vector3f>& up, const PerceptionParams& p, const gp::MobilityModel& model) {
+  StageClock clock(out.stages);
+  std::mt19937 rng(p.random_seed);
+  const std::size_t n = out.points.size();
+  // 5. Ground removal.
+  clock.start();
+  std::vector<int> ground_points = steps::findGround(out, up, p, rng);
+  clock.stop("ground", n, n - ground_points.size());
+
+  // 6. Colour region growing on what is not ground, and the departures from the paper.
+  clock.start();
+  const std::size_t segmented = steps::segment(out, graph, std::move(ground_points), up, p);
+  clock.stop("segmentation", n, segmented);
+
+  // 7. Surface properties: slope and roughness.
+  clock.start();
+  const Eigen::MatrixX2d features = steps::measureSurfaces(out, graph, smoothed, up, p);
+  clock.stop("surface properties", n, out.segments.size());
+
+  // 8. Mobility: the model scores (slope, roughness).
+  clock.start();
+  if (!out.segments.empty()) {
+    const auto scores = model.predict(features);
+    for (std::size_t s = 0; s < out.segments.size(); ++s) {
+      out.segments[s].mobility = scores[s].mobility;
+      out.segments[s].variance = scores[s].variance;
+    }
+  }
+  clock.stop("mobility", out.segments.size(), out.segments.size());
+}
+
 }  // namespace
 
 
@@ -197,6 +231,16 @@ FramePipeline::FramePipeline(PerceptionParams params, gp::MobilityModel model)
 
 FrameResult FramePipeline::process(const DepthImage& depth, const PinholeIntrinsics& k,
                                    const std::optional<Eigen::Vector3f>& gravity) const {
+  return std::move(processPerGroundCone(depth, k, gravity, {params_.ground_max_tilt_deg}).front());
+}
+
+std::vector<FrameResult> FramePipeline::processPerGroundCone(const DepthImage& depth, const PinholeIntrinsics& k,
+                                                             const std::optional<Eigen::Vector3f>& gravity,
+                                                             const std::vector<double>& cones) const {
+  if (cones.empty()) throw std::invalid_argument("FramePipeline::processPerGroundCone: no ground cone");
+  for (const double c : cones) {
+    if (!(c >= 0 && c <= 90)) throw std::invalid_argument("FramePipeline::processPerGroundCone: a ground cone must be in [0, 90] degrees");
+  }
   validate(k);
   if (depth.width != k.width || depth.height != k.height ||
       depth.depth_m.size() != static_cast<std::size_t>(k.width) * k.height) {
@@ -244,9 +288,12 @@ FrameResult FramePipeline::process(const DepthImage& depth, const PinholeIntrins
       sample.add(Eigen::Vector3f((static_cast<float>(u) - static_cast<float>(k.cx)) * inv_fx * z, ry * z, z));
     }
   }
-  FrameResult out = run(std::move(raw), std::move(pixel_of_raw), depth.depth_m.size(), valid, started, gravity);
-  out.range = summarizeRanges(std::move(sample), params_, valid, beyond, valid - n - beyond, gravity, out.ground_plane);
-  return out;
+  std::vector<FrameResult> outs = run(std::move(raw), std::move(pixel_of_raw), depth.depth_m.size(), valid, started, gravity, cones);
+  for (std::size_t i = 0; i < outs.size(); ++i) {  // the last result takes the sample
+    outs[i].range = summarizeRanges(i + 1 < outs.size() ? RangeSample(sample) : std::move(sample), params_, valid, beyond,
+                                    valid - n - beyond, gravity, outs[i].ground_plane);
+  }
+  return outs;
 }
 
 FrameResult FramePipeline::processOrganized(const std::vector<Eigen::Vector3f>& points, int width, int height,
@@ -261,7 +308,7 @@ FrameResult FramePipeline::processOrganized(const std::vector<Eigen::Vector3f>& 
   std::vector<int> pixel_of_raw;
   RangeTaken taken;
   std::vector<Eigen::Vector3f> raw = finiteInRange(points, RangeGate(params_), &pixel_of_raw, taken);
-  FrameResult out = run(std::move(raw), std::move(pixel_of_raw), points.size(), taken.valid, started, gravity);
+  FrameResult out = std::move(run(std::move(raw), std::move(pixel_of_raw), points.size(), taken.valid, started, gravity).front());
   out.range = summarizeRanges(std::move(taken.sample), params_, taken.valid, taken.beyond, taken.nearer, gravity, out.ground_plane);
   return out;
 }
@@ -271,14 +318,14 @@ FrameResult FramePipeline::process(const std::vector<Eigen::Vector3f>& points,
   const auto started = std::chrono::steady_clock::now();
   RangeTaken taken;
   std::vector<Eigen::Vector3f> raw = finiteInRange(points, RangeGate(params_), nullptr, taken);
-  FrameResult out = run(std::move(raw), {}, 0, taken.valid, started, gravity);
+  FrameResult out = std::move(run(std::move(raw), {}, 0, taken.valid, started, gravity).front());
   out.range = summarizeRanges(std::move(taken.sample), params_, taken.valid, taken.beyond, taken.nearer, gravity, out.ground_plane);
   return out;
 }
 
-FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int> pixel_of_raw, std::size_t pixels,
-                               std::size_t valid, std::chrono::steady_clock::time_point started,
-                               const std::optional<Eigen::Vector3f>& gravity) const {
+std::vector<FrameResult> FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int> pixel_of_raw, std::size_t pixels,
+                                           std::size_t valid, std::chrono::steady_clock::time_point started,
+                                           const std::optional<Eigen::Vector3f>& gravity, const std::vector<double>& cones) const {
   std::optional<Eigen::Vector3f> up;
   if (gravity) {
     const float norm = gravity->stableNorm();  // a plain norm overflows for components above ~1e19
@@ -290,7 +337,6 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
   const PerceptionParams& p = params_;
   FrameResult out;
   StageClock clock(out.stages);
-  std::mt19937 rng(p.random_seed);
 
   // 1. Data reduction: range crop (done as the points were made), then 1 cm voxel
   // centroids.
@@ -340,32 +386,20 @@ FrameResult FramePipeline::run(std::vector<Eigen::Vector3f> raw, std::vector<int
   out.colours = normalColours(out.normals);
   clock.stop("rgb-n", n, n);
 
-  // 5. Ground removal.
-  clock.start();
-  std::vector<int> ground_points = steps::findGround(out, up, p, rng);
-  clock.stop("ground", n, n - ground_points.size());
-
-  // 6. Colour region growing on what is not ground, and the departures from the paper.
-  clock.start();
-  const std::size_t segmented = steps::segment(out, graph, std::move(ground_points), up, p);
-  clock.stop("segmentation", n, segmented);
-
-  // 7. Surface properties: slope and roughness.
-  clock.start();
-  const Eigen::MatrixX2d features = steps::measureSurfaces(out, graph, smoothed, up, p);
-  clock.stop("surface properties", n, out.segments.size());
-
-  // 8. Mobility: the model scores (slope, roughness).
-  clock.start();
-  if (!out.segments.empty()) {
-    const auto scores = model_.predict(features);
-    for (std::size_t s = 0; s < out.segments.size(); ++s) {
-      out.segments[s].mobility = scores[s].mobility;
-      out.segments[s].variance = scores[s].variance;
-    }
+  // Stages 5-8 depend on the ground cone: once per cone asked for, each from a copy of
+  // the frame as it stands (the last takes it), each with the random stream a pipeline
+  // of that cone would use.
+  const std::vector<double> own = {p.ground_max_tilt_deg};
+  const std::vector<double>& for_cones = cones.empty() ? own : cones;
+  std::vector<FrameResult> results;
+  results.reserve(for_cones.size());
+  for (std::size_t c = 0; c < for_cones.size(); ++c) {
+    PerceptionParams pc = p;
+    pc.ground_max_tilt_deg = for_cones[c];
+    results.push_back(c + 1 < for_cones.size() ? out : std::move(out));
+    finishFrame(results.back(), graph, smoothed, up, pc, model_);
   }
-  clock.stop("mobility", out.segments.size(), out.segments.size());
-  return out;
+  return results;
 }
 
 }  // namespace mobmap::perception

@@ -170,6 +170,56 @@ TEST(FramePipeline, OnePipelineServesSeveralThreadsWithIdenticalResults) {
   }
 }
 
+TEST(FramePipeline, PerGroundConeResultsAreThoseOfAPipelineWithThatCone) {
+  // `mobmap build` checks gravity against the floor in a 10-degree cone and perceives the
+  // same frames for the run with its own cone, sharing the stages before the ground.
+  sim::CorridorParams params;
+  params.noise = sim::NoiseModel::kKinect;
+  const sim::CorridorScene scene(params);
+  PerceptionParams narrow;
+  narrow.ground_max_tilt_deg = 10.0;
+  const FramePipeline shared(narrow);
+  int grounds_differ = 0;
+  for (const int f : {10, 60, 150}) {
+    const auto r = scene.render(f);
+    const Eigen::Vector3f down = (r.T_world_camera.linear().transpose() * scene.gravityDown()).cast<float>();
+    // A gravity hint 15 degrees off: the 10- and 40-degree cones then find different grounds.
+    const Eigen::Vector3f tilted = Eigen::AngleAxisf(0.26f, Eigen::Vector3f::UnitX()) * down;
+    for (const Eigen::Vector3f& g : {down, tilted}) {
+      const std::vector<double> cones = {10.0, 20.0, 40.0};
+      const std::vector<FrameResult> both = shared.processPerGroundCone(r.depth, params.intrinsics, g, cones);
+      ASSERT_EQ(both.size(), cones.size());
+      for (std::size_t c = 0; c < cones.size(); ++c) {
+        PerceptionParams own;
+        own.ground_max_tilt_deg = cones[c];
+        const FrameResult alone = FramePipeline(own).process(r.depth, params.intrinsics, g);
+        const FrameResult& got = both[c];
+        SCOPED_TRACE("frame " + std::to_string(f) + " cone " + std::to_string(cones[c]));
+        EXPECT_EQ(got.points, alone.points);
+        EXPECT_EQ(got.normals, alone.normals);
+        EXPECT_EQ(got.segment_of_point, alone.segment_of_point);
+        EXPECT_EQ(got.point_of_pixel, alone.point_of_pixel);
+        ASSERT_EQ(got.ground_plane.has_value(), alone.ground_plane.has_value());
+        if (got.ground_plane) EXPECT_EQ(*got.ground_plane, *alone.ground_plane);
+        ASSERT_EQ(got.segments.size(), alone.segments.size());
+        for (std::size_t s = 0; s < got.segments.size(); ++s) {
+          EXPECT_EQ(got.segments[s].points, alone.segments[s].points);
+          EXPECT_EQ(got.segments[s].mobility, alone.segments[s].mobility);
+          EXPECT_EQ(got.segments[s].roughness, alone.segments[s].roughness);
+        }
+        EXPECT_EQ(got.range.median_range_m, alone.range.median_range_m);
+        EXPECT_EQ(got.range.lowest.has_value(), alone.range.lowest.has_value());
+        EXPECT_EQ(got.stages.size(), alone.stages.size());
+      }
+      grounds_differ += both[0].segment_of_point != both[2].segment_of_point;
+    }
+  }
+  EXPECT_GT(grounds_differ, 0);  // the cones did make a difference somewhere
+  EXPECT_THROW((void)shared.processPerGroundCone(scene.render(0).depth, params.intrinsics, std::nullopt, {}), std::invalid_argument);
+  EXPECT_THROW((void)shared.processPerGroundCone(scene.render(0).depth, params.intrinsics, std::nullopt, {95.0}),
+               std::invalid_argument);
+}
+
 TEST(FramePipeline, FloorIsChosenAsGroundEvenWhenAWallHasMorePoints) {
   // Camera 1.3 m above a floor, looking at a wall 2.2 m ahead that fills most of the view.
   std::vector<sim::Triangle> tris = {

@@ -38,6 +38,16 @@ class FramePipeline {
   [[nodiscard]] FrameResult process(const DepthImage& depth, const PinholeIntrinsics& intrinsics,
                                     const std::optional<Eigen::Vector3f>& gravity_down_camera = std::nullopt) const;
 
+  /// process() once per ground cone: result i is what process() gives for a pipeline
+  /// whose params are this one's with ground_max_tilt_deg = ground_cones_deg[i], at the
+  /// cost of one reduction, denoising and normals (the stages before the ground, which
+  /// do not depend on the cone) and the later stages once per cone. For a check of
+  /// gravity against the floor in a narrow cone that also perceives the frame as the run
+  /// will. std::invalid_argument as process(), or for a cone outside [0, 90] or none.
+  [[nodiscard]] std::vector<FrameResult> processPerGroundCone(const DepthImage& depth, const PinholeIntrinsics& intrinsics,
+                                                              const std::optional<Eigen::Vector3f>& gravity_down_camera,
+                                                              const std::vector<double>& ground_cones_deg) const;
+
   /// An organized cloud (row-major, width x height, non-finite = invalid pixel), such
   /// as a Kinect PCD; FrameResult::point_of_pixel is filled.
   [[nodiscard]] FrameResult processOrganized(const std::vector<Eigen::Vector3f>& points, int width, int height,
@@ -54,9 +64,12 @@ class FramePipeline {
   // raw: the frame's finite points within the range limits (pixel_of_raw: their pixels,
   // empty for an unorganized cloud, in an image of `pixels`); `valid`: its finite
   // points before the crop; `started`: when making them began (the reduction's clock).
-  FrameResult run(std::vector<Eigen::Vector3f> raw, std::vector<int> pixel_of_raw, std::size_t pixels,
-                  std::size_t valid, std::chrono::steady_clock::time_point started,
-                  const std::optional<Eigen::Vector3f>& gravity_down_camera) const;
+  // `cones`: the ground cones to finish the frame for (processPerGroundCone); empty:
+  // this pipeline's own, one result.
+  std::vector<FrameResult> run(std::vector<Eigen::Vector3f> raw, std::vector<int> pixel_of_raw, std::size_t pixels,
+                               std::size_t valid, std::chrono::steady_clock::time_point started,
+                               const std::optional<Eigen::Vector3f>& gravity_down_camera,
+                               const std::vector<double>& cones = {}) const;
   PerceptionParams params_;
   gp::MobilityModel model_;
 };
