@@ -259,10 +259,14 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
   // the floor; what was given is recorded beside what was used.
   std::optional<Eigen::Vector3d> gravity_given;
   std::optional<double> gravity_floor_angle;
+  // A short run fuses the frames the check perceived rather than perceiving them again
+  // (kept below only while the gravity stays the one given).
+  PerceivedForRun perceived_for_run{pp.ground_max_tilt_deg, {}};
   if (gravity_world && !existing && !live && !oni) {
     gravity_given = gravity_world->normalized();
     const auto floor = floorNear(*gravity_given, is_dir ? dir.get() : nullptr, frames, is_dir ? nullptr : &single, pp,
-                                 model, o->skip_bad_frames);
+                                 model, o->skip_bad_frames,
+                                 is_dir && frames.size() <= kPerceiveForRunFrames ? &perceived_for_run : nullptr);
     if (floor) {
       gravity_floor_angle = angleDeg(*gravity_given, floor->vote.down);
       char text[400];
@@ -271,6 +275,7 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
                       gravity_source.c_str(), floor->vote.agreeing, floor->sampled, *gravity_floor_angle);
       } else if (o->gravity_refine == "on") {
         gravity_world = floor->vote.down;
+        perceived_for_run.results.clear();  // perceived with the gravity given, not this one
         std::snprintf(text, sizeof text, "%s, refined to the floor in %d of %zu sampled frames (%.2f degrees from it)",
                       gravity_source.c_str(), floor->vote.agreeing, floor->sampled, *gravity_floor_angle);
       } else {
@@ -656,7 +661,18 @@ int build::runBuild(BuildOptions& options, const LiveHooks* hooks) {
       pushed.push_back({number, *f.T_world_camera, bits});
     }
     try {
-      if (dir->hasDepth()) {
+      // A frame the gravity check perceived, with the hint LiveMapper would give it (else
+      // it is perceived again).
+      std::optional<perception::FrameResult> early;
+      if (const auto it = perceived_for_run.results.find(number); it != perceived_for_run.results.end()) {
+        if (it->second.gravity_down_camera == (f.T_world_camera->linear().transpose() * g_world.normalized()).cast<float>()) {
+          early = std::move(it->second.result);
+        }
+        perceived_for_run.results.erase(it);
+      }
+      if (early) {
+        mapper->push(mapping::PerceivedFrame{std::move(*early), std::move(*f.depth), dir->intrinsics(), *f.T_world_camera, 0.0});
+      } else if (dir->hasDepth()) {
         mapper->push(mapping::DepthFrame{std::move(*f.depth), dir->intrinsics(), *f.T_world_camera, 0.0});
       } else {
         mapper->push(mapping::CloudFrame{std::move(f.points), f.width, f.height, *f.T_world_camera, 0.0});

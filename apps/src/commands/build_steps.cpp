@@ -56,12 +56,15 @@ std::optional<mapping::DownObservation> floorVote(const perception::FrameResult&
 }
 
 FloorSample sampleFloors(const Sequence& dir, const std::vector<int>& frames, const perception::FramePipeline& finder,
-                         const std::function<Eigen::Vector3f(const Eigen::Matrix3d&)>& down_in_camera, bool skip_unreadable) {
+                         const std::function<Eigen::Vector3f(const Eigen::Matrix3d&)>& down_in_camera, bool skip_unreadable,
+                         PerceivedForRun* for_run) {
   FloorSample sample;
+  if (!dir.hasDepth()) for_run = nullptr;  // clouds: perceived by the run as always
   // Read in turn (a recording is read from one place), perceived on every core: the
   // sample is the wait before a run's first frame.
   const std::size_t samples = std::min<std::size_t>(8, frames.size());
   std::vector<Frame> loaded;
+  std::vector<int> numbers;
   for (std::size_t i = 0; i < samples; ++i) {
     const std::size_t at = samples == 1 ? 0 : i * (frames.size() - 1) / (samples - 1);
     Frame f;
@@ -74,8 +77,10 @@ FloorSample sampleFloors(const Sequence& dir, const std::vector<int>& frames, co
     if (!f.T_world_camera) continue;
     sample.rotations.push_back(f.T_world_camera->linear());
     loaded.push_back(std::move(f));
+    numbers.push_back(frames[at]);
   }
   std::vector<std::optional<mapping::DownObservation>> votes(loaded.size());
+  std::vector<std::optional<perception::FrameResult>> runs(loaded.size());
   std::atomic<std::size_t> next{0};
   std::exception_ptr failure;
   std::mutex failure_lock;
@@ -83,7 +88,15 @@ FloorSample sampleFloors(const Sequence& dir, const std::vector<int>& frames, co
     for (std::size_t i; (i = next++) < loaded.size();) {
       try {
         const Eigen::Matrix3d& r_wc = sample.rotations[i];
-        votes[i] = floorVote(perceive(finder, dir, loaded[i], down_in_camera(r_wc)), r_wc);
+        if (for_run) {
+          std::vector<perception::FrameResult> both = finder.processPerGroundCone(
+              *loaded[i].depth, dir.intrinsics(), down_in_camera(r_wc),
+              {finder.params().ground_max_tilt_deg, for_run->ground_cone_deg});
+          votes[i] = floorVote(both[0], r_wc);
+          runs[i] = std::move(both[1]);
+        } else {
+          votes[i] = floorVote(perceive(finder, dir, loaded[i], down_in_camera(r_wc)), r_wc);
+        }
       } catch (...) {
         const std::lock_guard<std::mutex> lock(failure_lock);
         if (!failure) failure = std::current_exception();
@@ -98,6 +111,11 @@ FloorSample sampleFloors(const Sequence& dir, const std::vector<int>& frames, co
   if (failure) std::rethrow_exception(failure);
   for (const auto& v : votes) {
     if (v) sample.floors.push_back(*v);
+  }
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    if (runs[i]) {
+      for_run->results.emplace(numbers[i], PerceivedForRun::Early{std::move(*runs[i]), down_in_camera(sample.rotations[i])});
+    }
   }
   return sample;
 }
@@ -129,7 +147,7 @@ GravityGuess estimateGravity(const Sequence& dir, const std::vector<int>& frames
 
 std::optional<FloorCheck> floorNear(const Eigen::Vector3d& given_down, const Sequence* dir, const std::vector<int>& frames,
                                     const Frame* single, const perception::PerceptionParams& pp,
-                                    const gp::MobilityModel& model, bool skip_unreadable) {
+                                    const gp::MobilityModel& model, bool skip_unreadable, PerceivedForRun* for_run) {
   perception::PerceptionParams p = pp;
   p.ground_max_tilt_deg = kGravityRefineConeDeg;
   const perception::FramePipeline finder(p, model);
@@ -140,7 +158,7 @@ std::optional<FloorCheck> floorNear(const Eigen::Vector3d& given_down, const Seq
     sample.rotations.push_back(r_wc);
     if (auto vote = floorVote(perceiveFrame(finder, *single, down_in_camera(r_wc)), r_wc)) sample.floors.push_back(*vote);
   } else {
-    sample = sampleFloors(*dir, frames, finder, down_in_camera, skip_unreadable);
+    sample = sampleFloors(*dir, frames, finder, down_in_camera, skip_unreadable, for_run);
   }
   const auto vote = mapping::consensusDown(sample.floors, 5.0);
   if (!vote || vote->weight_share < 0.5) return std::nullopt;

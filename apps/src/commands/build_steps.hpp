@@ -16,6 +16,7 @@
 #include <Eigen/Core>
 
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -130,8 +131,21 @@ struct FloorSample {
   std::vector<mapping::DownObservation> floors;
   std::vector<Eigen::Matrix3d> rotations;
 };
+// The sampled depth frames perceived for the run as well, with its ground cone and the
+// same gravity hint (FramePipeline::processPerGroundCone shares the stages before the
+// ground), by frame number: the run fuses these instead of perceiving them again when
+// its gravity is the one the sample was given.
+struct PerceivedForRun {
+  double ground_cone_deg = 0;
+  struct Early {
+    perception::FrameResult result;
+    Eigen::Vector3f gravity_down_camera;  ///< the hint it was perceived with
+  };
+  std::map<int, Early> results;
+};
 FloorSample sampleFloors(const Sequence& dir, const std::vector<int>& frames, const perception::FramePipeline& finder,
-                         const std::function<Eigen::Vector3f(const Eigen::Matrix3d&)>& down_in_camera, bool skip_unreadable);
+                         const std::function<Eigen::Vector3f(const Eigen::Matrix3d&)>& down_in_camera, bool skip_unreadable,
+                         PerceivedForRun* for_run = nullptr);
 
 struct GravityGuess {
   Eigen::Vector3d down;
@@ -153,6 +167,10 @@ GravityGuess estimateGravity(const Sequence& dir, const std::vector<int>& frames
 // kitchen floor normals spread over ~0.5 degrees).
 constexpr double kGravityRefineConeDeg = 10.0;
 constexpr double kGravityAgreesDeg = 1.0;
+// A run of at most this many frames keeps the results of the frames the gravity check
+// perceived (8, a few MB each) until it fuses them; a longer run perceives them again,
+// the check being then under ~5 % of its time.
+constexpr std::size_t kPerceiveForRunFrames = 120;
 
 // The floor near a given "down": up to 8 frames spread over the selection (or the lone
 // frame) look for a ground plane within kGravityRefineConeDeg of it; the floor normals,
@@ -161,9 +179,11 @@ struct FloorCheck {
   mapping::DownConsensus vote;
   std::size_t sampled = 0;
 };
+// With `for_run`, the sampled depth frames of `dir` are perceived for the run too.
 std::optional<FloorCheck> floorNear(const Eigen::Vector3d& given_down, const Sequence* dir, const std::vector<int>& frames,
                                     const Frame* single, const perception::PerceptionParams& pp,
-                                    const gp::MobilityModel& model, bool skip_unreadable);
+                                    const gp::MobilityModel& model, bool skip_unreadable,
+                                    PerceivedForRun* for_run = nullptr);
 
 // The map that --extend adds frames to: its tree, its metadata, and the frame it was
 // built in (gravity in the input's world frame and the rotation to the map frame).
