@@ -56,7 +56,7 @@ py::dict plan(const MapHandle& h, const py::handle& start, const py::handle& goa
   mapping::Plan p;
   {
     py::gil_scoped_release unlocked;
-    p = mapping::planFootsteps(h.map->tree(), s, g, params);
+    p = mapping::planFootsteps(h.map->surfaceColumns(), s, g, params);
   }
   const auto n = static_cast<py::ssize_t>(p.footsteps.size());
   auto xyz = newArray(n, 3), yaw = newArray(n), min_mobility = newArray(n), tilt = newArray(n);

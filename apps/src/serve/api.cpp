@@ -584,7 +584,7 @@ Response Api::handle(const std::string& method, const std::string& path,
         // when the server stops.
         mapping::Budget stop;
         stop.stop = &state_->stop;
-        plan = mapping::planFootsteps(map.tree(), from, to, plan_params, stop);
+        plan = mapping::planFootsteps(map.surfaceColumns(), from, to, plan_params, stop);
       } catch (const mapping::PlanInputError& e) {
         throw Refusal(400, e.what());
       } catch (const std::invalid_argument& e) {
