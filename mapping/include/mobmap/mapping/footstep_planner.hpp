@@ -34,8 +34,8 @@ struct PlanParams {
   double start_radius_m = 0.3;
   /// f = g + heuristic_weight * h. The heuristic is admissible: 1 finds the cheapest plan
   /// on the lattice; w > 1 finds a plan at most w times as costly as that, much faster.
-  /// On the corridor's 7-10 m plans 1.25 expanded 20-140 times fewer states than 1, for
-  /// paths 0.3-5 % longer (docs/PERFORMANCE.md, "Footstep planning").
+  /// On the corridor's 7-10 m plans 1.25 expanded 18-140 times fewer states than 1, for
+  /// plans 3-6 % costlier (docs/PERFORMANCE.md, "Footstep planning").
   double heuristic_weight = 1.25;
   double time_limit_s = 10.0;            ///< then the search gives up (found = false, with the reason)
   std::size_t max_expansions = 5000000;  ///< likewise
