@@ -1,6 +1,13 @@
 // The `mobmap` executable as a user runs it: score, simulate, help.
 #include "cli_support.hpp"
 
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <regex>
+#include <sstream>
+#include <vector>
+
 namespace mobmap::cli_test {
 namespace {
 
@@ -103,6 +110,71 @@ TEST(Cli, HelpListsTheSubcommands) {
   for (const char* c : {"simulate", "score", "demo", "analyze", "build", "query", "info", "evaluate", "export", "overlay", "config"}) {
     EXPECT_NE(r.out.find(c), std::string::npos) << c;
   }
+}
+
+// docs/CLI.md is the command reference: every subcommand `mobmap --help` lists has its
+// section there, and every option a subcommand's --help lists is named there, so the
+// two cannot drift apart.
+TEST(Cli, EveryCommandAndEveryOptionOfHelpIsInTheCommandReference) {
+  std::ifstream in(std::string(MOBMAP_SOURCE_DIR) + "/docs/CLI.md");
+  ASSERT_TRUE(in) << "docs/CLI.md";
+  const std::string doc((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const Result top = run("--help");
+  ASSERT_EQ(top.code, 0);
+  const std::size_t listed = top.out.find("Subcommands:");
+  ASSERT_NE(listed, std::string::npos);
+  std::istringstream lines(top.out.substr(listed));
+  std::string line;
+  std::getline(lines, line);
+  int commands = 0, options = 0;
+  while (std::getline(lines, line)) {
+    std::istringstream words(line);
+    std::string command;
+    if (!(words >> command)) continue;
+    ++commands;
+    EXPECT_NE(doc.find("\n## " + command + "\n"), std::string::npos) << "no section for " << command;
+    const Result help = run(command + " --help");
+    ASSERT_EQ(help.code, 0) << command;
+    // Option lines: indented, starting with the option's names ("-q,--quiet", "--out").
+    std::istringstream help_lines(help.out);
+    std::string h;
+    while (std::getline(help_lines, h)) {
+      static const std::regex option(R"(^\s+(?:-[A-Za-z],)?(--[a-z][a-z0-9-]*))");
+      std::smatch m;
+      if (!std::regex_search(h, m, option) || m[1] == "--help") continue;
+      ++options;
+      // The option as a whole name: "--frames" does not count for "--frame".
+      const std::regex named(m[1].str() + "(?![a-z0-9-])");
+      EXPECT_TRUE(std::regex_search(doc, named)) << command << " " << m[1] << " is not in docs/CLI.md";
+    }
+  }
+  EXPECT_GE(commands, 15);
+  EXPECT_GE(options, 200);
+}
+
+// Every Markdown link and image in README.md and docs/ that names a file of the
+// repository points at one that exists.
+TEST(Docs, EveryLinkInTheReadmeAndTheDocsResolves) {
+  namespace fs = std::filesystem;
+  const fs::path root = MOBMAP_SOURCE_DIR;
+  std::vector<fs::path> pages = {root / "README.md"};
+  for (const auto& e : fs::directory_iterator(root / "docs")) {
+    if (e.path().extension() == ".md") pages.push_back(e.path());
+  }
+  static const std::regex link(R"(\]\(([^)\s]+)\))");
+  int links = 0;
+  for (const fs::path& page : pages) {
+    std::ifstream in(page);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    for (auto it = std::sregex_iterator(text.begin(), text.end(), link); it != std::sregex_iterator(); ++it) {
+      std::string target = (*it)[1];
+      if (target.rfind('#', 0) == 0 || std::regex_search(target, std::regex("^[a-z]+:"))) continue;  // anchors, URLs
+      target = target.substr(0, target.find('#'));
+      ++links;
+      EXPECT_TRUE(fs::exists(page.parent_path() / target)) << page.filename() << " links to " << target << ", which is missing";
+    }
+  }
+  EXPECT_GE(links, 1);
 }
 
 }  // namespace
