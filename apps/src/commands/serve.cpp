@@ -37,9 +37,16 @@ extern "C" void onStopSignal(int) {
   (void)written;
 }
 
+// From here on SIGINT, SIGTERM and SIGHUP stop the server through the pipe. Called
+// before the line saying where it serves, so a signal sent on reading that line finds
+// the handler (the default action would end the process with the signal instead).
+void catchStopSignals() {
+  for (const int sig : {SIGINT, SIGTERM, SIGHUP}) std::signal(sig, onStopSignal);
+}
+
 // Returns once SIGINT, SIGTERM or SIGHUP arrives.
 void waitForStopSignal() {
-  for (const int sig : {SIGINT, SIGTERM, SIGHUP}) std::signal(sig, onStopSignal);
+  catchStopSignals();
   char byte = 0;
   while (::read(g_stop_pipe[0], &byte, 1) < 0 && errno == EINTR) {
   }
@@ -159,6 +166,7 @@ Command addServeCommand(CLI::App& app) {
       const serve::MapSource source(std::move(served));
       const serve::Api api(o->path, source, limits);
       const RunningServer server(api, o->address, o->port);
+      catchStopSignals();
       std::printf("serving %s at %s (Ctrl-C stops)\n", o->path.c_str(), urlOf(o->address, server.port()).c_str());
       std::fflush(stdout);
       waitForStopSignal();
@@ -236,6 +244,7 @@ Command addServeCommand(CLI::App& app) {
     }
     const int code = build::runBuild(b, &hooks);
     if (code != 0) return code;  // interrupted (the map is saved) or nothing to save
+    catchStopSignals();
     std::printf("saved %s; serving it at %s (Ctrl-C stops)\n", b.out.c_str(), url.c_str());
     std::fflush(stdout);
     waitForStopSignal();
