@@ -6,12 +6,11 @@
 
 #include <algorithm>
 #include <atomic>
-#include <exception>
-#include <mutex>
-#include <thread>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 #include <sstream>
+#include <thread>
 
 namespace mobmap::app::build {
 
@@ -82,8 +81,7 @@ FloorSample sampleFloors(const Sequence& dir, const std::vector<int>& frames, co
   std::vector<std::optional<mapping::DownObservation>> votes(loaded.size());
   std::vector<std::optional<perception::FrameResult>> runs(loaded.size());
   std::atomic<std::size_t> next{0};
-  std::exception_ptr failure;
-  std::mutex failure_lock;
+  std::vector<std::exception_ptr> failures(loaded.size());  // the first frame's in order is thrown
   const auto work = [&] {
     for (std::size_t i; (i = next++) < loaded.size();) {
       try {
@@ -98,8 +96,7 @@ FloorSample sampleFloors(const Sequence& dir, const std::vector<int>& frames, co
           votes[i] = floorVote(perceive(finder, dir, loaded[i], down_in_camera(r_wc)), r_wc);
         }
       } catch (...) {
-        const std::lock_guard<std::mutex> lock(failure_lock);
-        if (!failure) failure = std::current_exception();
+        failures[i] = std::current_exception();
       }
     }
   };
@@ -108,7 +105,9 @@ FloorSample sampleFloors(const Sequence& dir, const std::vector<int>& frames, co
   for (std::size_t t = 1; t < threads; ++t) pool.emplace_back(work);
   work();
   for (std::thread& t : pool) t.join();
-  if (failure) std::rethrow_exception(failure);
+  for (const std::exception_ptr& failure : failures) {
+    if (failure) std::rethrow_exception(failure);
+  }
   for (const auto& v : votes) {
     if (v) sample.floors.push_back(*v);
   }
