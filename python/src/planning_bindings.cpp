@@ -120,7 +120,7 @@ py::array_t<bool> reachable(const MapHandle& h, const py::handle& start, const p
   const auto in = p.unchecked<2>();
   {
     py::gil_scoped_release unlocked;
-    const mapping::Reachability reach = mapping::computeReachability(h.map->tree(), s, params);
+    const mapping::Reachability reach = mapping::computeReachability(h.map->surfaceColumns(), s, params);
     for (py::ssize_t i = 0; i < p.shape(0); ++i) {
       Eigen::Vector3d q(in(i, 0), in(i, 1), in(i, 2));
       if (frame == Frame::kWorld) q = h.map->worldToMap(q);

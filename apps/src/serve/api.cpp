@@ -411,7 +411,7 @@ Response Api::handle(const std::string& method, const std::string& path,
       std::shared_ptr<const mapping::Reachability> r;
       try {
         r = std::make_shared<const mapping::Reachability>(
-            mapping::computeReachability(map.tree(), q->from_map, q->params, budget));
+            mapping::computeReachability(map.surfaceColumns(), q->from_map, q->params, budget));
       } catch (const std::invalid_argument& e) {  // a step under two voxels of this map
         throw Refusal(400, std::string("\"reach\": ") + e.what());
       }
