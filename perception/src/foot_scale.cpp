@@ -8,6 +8,7 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <numeric>
@@ -103,11 +104,16 @@ void markUnsupported(const FrameResult& out, const Segment& seg, const View& vie
     const float x = q.dot(e1), y = q.dot(e2);
     x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
   }
+  // At most ~4 million cells (a 20 m floor at 1 cm) with the margins; coarser cells
+  // beyond. Sized in doubles, so a long thin segment cannot overflow the count.
   double cell = cell_m;
-  // At most ~4 million cells (a 20 m floor at 1 cm); coarser cells beyond.
-  while ((x1 - x0) / cell * (y1 - y0) / cell > 4e6) cell *= 2;
-  const int half = std::max(0, static_cast<int>(std::ceil((support_m / cell - 1.0) / 2.0 - 1e-9)));
-  const int pad = half + 2;  // room for a square that reaches into what the frame did not see
+  int half = 0, pad = 0;
+  const auto size = [&](double c) {
+    half = std::max(0, static_cast<int>(std::ceil((support_m / c - 1.0) / 2.0 - 1e-9)));
+    pad = half + 2;  // room for a square that reaches into what the frame did not see
+    return std::array<double, 2>{std::floor((x1 - x0) / c) + 1 + 2 * pad, std::floor((y1 - y0) / c) + 1 + 2 * pad};
+  };
+  for (auto wh = size(cell); wh[0] * wh[1] > 4e6; wh = size(cell)) cell *= 2;
   const int w = static_cast<int>((x1 - x0) / cell) + 1 + 2 * pad;
   const int h = static_cast<int>((y1 - y0) / cell) + 1 + 2 * pad;
   std::vector<std::uint8_t> full(static_cast<std::size_t>(w) * h, 0);
@@ -176,6 +182,13 @@ Eigen::MatrixX2d scoreAtFootScale(FrameResult& out, const Eigen::MatrixX2d& feat
   }
   lo.array() -= 2.5 * a;
   hi.array() += 2.5 * a;
+  // Cells per axis, checked before any index is formed from them: the linear index of
+  // a cell must fit a long (validate() keeps a >= 3.3 mm and points within max_range_m).
+  const Eigen::Array3d extent = ((hi - lo) / a).array() + 1;
+  if (!extent.allFinite() || extent.maxCoeff() > 2e6) {
+    throw std::invalid_argument("scoreAtFootScale: foot_window_m " + std::to_string(p.foot_window_m) + " over points " +
+                                std::to_string((hi - lo).maxCoeff()) + " m apart gives more than 2e6 cells a side");
+  }
   const Array3L dim = ((hi - lo) / a).cast<long>().array() + 1;
   const auto cellOf = [&](const Eigen::Vector3f& q, Array3L& c) {
     const Eigen::Vector3d f = (q.cast<double>() - lo) / a;

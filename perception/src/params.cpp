@@ -52,7 +52,11 @@ void validate(const PerceptionParams& p) {
   if (!(p.rough_max_slope_deg >= 0 && p.rough_max_slope_deg <= 90)) fail("rough_max_slope_deg", p.rough_max_slope_deg, "must be in [0, 90]");
   if (p.roughness_smoothing_passes < 1 || p.roughness_smoothing_passes > 10) fail("roughness_smoothing_passes", p.roughness_smoothing_passes, "must be 1..10");
   if (p.rough_smoothing_k < 3 || p.rough_smoothing_k > 200) fail("rough_smoothing_k", p.rough_smoothing_k, "must be 3..200");
-  if (!(p.foot_window_m >= 0 && p.foot_window_m <= 2.0)) fail("foot_window_m", p.foot_window_m, "must be in [0, 2]");
+  // A window is summed over cells a third of its width: 1 cm keeps every grid of a frame
+  // within max_range_m's reach far inside the sizes the sums can index.
+  if (!(p.foot_window_m == 0 || (p.foot_window_m >= 0.01 && p.foot_window_m <= 2.0))) {
+    fail("foot_window_m", p.foot_window_m, "must be 0 (off) or in [0.01, 2]");
+  }
   if (!(p.foot_support_m >= 0 && p.foot_support_m <= 2.0)) fail("foot_support_m", p.foot_support_m, "must be in [0, 2]");
   if (!(p.plane_ransac_distance_m > 0) || !std::isfinite(p.plane_ransac_distance_m)) fail("plane_ransac_distance_m", p.plane_ransac_distance_m, "must be finite and > 0");
   if (!(p.max_triangle_edge_m > 0) || !std::isfinite(p.max_triangle_edge_m)) fail("max_triangle_edge_m", p.max_triangle_edge_m, "must be finite and > 0");

@@ -140,6 +140,46 @@ TEST(FootScale, TheWindowIsValidated) {
   p.foot_window_m = 0.15;
   p.foot_support_m = std::nan("");
   EXPECT_THROW(validate(p), std::invalid_argument);
+  // A window so small that its grid's size would overflow is refused by name.
+  p.foot_support_m = 0.10;
+  for (const double tiny : {1e-9, 0.009}) {
+    p.foot_window_m = tiny;
+    try {
+      validate(p);
+      FAIL() << tiny;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("foot_window_m"), std::string::npos) << e.what();
+    }
+  }
+}
+
+// The smallest window and the largest support over points as far apart as the range
+// allows, and a segment 1 mm wide and hundreds of metres long: every grid stays within
+// its bounds (an overflow shows under the sanitizers, a huge grid as a failed
+// allocation), and every point is scored.
+TEST(FootScale, TheSmallestWindowOverTheWidestViewStaysWithinItsGrids) {
+  PerceptionParams p = footScale(0.01);
+  p.max_range_m = 1000;
+  p.foot_support_m = 2.0;
+  validate(p);
+  std::vector<Eigen::Vector3f> cloud;
+  // Two rough patches 1.4 km apart (one to each side, both within range) ...
+  for (const float side : {-700.0f, 700.0f}) {
+    for (int i = 0; i < 40; ++i) {
+      for (int j = 0; j < 40; ++j) {
+        const float x = side + 0.01f * static_cast<float>(i), y = 0.01f * static_cast<float>(j);
+        cloud.emplace_back(x, y, 500.0f + 0.004f * static_cast<float>((i * 7 + j * 13) % 5));
+      }
+    }
+  }
+  // ... and a thin strip 300 m long.
+  for (int i = 0; i < 30000; ++i) cloud.emplace_back(-150.0f + 0.01f * static_cast<float>(i), 3.0f, 400.0f);
+  FramePipeline pipe(p);
+  const FrameResult r = pipe.process(cloud, Eigen::Vector3f(0, 0, 1));
+  for (const Segment& g : r.segments) {
+    EXPECT_TRUE(std::isfinite(g.slope_deg));
+    EXPECT_TRUE(std::isfinite(g.roughness));
+  }
 }
 
 }  // namespace
