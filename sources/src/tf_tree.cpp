@@ -31,13 +31,24 @@ void TfTree::add(const std::string& parent, const std::string& child, std::int64
     link.samples.assign(1, s);
     return;
   }
-  // Kept sorted: samples come nearly in order, so the place is found near the end.
+  // Appended: a sample older than the last one marks the link for one sort (inserting
+  // each in place costs quadratic time in a recording whose stamps run backwards).
   auto& v = link.samples;
-  if (v.empty() || v.back().stamp_ns <= stamp_ns) {
-    v.push_back(s);
-  } else {
-    v.insert(std::upper_bound(v.begin(), v.end(), stamp_ns, [](std::int64_t when, const Sample& x) { return when < x.stamp_ns; }), s);
+  if (link.sorted && !v.empty() && stamp_ns < v.back().stamp_ns) {
+    link.sorted = false;
+    ++unsorted_links_;
   }
+  v.push_back(s);
+}
+
+void TfTree::sortSamples() {
+  if (unsorted_links_ == 0) return;
+  for (auto& [child, link] : links_) {
+    if (link.sorted) continue;
+    std::stable_sort(link.samples.begin(), link.samples.end(), [](const Sample& a, const Sample& b) { return a.stamp_ns < b.stamp_ns; });
+    link.sorted = true;
+  }
+  unsorted_links_ = 0;
 }
 
 bool TfTree::has(const std::string& frame) const {
@@ -116,6 +127,7 @@ std::optional<Eigen::Isometry3d> TfTree::linkAt(const std::string& child, const 
 
 std::optional<Eigen::Isometry3d> TfTree::lookup(const std::string& target, const std::string& source, std::int64_t stamp_ns,
                                                 std::int64_t max_gap_ns, std::string* why) const {
+  if (unsorted_links_ != 0) throw std::logic_error("TfTree::lookup: samples were added out of stamp order; call sortSamples() first");
   for (const std::string* f : {&target, &source}) {
     if (!has(*f)) {
       throw TfError("frame \"" + *f + "\" is not in the TF tree (its frames: " + listed(frames()) + ")");

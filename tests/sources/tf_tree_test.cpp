@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <vector>
 
 namespace mobmap::sources {
 namespace {
@@ -74,9 +75,49 @@ TEST(TfTree, NeverExtrapolatesAndHonoursTheGap) {
   ASSERT_TRUE(tree.lookup("odom", "base", 2 * kSecond, 2 * kSecond));
   expectNear(*tree.lookup("odom", "base", 2 * kSecond, 2 * kSecond), baseAt(2.0), 1e-9);
   ASSERT_TRUE(tree.lookup("odom", "base", 3 * kSecond, 0));
-  // Samples out of order are kept in order.
+  // Samples out of order are put in order once they are all in.
   add(tree, "odom", "base", 2 * kSecond, baseAt(2.0), false);
+  EXPECT_FALSE(tree.sorted());
+  EXPECT_THROW((void)tree.lookup("odom", "base", 2 * kSecond, kSecond), std::logic_error);
+  tree.sortSamples();
+  EXPECT_TRUE(tree.sorted());
   expectNear(*tree.lookup("odom", "base", 2500 * kSecond / 1000, kSecond), baseAt(2.5), 1e-9);
+}
+
+// Samples arriving in any order give, once sorted, the lookups of the same samples added
+// in stamp order, bit for bit; equal stamps keep the order they arrived in.
+TEST(TfTree, SamplesInAnyOrderGiveTheLookupsOfSamplesInOrder) {
+  constexpr int kSamples = 20000;
+  TfTree ascending, descending, shuffled;
+  std::vector<int> order(kSamples);
+  for (int i = 0; i < kSamples; ++i) order[static_cast<std::size_t>(i)] = i;
+  std::uint64_t state = 12345;
+  for (std::size_t i = order.size() - 1; i > 0; --i) {  // Fisher-Yates with a fixed LCG
+    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+    std::swap(order[i], order[(state >> 33) % (i + 1)]);
+  }
+  const std::int64_t step = kSecond / 100;
+  for (int i = 0; i < kSamples; ++i) add(ascending, "odom", "base", i * step, baseAt(i * 0.01), false);
+  for (int i = kSamples - 1; i >= 0; --i) add(descending, "odom", "base", i * step, baseAt(i * 0.01), false);
+  for (int i : order) add(shuffled, "odom", "base", i * step, baseAt(i * 0.01), false);
+  EXPECT_TRUE(ascending.sorted());
+  descending.sortSamples();
+  shuffled.sortSamples();
+  for (std::int64_t t = step / 3; t < (kSamples - 1) * step; t += 997 * step / 7) {
+    const auto a = ascending.lookup("odom", "base", t, step), d = descending.lookup("odom", "base", t, step),
+               s = shuffled.lookup("odom", "base", t, step);
+    ASSERT_TRUE(a && d && s) << t;
+    EXPECT_EQ(a->matrix(), d->matrix()) << t;
+    EXPECT_EQ(a->matrix(), s->matrix()) << t;
+    expectNear(*a, baseAt(static_cast<double>(t) * 1e-9), 1e-9);
+  }
+  // Two samples at one stamp: the later one added is the one found after the earlier.
+  TfTree twice;
+  add(twice, "odom", "base", 2 * kSecond, baseAt(2.0), false);
+  add(twice, "odom", "base", kSecond, baseAt(1.0), false);
+  add(twice, "odom", "base", kSecond, baseAt(5.0), false);
+  twice.sortSamples();
+  expectNear(*twice.lookup("odom", "base", kSecond, 0), baseAt(1.0), 1e-12);
 }
 
 TEST(TfTree, RefusesBrokenTrees) {

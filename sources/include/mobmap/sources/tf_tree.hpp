@@ -32,16 +32,25 @@ struct TfEdge {
 class TfTree {
  public:
   /// Adds `T_parent_child` (the child frame's pose in its parent's). A static transform
-  /// replaces an earlier one; a sampled one is kept by its stamp. TfError when the child
+  /// replaces an earlier one; a sampled one is kept by its stamp (samples that arrive out
+  /// of stamp order are appended and sorted once, by sortSamples()). TfError when the child
   /// already has another parent, is its own parent, or the rotation is not a unit
   /// quaternion (within 1e-3) or a value is not finite.
   void add(const std::string& parent, const std::string& child, std::int64_t stamp_ns, const Eigen::Vector3d& t,
            const Eigen::Quaterniond& q, bool is_static);
 
+  /// Puts every link's samples in stamp order (equal stamps keep the order they were
+  /// added in): O(n log n) once, however the samples arrived. lookup() needs it after
+  /// out-of-order samples.
+  void sortSamples();
+  /// True when every link's samples are in stamp order (no sortSamples() pending).
+  [[nodiscard]] bool sorted() const { return unsorted_links_ == 0; }
+
   /// `source`'s pose in `target` at `stamp_ns`: nullopt (with `why`) when a sampled
   /// transform on the way has no samples on both sides of the stamp within
   /// `max_gap_ns` of each other (or one at the stamp). TfError when a frame is missing
   /// from the tree, the two are not connected, or the way up from one meets a cycle.
+  /// std::logic_error when samples were added out of order since the last sortSamples().
   [[nodiscard]] std::optional<Eigen::Isometry3d> lookup(const std::string& target, const std::string& source,
                                                         std::int64_t stamp_ns, std::int64_t max_gap_ns,
                                                         std::string* why = nullptr) const;
@@ -65,11 +74,13 @@ class TfTree {
   struct Link {
     std::string parent;
     bool is_static = false;
-    std::vector<Sample> samples;  // sorted by stamp
+    std::vector<Sample> samples;  // sorted by stamp unless `sorted` is false
+    bool sorted = true;
   };
   std::optional<Eigen::Isometry3d> linkAt(const std::string& child, const Link& link, std::int64_t stamp_ns,
                                           std::int64_t max_gap_ns, std::string* why) const;
   std::map<std::string, Link> links_;  // by child frame
+  std::size_t unsorted_links_ = 0;
 };
 
 }  // namespace mobmap::sources
