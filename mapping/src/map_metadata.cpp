@@ -91,6 +91,7 @@ void fields(MapRun& r, V& v) {
   v("frames_selected", r.frames_selected);
   v("keyframes", r.keyframes);
   v("skipped", r.skipped);
+  v("recovered", r.recovered);
   v("depth_intrinsics", r.depth_intrinsics);
   v("poses", r.poses);
   v("max_pose_gap_s", r.max_pose_gap_s);

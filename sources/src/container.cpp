@@ -43,6 +43,15 @@ class Chain : public Container {
     }
     return out;
   }
+  std::string recovered() const override {
+    std::string out = note_;
+    for (const auto& p : parts_) {
+      const std::string r = p->recovered();
+      if (!r.empty()) out += (out.empty() ? "" : "; ") + r;
+    }
+    return out;
+  }
+  std::string note_;  // the folder's own (no metadata.yaml)
 
  private:
   int topicIndex(const ContainerTopic& t) {
@@ -83,27 +92,56 @@ std::unique_ptr<Container> openChain(std::vector<std::unique_ptr<Container>> par
 
 // A ROS 2 bag folder: its files in metadata.yaml's order (every .db3 / .mcap in it
 // when metadata.yaml does not list them).
+static std::vector<std::string> bagFiles(const std::string& dir) {
+  std::vector<std::string> names;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    const auto ext = e.path().extension();
+    if ((ext == ".db3" || ext == ".mcap") && e.is_regular_file(ec)) names.push_back(e.path().filename().string());
+  }
+  // rosbag2 numbers its files NAME_0, NAME_1, ... NAME_10: in that order, not the text's.
+  std::sort(names.begin(), names.end(), [](const std::string& a, const std::string& b) {
+    const auto number = [](const std::string& n, std::string* stem) {
+      const std::string base = fs::path(n).stem().string();
+      const auto us = base.find_last_of('_');
+      if (us == std::string::npos || us + 1 == base.size() || base.find_first_not_of("0123456789", us + 1) != std::string::npos ||
+          base.size() - us > 10) {
+        *stem = base;
+        return -1L;
+      }
+      *stem = base.substr(0, us);
+      return std::stol(base.substr(us + 1));
+    };
+    std::string sa, sb;
+    const long na = number(a, &sa), nb = number(b, &sb);
+    return sa != sb ? a < b : na != nb ? na < nb : a < b;
+  });
+  return names;
+}
+
+bool isBagFolderWithoutMetadata(const std::string& dir) {
+  std::error_code ec;
+  return fs::is_directory(dir, ec) && !fs::exists(fs::path(dir) / "metadata.yaml", ec) && !bagFiles(dir).empty();
+}
+
 std::unique_ptr<Container> openBagFolder(const std::string& dir) {
   const fs::path meta = fs::path(dir) / "metadata.yaml";
   std::vector<std::string> names;
-  try {
-    const YAML::Node root = YAML::LoadFile(meta.string());
-    const YAML::Node info = root["rosbag2_bagfile_information"];
-    if (!info) throw IoError(meta.string(), "has no rosbag2_bagfile_information: not a ROS 2 bag's metadata");
-    if (const YAML::Node files = info["relative_file_paths"]) {
-      for (const auto& f : files) names.push_back(f.as<std::string>());
+  std::error_code ec;
+  const bool has_meta = fs::exists(meta, ec);
+  if (has_meta) {
+    try {
+      const YAML::Node root = YAML::LoadFile(meta.string());
+      const YAML::Node info = root["rosbag2_bagfile_information"];
+      if (!info) throw IoError(meta.string(), "has no rosbag2_bagfile_information: not a ROS 2 bag's metadata");
+      if (const YAML::Node files = info["relative_file_paths"]) {
+        for (const auto& f : files) names.push_back(f.as<std::string>());
+      }
+    } catch (const YAML::Exception& e) {
+      throw IoError(meta.string(), std::string("cannot be read as YAML: ") + e.what());
     }
-  } catch (const YAML::Exception& e) {
-    throw IoError(meta.string(), std::string("cannot be read as YAML: ") + e.what());
   }
-  if (names.empty()) {
-    std::error_code ec;
-    for (const auto& e : fs::directory_iterator(dir, ec)) {
-      const auto ext = e.path().extension();
-      if (ext == ".db3" || ext == ".mcap") names.push_back(e.path().filename().string());
-    }
-    std::sort(names.begin(), names.end());
-  }
+  if (names.empty()) names = bagFiles(dir);
   if (names.empty()) throw IoError(dir, "a ROS 2 bag folder without .db3 or .mcap files");
   std::vector<std::unique_ptr<Container>> parts;
   for (const auto& name : names) {
@@ -121,7 +159,12 @@ std::unique_ptr<Container> openBagFolder(const std::string& dir) {
       throw IoError(p.string(), "a bag file mobmap does not read (ROS 2 bags store .db3 or .mcap files)");
     }
   }
-  return openChain(std::move(parts));
+  auto chain = std::make_unique<Chain>(std::move(parts));
+  if (!has_meta) {
+    chain->note_ = dir + ": no metadata.yaml (its recorder did not finish): its " + std::to_string(names.size()) + " bag file" +
+                   (names.size() == 1 ? "" : "s") + " read in order, as `ros2 bag reindex` would";
+  }
+  return chain;
 }
 
 

@@ -52,6 +52,8 @@ class Container {
   [[nodiscard]] virtual std::vector<std::uint8_t> read(const MessageRef& ref) const = 0;
   /// The files it reads (for commands that must not write over them).
   [[nodiscard]] virtual std::vector<std::string> files() const = 0;
+  /// How what a crashed writer left was read (a log merged, an index rebuilt), or "".
+  [[nodiscard]] virtual std::string recovered() const { return {}; }
 };
 
 /// "sensor_msgs/msg/Image" -> "sensor_msgs/Image".
@@ -61,12 +63,22 @@ bool wireOf(const std::string& encoding, ros::Wire* wire);
 
 std::unique_ptr<Container> openMcap(const std::string& path);
 std::unique_ptr<Container> openDb3(const std::string& path);
-/// A ROS 1 .bag (IoError when this build has no ROS 1 libraries).
+/// A ROS 1 .bag (IoError when this build has no ROS 1 libraries). A bag without its
+/// index (a `.bag.active` left by a killed `rosbag record`, or one cut short) is read by
+/// scanning its chunks, as `rosbag reindex` does, and recovered() says so.
 std::unique_ptr<Container> openRos1Bag(const std::string& path);
+/// A ROS 1 bag read record by record, without its index (ros1_scan.cpp).
+std::unique_ptr<Container> openRos1Unindexed(const std::string& path);
+/// True for NAME.bag.active (what `rosbag record` writes until it closes the bag).
+bool isActiveRos1Bag(const std::string& path);
 /// Several files of one ROS 2 bag (metadata.yaml's relative_file_paths), in order.
 std::unique_ptr<Container> openChain(std::vector<std::unique_ptr<Container>> parts);
 /// A ROS 2 bag folder: its files in metadata.yaml's order (every .db3 / .mcap in it
-/// when metadata.yaml does not list them). IoError for a file outside the folder.
+/// when metadata.yaml does not list them, or when there is no metadata.yaml: a recorder
+/// killed before writing it, whose folder is read as `ros2 bag reindex` would, and
+/// recovered() says so). IoError for a file outside the folder.
 std::unique_ptr<Container> openBagFolder(const std::string& dir);
+/// True for a folder holding a .db3 or .mcap file (what a killed ROS 2 recorder leaves).
+bool isBagFolderWithoutMetadata(const std::string& dir);
 
 }  // namespace mobmap::sources

@@ -4,7 +4,9 @@
 // chunk checked against its CRC when it has one. The summary section is not needed: one
 // pass over the data section finds every channel and message, so a file whose recorder
 // was killed before writing its summary reads up to where it ends.
+// What a hostile file's chunks can cost is bounded as chunk_cache.hpp says.
 
+#include "chunk_cache.hpp"
 #include "container.hpp"
 #include "file_reader.hpp"
 
@@ -16,13 +18,12 @@
 
 #include <cstring>
 #include <map>
-#include <mutex>
 
 namespace mobmap::sources {
 namespace {
 
 constexpr unsigned char kMagic[8] = {0x89, 'M', 'C', 'A', 'P', '0', '\r', '\n'};
-constexpr std::uint64_t kMaxRecordBytes = 1ULL << 30;  // a record's content, and a chunk's uncompressed size
+constexpr std::uint64_t kMaxRecordBytes = 1ULL << 30;  // a record's content as stored (also bounded by the file)
 constexpr std::uint64_t kUnchunked = ~0ULL;
 
 enum Op : std::uint8_t {
@@ -73,7 +74,7 @@ std::uint64_t le64(const std::uint8_t* p) {
 
 class McapContainer : public Container {
  public:
-  explicit McapContainer(const std::string& path) : file_(path) {
+  explicit McapContainer(const std::string& path) : file_(path), budget_(file_.size()) {
     std::uint8_t magic[8];
     if (file_.size() < 8 || !file_.readAt(0, magic, 8) || std::memcmp(magic, kMagic, 8) != 0) {
       throw IoError(path, "not an MCAP file (no MCAP magic at its start)");
@@ -121,9 +122,13 @@ class McapContainer : public Container {
       if (!file_.readAt(ref.b, content.data(), content.size())) throw IoError(file_.path(), "cannot read the message at byte " + std::to_string(ref.b));
       return payload(content.data(), content.size());
     }
-    std::shared_ptr<const std::vector<std::uint8_t>> records = cachedChunk(ref.a);
-    if (ref.b + ref.c > records->size()) throw IoError(file_.path(), "a message lies outside its chunk");
-    return payload(records->data() + ref.b, static_cast<std::size_t>(ref.c));
+    std::vector<std::uint8_t> content;
+    try {
+      content = cache_.copy(ref.a, declaredSize(ref.a), ref.b, ref.c, [&] { return unpackAgain(ref.a); });
+    } catch (const std::out_of_range& e) {
+      throw IoError(file_.path(), e.what());
+    }
+    return payload(content.data(), content.size());
   }
 
  private:
@@ -169,7 +174,8 @@ class McapContainer : public Container {
   }
 
   // The chunk's records, decompressed and checked; a reason on failure.
-  std::string unpack(const std::uint8_t* p, std::size_t n, std::vector<std::uint8_t>* records) const {
+  // `reading_again`: for a frame, after the pass over the file (chunk_cache.hpp's bounds).
+  std::string unpack(const std::uint8_t* p, std::size_t n, ChunkBytes* records, bool reading_again) const {
     Fields f(p, n);
     (void)f.get<std::uint64_t>();  // message start time
     (void)f.get<std::uint64_t>();  // message end time
@@ -178,7 +184,7 @@ class McapContainer : public Container {
     const std::string compression = f.str();
     const auto stored = f.get<std::uint64_t>();
     if (stored > f.left()) return "its records run past its end";
-    if (size > kMaxRecordBytes) return "it claims " + std::to_string(size) + " bytes uncompressed (at most 1 GiB read)";
+    if (std::string over = budget_.charge(size, reading_again); !over.empty()) return over;
     const std::uint8_t* in = f.here();
     // What the declared size is checked against before it is allocated.
     if (compression.empty() && stored != size) {
@@ -234,8 +240,8 @@ class McapContainer : public Container {
 
   std::optional<ContainerFault> chunk(const std::vector<std::uint8_t>& content, std::uint64_t at,
                                       const std::function<void(const RawMessage&)>& visit) {
-    std::vector<std::uint8_t> records;
-    const std::string err = unpack(content.data(), content.size(), &records);
+    ChunkBytes records;
+    const std::string err = unpack(content.data(), content.size(), &records, false);
     if (!err.empty()) return fault("the chunk at byte " + std::to_string(at) + " is unreadable: " + err);
     std::size_t i = 0;
     while (i < records.size()) {
@@ -249,31 +255,28 @@ class McapContainer : public Container {
     return std::nullopt;
   }
 
-  std::shared_ptr<const std::vector<std::uint8_t>> cachedChunk(std::uint64_t at) const {
-    {
-      std::lock_guard<std::mutex> lock(cache_mutex_);
-      for (const auto& [offset, records] : cache_) {
-        if (offset == at) return records;
-      }
-    }
+  // The uncompressed size the chunk record at `at` declares (0 when it cannot be read).
+  std::uint64_t declaredSize(std::uint64_t at) const {
+    std::uint8_t head[9 + 24];
+    return file_.readAt(at, head, sizeof head) ? le64(head + 9 + 16) : 0;
+  }
+
+  // The chunk at `at` decompressed again, for a frame.
+  ChunkBytes unpackAgain(std::uint64_t at) const {
     std::uint8_t head[9];
     if (!file_.readAt(at, head, 9) || head[0] != kChunk) throw IoError(file_.path(), "no chunk at byte " + std::to_string(at));
     const std::uint64_t len = le64(head + 1);
     if (len > kMaxRecordBytes || len > file_.size() - at - 9) throw IoError(file_.path(), "the chunk at byte " + std::to_string(at) + " is cut short");
     std::vector<std::uint8_t> content(static_cast<std::size_t>(len));
     if (!file_.readAt(at + 9, content.data(), content.size())) throw IoError(file_.path(), "cannot read the chunk at byte " + std::to_string(at));
-    auto records = std::make_shared<std::vector<std::uint8_t>>();
+    ChunkBytes records;
     std::string err;
     try {
-      err = unpack(content.data(), content.size(), records.get());
+      err = unpack(content.data(), content.size(), &records, true);
     } catch (const ros::MessageError& e) {
       err = e.what();
     }
     if (!err.empty()) throw IoError(file_.path(), "the chunk at byte " + std::to_string(at) + " is unreadable: " + err);
-    std::lock_guard<std::mutex> lock(cache_mutex_);
-    // A few chunks kept: frames are read in order, by a few threads at once.
-    if (cache_.size() >= 4) cache_.erase(cache_.begin());
-    cache_.emplace_back(at, records);
     return records;
   }
 
@@ -281,8 +284,8 @@ class McapContainer : public Container {
   std::map<std::uint16_t, std::string> schemas_;
   std::map<std::uint16_t, int> channels_;
   std::vector<ContainerTopic> topics_;
-  mutable std::mutex cache_mutex_;
-  mutable std::vector<std::pair<std::uint64_t, std::shared_ptr<const std::vector<std::uint8_t>>>> cache_;
+  InflateBudget budget_;
+  ChunkCache cache_;
 };
 
 }  // namespace

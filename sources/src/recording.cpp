@@ -23,6 +23,8 @@ constexpr const char* kImage = "sensor_msgs/Image";
 constexpr const char* kCompressed = "sensor_msgs/CompressedImage";
 constexpr const char* kCameraInfo = "sensor_msgs/CameraInfo";
 constexpr const char* kTf = "tf2_msgs/TFMessage";
+// The pre-tf2 type (ROS 1 bags before Hydro's tf2, the TUM RGB-D dataset's): the same fields.
+constexpr const char* kTfOld = "tf/tfMessage";
 constexpr const char* kImu = "sensor_msgs/Imu";
 constexpr double kGravity = 9.80665;
 
@@ -48,6 +50,7 @@ struct IndexedImage {
   std::size_t order;  // stored order, to keep equal stamps stable
   MessageRef ref;
   std::uint32_t frame_id;
+  std::uint64_t bytes;  // the message's size as stored
 };
 
 class BagRecording : public Recording {
@@ -56,20 +59,22 @@ class BagRecording : public Recording {
     std::error_code ec;
     const fs::path p(path);
     if (fs::is_directory(p, ec)) {
-      if (!fs::exists(p / "metadata.yaml", ec)) throw IoError(path, "a folder without metadata.yaml is not a ROS 2 bag");
+      if (!fs::exists(p / "metadata.yaml", ec) && !isBagFolderWithoutMetadata(path)) {
+        throw IoError(path, "a folder without metadata.yaml or .db3 / .mcap files is not a ROS 2 bag");
+      }
       container_ = openBagFolder(path);
     } else if (p.extension() == ".mcap") {
       container_ = openMcap(path);
     } else if (p.extension() == ".db3") {
       container_ = openDb3(path);
-    } else if (p.extension() == ".bag") {
+    } else if (p.extension() == ".bag" || isActiveRos1Bag(path)) {
       container_ = openRos1Bag(path);
     } else {
       throw IoError(path, "not a recording mobmap reads (a ROS 2 bag folder, .db3 or .mcap, or a ROS 1 .bag)");
     }
     const auto files = container_->files();
     const bool mcap = std::all_of(files.begin(), files.end(), [](const std::string& f) { return fs::path(f).extension() == ".mcap"; });
-    const bool ros1 = p.extension() == ".bag";
+    const bool ros1 = p.extension() == ".bag" || isActiveRos1Bag(path);
     format_ = ros1 ? "ROS 1 bag" : mcap ? "ROS 2 bag (MCAP)" : "ROS 2 bag (sqlite3)";
     index();
     try {
@@ -113,6 +118,7 @@ class BagRecording : public Recording {
   std::int64_t stamp(int n) const override { return images_.at(static_cast<std::size_t>(n)).stamp_ns; }
   std::string skipped() const override { return skipped_; }
   const std::string& fault() const override { return fault_; }
+  std::string recovered() const override { return container_->recovered(); }
   const std::string& problem() const override { return problem_; }
   std::vector<std::string> files() const override { return container_->files(); }
   std::size_t memoryBytes() const override {
@@ -158,7 +164,7 @@ class BagRecording : public Recording {
       ros::Wire wire;
       if (!wireOf(topic.encoding, &wire)) return;
       try {
-        if (topic.type == kTf) {
+        if (topic.type == kTf || topic.type == kTfOld) {
           // /tf_static, or a robot's namespaced one (/robot1/tf_static).
           const bool is_static = topic.name.size() >= 10 && topic.name.compare(topic.name.size() - 10, 10, "/tf_static") == 0;
           for (const auto& t : ros::decodeTfMessage(m.data, m.size, wire)) {
@@ -183,6 +189,7 @@ class BagRecording : public Recording {
           img.stamp_ns = h.stamp_ns;
           img.order = order++;
           img.ref = m.ref;
+          img.bytes = m.size;
           const auto id = frame_ids.emplace(strip(h.frame_id), static_cast<std::uint32_t>(frame_ids.size()));
           img.frame_id = id.first->second;
           images[m.topic].push_back(img);
@@ -194,6 +201,7 @@ class BagRecording : public Recording {
       }
     });
     if (fault) fault_ = fault->what;
+    tf_.sortSamples();
     const auto& topics = container_->topics();
     stats.resize(topics.size());
     frame_ids_.resize(frame_ids.size());
@@ -286,11 +294,20 @@ class BagRecording : public Recording {
       chooseCameraInfo();
     }
     checkSize(first, 0);
+    camera_known_ = true;
   }
 
   perception::DepthImage decodeDepth(int n, double* units_per_m = nullptr) const {
     const IndexedImage& img = images_.at(static_cast<std::size_t>(n));
     const std::string what = imageLabel(n);
+    // Once the camera is known, no image is read that is larger than its pixels can need
+    // (8 bytes a pixel, rows padded to twice their width, and 1 MiB for the rest): a
+    // hostile recording's huge message is refused before it is in memory.
+    const auto pixels = static_cast<std::uint64_t>(intrinsics_.width) * static_cast<std::uint64_t>(intrinsics_.height);
+    if (camera_known_ && img.bytes > 8 * pixels + (1u << 20)) {
+      throw IoError(what, "its message is " + std::to_string(img.bytes) + " bytes, more than a " + std::to_string(intrinsics_.width) +
+                              "x" + std::to_string(intrinsics_.height) + " depth image can need");
+    }
     const std::vector<std::uint8_t> bytes = container_->read(img.ref);
     try {
       if (depth_compressed_) {
@@ -521,6 +538,7 @@ class BagRecording : public Recording {
   bool depth_compressed_ = false;
   ros::Wire depth_wire_ = ros::Wire::kCdr;
   perception::PinholeIntrinsics intrinsics_;
+  bool camera_known_ = false;  // intrinsics_ is the camera's (chooseTopics() done)
   std::unique_ptr<Undistorter> undistort_;
   std::string distortion_note_;
   double units_per_m_ = 1000.0;  // the first image's; every image of a topic has its encoding
@@ -537,9 +555,9 @@ class BagRecording : public Recording {
 bool isRecording(const std::string& path) {
   std::error_code ec;
   const fs::path p(path);
-  if (fs::is_directory(p, ec)) return fs::exists(p / "metadata.yaml", ec);
+  if (fs::is_directory(p, ec)) return fs::exists(p / "metadata.yaml", ec) || isBagFolderWithoutMetadata(path);
   const auto ext = p.extension();
-  return ext == ".mcap" || ext == ".db3" || ext == ".bag";
+  return ext == ".mcap" || ext == ".db3" || ext == ".bag" || isActiveRos1Bag(path);
 }
 
 std::unique_ptr<Recording> Recording::open(const std::string& path, const RecordingOptions& options) {

@@ -33,18 +33,7 @@ class Ros1Container : public Container {
     if (version != "#ROSBAG V2.0\n") {
       throw IoError(path, "a ROS 1 bag of format " + version.substr(9, 3) + "; mobmap reads format 2.0 (`rosbag fix` converts it)");
     }
-    constexpr const char* kNoIndex =
-        "the bag has no index: it was cut short or its recorder was killed before closing it (its index is written "
-        "at its end; `rosbag reindex` repairs it)";
-    try {
-      bag_.open(path, rosbag::bagmode::Read);
-    } catch (const rosbag::BagUnindexedException&) {
-      throw IoError(path, kNoIndex);
-    } catch (const rosbag::BagIOException&) {
-      throw IoError(path, kNoIndex);
-    } catch (const rosbag::BagException& e) {
-      throw IoError(path, std::string("not a ROS 1 bag mobmap reads (") + e.what() + ")");
-    }
+    bag_.open(path, rosbag::bagmode::Read);  // openRos1Bag() reads a bag without its index another way
   }
 
   std::optional<ContainerFault> scan(const std::function<void(const RawMessage&)>& visit) override {
@@ -118,6 +107,19 @@ class Ros1Container : public Container {
 
 }  // namespace
 
-std::unique_ptr<Container> openRos1Bag(const std::string& path) { return std::make_unique<Ros1Container>(path); }
+std::unique_ptr<Container> openRos1Bag(const std::string& path) {
+  // A bag without its index (cut short, or its recorder killed before closing it) is
+  // read by scanning its chunks, as `rosbag reindex` does.
+  if (isActiveRos1Bag(path)) return openRos1Unindexed(path);
+  try {
+    return std::make_unique<Ros1Container>(path);
+  } catch (const rosbag::BagUnindexedException&) {
+    return openRos1Unindexed(path);
+  } catch (const rosbag::BagIOException&) {
+    return openRos1Unindexed(path);
+  } catch (const rosbag::BagException& e) {
+    throw IoError(path, std::string("not a ROS 1 bag mobmap reads (") + e.what() + ")");
+  }
+}
 
 }  // namespace mobmap::sources

@@ -25,6 +25,9 @@
 //   --frames N             only the first N frames
 //   --repeat K             the frames K times over, one after another (a long recording)
 //   --crop WxH             only the top-left W x H pixels of each image (small fuzzing seeds)
+//   --pad-mib M            after each image, a message of M MiB of zeros on /padding (a
+//                          type mobmap does not read): chunks that compress to little and
+//                          expand to M MiB each
 //   --fault bigendian|step|size|cycle|no-static|two-parents
 //                          a recording that is wrong in one way: big-endian depth, a step
 //                          shorter than a row, a camera_info of another size, a TF cycle
@@ -275,6 +278,11 @@ numbers.forEach((n, i) => {
     });
   }
 });
+if (args["pad-mib"]) {
+  const bytes = Number(args["pad-mib"]) * 1024 * 1024;
+  numbers.forEach((n, i) => messages.push({ topic: "/padding", type: "mobmap_test/msg/Padding", t: stampOf(i), data: new Uint8Array(bytes) }));
+  defs["mobmap_test/msg/Padding"] = "uint8[] data";
+}
 messages.sort((a, b) => (a.t < b.t ? -1 : a.t > b.t ? 1 : 0));
 
 // A 16-bit greyscale PNG (no filtering) for compressed inverse depth.

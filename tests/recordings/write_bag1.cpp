@@ -3,11 +3,14 @@
 // reading is checked against ROS's own serialisation.
 //
 //   write_bag1 --seq DIR --out FILE.bag [--compression none|bz2|lz4] [--layout camera|base]
-//              [--world map|odom] [--frames N]
+//              [--world map|odom] [--frames N] [--tf tf2|old] [--killed-after N] [--chunk-kb K]
 //
 // The layouts are write_bag.mjs's: camera (map -> optical frame on /tf) or base (map ->
 // odom, odom -> base_link sampled 5 ms either side of each image, the mounting on
-// /tf_static).
+// /tf_static). `--tf old` writes TF as the pre-tf2 type tf/tfMessage (the layout and MD5 of
+// tf2_msgs/TFMessage under the name older bags carry). `--killed-after N` ends the
+// process after the N-th image without closing the bag, as a killed `rosbag record`
+// leaves it (no index; what rosbag had not handed to the OS is lost).
 #include "mobmap/sources/png.hpp"
 
 #include <Eigen/Geometry>
@@ -18,11 +21,33 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <string>
 #include <vector>
+
+// tf/tfMessage: tf2_msgs/TFMessage's fields and MD5 under the old name.
+struct OldTfMessage : tf2_msgs::TFMessage {};
+
+namespace ros {
+namespace message_traits {
+template <>
+struct DataType<OldTfMessage> {
+  static const char* value() { return "tf/tfMessage"; }
+  static const char* value(const OldTfMessage&) { return value(); }
+};
+template <>
+struct MD5Sum<OldTfMessage> : MD5Sum<tf2_msgs::TFMessage> {};
+template <>
+struct Definition<OldTfMessage> : Definition<tf2_msgs::TFMessage> {};
+}  // namespace message_traits
+namespace serialization {
+template <>
+struct Serializer<OldTfMessage> : Serializer<tf2_msgs::TFMessage> {};
+}  // namespace serialization
+}  // namespace ros
 
 namespace {
 
@@ -65,7 +90,7 @@ geometry_msgs::TransformStamped transform(const ros::Time& t, const std::string&
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::map<std::string, std::string> args{{"compression", "lz4"}, {"layout", "camera"}, {"world", "map"}, {"frames", "0"}};
+  std::map<std::string, std::string> args{{"compression", "lz4"}, {"layout", "camera"}, {"world", "map"}, {"frames", "0"}, {"tf", "tf2"}, {"killed-after", "0"}, {"chunk-kb", "512"}};
   for (int i = 1; i + 1 < argc; i += 2) args[std::string(argv[i]).substr(2)] = argv[i + 1];
   if (!args.count("seq") || !args.count("out")) {
     std::fprintf(stderr, "usage: write_bag1 --seq DIR --out FILE.bag [options]\n");
@@ -87,7 +112,7 @@ int main(int argc, char** argv) {
   bag.setCompression(args["compression"] == "bz2"   ? rosbag::compression::BZ2
                      : args["compression"] == "lz4" ? rosbag::compression::LZ4
                                                     : rosbag::compression::Uncompressed);
-  bag.setChunkThreshold(512 * 1024);
+  bag.setChunkThreshold(static_cast<std::uint32_t>(std::stoi(args["chunk-kb"])) * 1024);
   const std::string optical = "camera_depth_optical_frame";
   const bool base = args["layout"] == "base", map_world = args["world"] == "map";
   const Eigen::Isometry3d T_map_odom = pose(Eigen::Vector3d::UnitZ(), 0.5, Eigen::Vector3d(3.0, -2.0, 0.0));
@@ -96,10 +121,17 @@ int main(int argc, char** argv) {
   T_link_optical.linear() << 0, 0, 1, -1, 0, 0, 0, -1, 0;
   T_link_optical.translation() = Eigen::Vector3d(0.0, 0.02, 0.0);
   const ros::Time t0(1700000000, 0);
+  const bool old_tf = args["tf"] == "old";
+  auto writeTf = [&](const std::string& topic, const ros::Time& t, const tf2_msgs::TFMessage& m) {
+    if (!old_tf) return bag.write(topic, t, m);
+    OldTfMessage old;
+    old.transforms = m.transforms;
+    bag.write(topic, t, old);
+  };
   if (base) {
     tf2_msgs::TFMessage statics;
     statics.transforms = {transform(t0, "base_link", "camera_link", T_base_link), transform(t0, "camera_link", optical, T_link_optical)};
-    bag.write("/tf_static", t0, statics);
+    writeTf("/tf_static", t0, statics);
   }
   for (std::size_t i = 0; i < depths.size(); ++i) {
     const ros::Time t = t0 + ros::Duration(0, static_cast<std::int32_t>(std::llround(static_cast<double>(i) * 1e9 / 30.0)));
@@ -108,7 +140,7 @@ int main(int argc, char** argv) {
     if (!base) {
       tf2_msgs::TFMessage tf;
       tf.transforms = {transform(t, args["world"], optical, T_world_camera)};
-      bag.write("/tf", t, tf);
+      writeTf("/tf", t, tf);
     } else {
       // Samples 5 ms either side, turned and moved by equal and opposite amounts.
       const Eigen::Isometry3d T_odom_base =
@@ -122,7 +154,7 @@ int main(int argc, char** argv) {
         tf2_msgs::TFMessage tf;
         tf.transforms = {transform(ts, "odom", "base_link", T)};
         if (map_world) tf.transforms.push_back(transform(ts, "map", "odom", T_map_odom));
-        bag.write("/tf", ts, tf);
+        writeTf("/tf", ts, tf);
       }
     }
     const mobmap::sources::Image16 png = mobmap::sources::readPng16(depths[i]);
@@ -148,6 +180,7 @@ int main(int argc, char** argv) {
       img.data[2 * k + 1] = static_cast<std::uint8_t>(png.pixels[k] >> 8);
     }
     bag.write("/camera/depth/image_raw", t, img);
+    if (static_cast<std::size_t>(std::stoi(args["killed-after"])) == i + 1) std::_Exit(0);
   }
   bag.close();
   return 0;

@@ -201,6 +201,9 @@ void BuildRun::openInput() {
       frames = std::move(kept);
     }
     if (!o->quiet) std::fprintf(stderr, "%s\n", dir->describe().c_str());
+    if (dir->recording() && !dir->recording()->recovered().empty()) {
+      std::fprintf(stderr, "warning: a recording its recorder did not finish, recovered: %s\n", dir->recording()->recovered().c_str());
+    }
     if (!dir->skipped().empty()) {
       const bool ended_early = dir->recording() && !dir->recording()->fault().empty();
       std::fprintf(stderr, "%s: %s\n", ended_early ? "warning" : "note", dir->skipped().c_str());

@@ -72,6 +72,7 @@ mapping::MapMetadata BuildRun::writeMap(const mapping::MobilityMap& map, bool ch
     run.depth_topic = rec->depthTopic();
     if (!rec->cameraInfoTopic().empty()) run.camera_info_topic = rec->cameraInfoTopic();
     if (!rec->worldFrame().empty()) run.world_frame = rec->worldFrame();
+    if (!rec->recovered().empty()) run.recovered = rec->recovered();
   }
   if (no_pose > 0) run.frames_without_pose = no_pose;
   run.unreadable = unreadable;

@@ -45,6 +45,7 @@ int describeRecording(const std::string& path, const RecordingChoice& choice, do
     j["problem"] = rec->problem();
   }
   if (!rec->fault().empty()) j["fault"] = rec->fault();
+  if (!rec->recovered().empty()) j["recovered"] = rec->recovered();
   if (json) {
     std::printf("%s\n", j.dump().c_str());
     return 0;
@@ -64,6 +65,7 @@ int describeRecording(const std::string& path, const RecordingChoice& choice, do
       std::printf("  %s -> %s (%zu samples)\n", e.parent.c_str(), e.child.c_str(), e.samples);
     }
   }
+  if (!rec->recovered().empty()) std::printf("\nwarning: a recording its recorder did not finish, recovered: %s\n", rec->recovered().c_str());
   if (!rec->fault().empty()) std::printf("\nwarning: the recording ends early (%s)\n", rec->fault().c_str());
   if (!chosen) {
     std::printf("\nbuild cannot read it as it is: %s\n", rec->problem().c_str());

@@ -63,6 +63,9 @@ struct MapRun {
   std::optional<long long> frames_selected;
   std::optional<KeyframeRecord> keyframes;
   std::optional<std::string> skipped;    ///< what reading the input skipped, in words
+  /// How a recording left by a crashed recorder was read (no metadata.yaml, a
+  /// write-ahead log merged, a ROS 1 bag without its index), in words.
+  std::optional<std::string> recovered;
   std::optional<DepthCameraRecord> depth_intrinsics;
   std::optional<std::string> poses;      ///< the trajectory file, absolute
   std::optional<double> max_pose_gap_s;

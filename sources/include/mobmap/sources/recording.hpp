@@ -60,7 +60,8 @@ struct RecordingFrame {
   std::optional<Eigen::Isometry3d> T_world_camera;
 };
 
-/// True for what open() reads: a .mcap or .db3 file, or a folder with metadata.yaml.
+/// True for what open() reads: a .mcap, .db3, .bag or .bag.active file, a folder with
+/// metadata.yaml, or one with .db3 / .mcap files and no metadata.yaml (a crashed recorder's).
 bool isRecording(const std::string& path);
 
 class Recording {
@@ -106,6 +107,10 @@ class Recording {
   [[nodiscard]] virtual std::string skipped() const = 0;
   /// Where the recording's bytes ended early or failed a check, or "".
   [[nodiscard]] virtual const std::string& fault() const = 0;
+  /// What a crashed recorder left and how it was read, or "": a ROS 2 bag folder without
+  /// metadata.yaml, messages recovered from a .db3's write-ahead log, a ROS 1 bag
+  /// without its index (a `.bag.active`) read chunk by chunk.
+  [[nodiscard]] virtual std::string recovered() const = 0;
   /// With RecordingOptions::describe_only: why no frames could be chosen, or "".
   [[nodiscard]] virtual const std::string& problem() const = 0;
   [[nodiscard]] virtual std::vector<std::string> files() const = 0;

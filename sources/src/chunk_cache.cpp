@@ -1,0 +1,53 @@
+#include "chunk_cache.hpp"
+
+#include <iterator>
+#include <stdexcept>
+
+namespace mobmap::sources {
+namespace {
+
+std::string mib(std::uint64_t bytes) { return std::to_string(bytes >> 20) + " MiB"; }
+
+}  // namespace
+
+std::string InflateBudget::charge(std::uint64_t declared, bool reading_again, unsigned weight) const {
+  if (declared > kMaxChunkBytes) {
+    return "it claims " + std::to_string(declared) + " bytes uncompressed (mobmap reads chunks of at most " + mib(kMaxChunkBytes) + ")";
+  }
+  const std::uint64_t bytes = declared * weight;
+  const std::uint64_t pass = (1ULL << 30) + 1024 * file_bytes_;
+  const std::uint64_t limit = reading_again ? 2 * pass : pass;
+  std::uint64_t spent = spent_.load();
+  do {
+    if (spent > limit - bytes) {
+      return "the file's chunks would decompress to more than " + mib(limit) + " in all (1 GiB + 1024 times the file's " +
+             std::to_string(file_bytes_) + " bytes" + (reading_again ? ", twice over with the frames read again" : "") +
+             (weight > 1 ? "; bzip2's bytes count " + std::to_string(weight) + " times" : "") +
+             "): a decompression bomb, or chunks far beyond any recorder's";
+    }
+  } while (!spent_.compare_exchange_weak(spent, spent + bytes));
+  return {};
+}
+
+std::vector<std::uint8_t> ChunkCache::copy(std::uint64_t at, std::uint64_t declared, std::uint64_t begin, std::uint64_t n,
+                                           const std::function<ChunkBytes()>& load) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = chunks_.begin();
+  while (it != chunks_.end() && it->first != at) ++it;
+  if (it != chunks_.end()) {
+    chunks_.splice(chunks_.end(), chunks_, it);  // the most recent last
+  } else {
+    while (!chunks_.empty() && bytes_ + declared > kCacheBytes) {  // room first
+      bytes_ -= chunks_.front().second.size();
+      chunks_.pop_front();
+    }
+    ChunkBytes records = load();
+    bytes_ += records.size();
+    chunks_.emplace_back(at, std::move(records));
+  }
+  const ChunkBytes& records = chunks_.back().second;
+  if (begin > records.size() || n > records.size() - begin) throw std::out_of_range("a message lies outside its chunk");
+  return {records.begin() + static_cast<std::ptrdiff_t>(begin), records.begin() + static_cast<std::ptrdiff_t>(begin + n)};
+}
+
+}  // namespace mobmap::sources
