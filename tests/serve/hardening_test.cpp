@@ -364,6 +364,53 @@ TEST_F(Hardened, HeavyRequestsTakeAPlaceAndAStopEndsTheirWork) {
   }
 }
 
+// A level's surface cells and a level's layers were worked out under the cache's lock
+// with no place among the heavy requests and no time limit: now each takes a heavy place
+// when it is not kept yet, answers from what is kept without one, stops when the server
+// stops, and a level asked for outright stops at two pages of cells (413).
+TEST_F(Hardened, VoxelsAndLayersAreHeavyUntilKeptAndBounded) {
+  app::serve::ServedMap served;
+  served.map = std::make_shared<const mapping::MobilityMap>(mapping::openMap(map()));
+  const std::size_t fine = app::serve::surfaceCells(served.map->tree(), 0).size();
+  const app::serve::MapSource source(std::move(served));
+  app::serve::Limits none;
+  none.max_heavy_requests = 0;
+  const app::serve::Api full("m.ot", source, none);
+  const auto get = [](const app::serve::Api& api, const std::string& path, const std::multimap<std::string, std::string>& q = {}) {
+    return api.handle("GET", path, q, "");
+  };
+  EXPECT_EQ(get(full, "/api/info").status, 200);  // light: never waits for a place
+  for (const char* path : {"/api/voxels", "/api/layer"}) {
+    const app::serve::Response r = get(full, path);
+    EXPECT_EQ(r.status, 503) << path << ": " << r.body;
+    EXPECT_NE(r.body.find("heavy requests"), std::string::npos) << r.body;
+  }
+  const app::serve::Api open("m.ot", source);
+  const app::serve::Response voxels = get(open, "/api/voxels"), layer = get(open, "/api/layer");
+  ASSERT_EQ(voxels.status, 200) << voxels.body;
+  ASSERT_EQ(layer.status, 200) << layer.body;
+  EXPECT_EQ(nlohmann::json::parse(voxels.body)["total"].get<std::size_t>(), fine);
+  open.stopWork();
+  // Kept: the same answers, byte for byte, with no work; not kept: the stop ends it.
+  EXPECT_EQ(get(open, "/api/voxels").body, voxels.body);
+  EXPECT_EQ(get(open, "/api/layer").body, layer.body);
+  const app::serve::Response coarser = get(open, "/api/voxels", {{"level", "2"}});
+  EXPECT_EQ(coarser.status, 503) << coarser.body;
+  EXPECT_NE(coarser.body.find("the server is stopping"), std::string::npos) << coarser.body;
+  // A level asked outright holds at most two pages (max_voxels each) of cells.
+  app::serve::Limits small;
+  small.max_voxels = fine / 4;
+  const app::serve::Api capped("m.ot", source, small);
+  const app::serve::Response over = get(capped, "/api/voxels", {{"level", "0"}, {"limit", "10"}});
+  EXPECT_EQ(over.status, 413) << over.body;
+  EXPECT_NE(over.body.find("has more than " + std::to_string(2 * small.max_voxels) + " surface cells"), std::string::npos) << over.body;
+  const app::serve::Response coarse = get(capped, "/api/voxels", {{"max", std::to_string(small.max_voxels)}});
+  ASSERT_EQ(coarse.status, 200) << coarse.body;
+  const auto head = nlohmann::json::parse(coarse.body);
+  EXPECT_GT(head["level"].get<int>(), 0);
+  EXPECT_LE(head["total"].get<std::size_t>(), small.max_voxels);
+}
+
 // Each new set of "reach" parameters worked out a reachability that the cache kept,
 // eight at a time then all dropped (3 GB after eight sets on a large map): now the oldest
 // go first, within an entry and a byte bound, and one over the byte bound is not kept.

@@ -47,16 +47,27 @@ std::string text(const nlohmann::json& j) { return j.dump(-1, ' ', false, nlohma
 std::string errorBody(const std::string& message) { return text(nlohmann::json{{"error", message}}); }
 
 std::vector<Cell> surfaceCells(const mapping::MobilityOcTree& tree, int level) {
+  return *surfaceCellsWithin(tree, level, std::numeric_limits<std::size_t>::max(), mapping::Budget{});
+}
+
+std::optional<std::vector<Cell>> surfaceCellsWithin(const mapping::MobilityOcTree& tree, int level, std::size_t most,
+                                                    const mapping::Budget& budget) {
   const double res = tree.getResolution();
   const double cell = res * std::ldexp(1.0, level);
   // Cell index along an axis from a finest-level key: the octree's nodes at depth
   // 16 - level are exactly these cells.
+  budget.check("the map's surface cells");
   std::unordered_map<std::uint64_t, float> cells;
+  std::uint64_t added = 0;
   const auto add = [&](const octomap::OcTreeKey& k, float mobility) {
     const std::uint64_t key = (static_cast<std::uint64_t>(k[2] >> level) << 32) |
                               (static_cast<std::uint64_t>(k[1] >> level) << 16) | static_cast<std::uint64_t>(k[0] >> level);
     const auto [it, inserted] = cells.emplace(key, mobility);
     if (!inserted && mobility == mobility && !(it->second <= mobility)) it->second = mobility;  // lowest known
+    // A pruned block can cover billions of cells: the count and the time are checked as
+    // they grow.
+    if (++added % 65536 == 0) budget.check("the map's surface cells");
+    return cells.size() <= most;
   };
   for (auto it = tree.begin_leafs(); it != tree.end_leafs(); ++it) {
     if (!tree.isNodeOccupied(*it)) continue;
@@ -64,7 +75,7 @@ std::vector<Cell> surfaceCells(const mapping::MobilityOcTree& tree, int level) {
     const double size = it.getSize();
     const octomap::point3d c = it.getCoordinate();
     if (size <= cell) {
-      add(tree.coordToKey(c), m);
+      if (!add(tree.coordToKey(c), m)) return std::nullopt;
       continue;
     }
     // A pruned block larger than a cell: every cell it covers.
@@ -75,7 +86,7 @@ std::vector<Cell> surfaceCells(const mapping::MobilityOcTree& tree, int level) {
           const octomap::point3d p(static_cast<float>(c.x() - size / 2 + cell * (i + 0.5)),
                                    static_cast<float>(c.y() - size / 2 + cell * (j + 0.5)),
                                    static_cast<float>(c.z() - size / 2 + cell * (k + 0.5)));
-          add(tree.coordToKey(p), m);
+          if (!add(tree.coordToKey(p), m)) return std::nullopt;
         }
   }
   std::vector<std::pair<std::uint64_t, float>> sorted(cells.begin(), cells.end());
@@ -300,6 +311,12 @@ std::optional<ReachRequest> reachOf(const nlohmann::json& body, InputFrame frame
 // Voxels a search of `metres` down a column visits (a column has 2^16).
 double voxelsDown(double metres, double res) { return std::min(std::ceil(metres / res), 65536.0); }
 
+// /api/layer's answers kept per map.
+constexpr std::size_t kLayerCacheEntries = 4;
+constexpr std::size_t kLayerCacheBytes = 64u << 20;
+// The cells of one /api/voxels level asked for outright: at most this many pages.
+constexpr std::size_t kMaxLevelCellsPerPage = 2;
+
 // One of Limits::max_heavy_requests places, held until the request is answered.
 class HeavySlot {
  public:
@@ -334,6 +351,10 @@ struct Api::Cache {
   std::weak_ptr<const ServedMap> served;
   std::optional<nlohmann::json> info;
   std::map<int, std::shared_ptr<const std::vector<Cell>>> cells;  // by level
+  std::map<int, std::size_t> cells_over;  // level -> a count its cells are known to pass
+  // /api/layer's answers by their query, oldest first; their bytes together.
+  std::vector<std::pair<std::string, std::shared_ptr<const std::string>>> layers;
+  std::size_t layer_bytes = 0;
   // By ReachRequest::key, oldest first; their memory together.
   std::vector<std::pair<std::string, std::shared_ptr<const mapping::Reachability>>> reach;
   std::size_t reach_bytes = 0;
@@ -344,6 +365,9 @@ struct Api::Cache {
     served = s;
     info.reset();
     cells.clear();
+    cells_over.clear();
+    layers.clear();
+    layer_bytes = 0;
     reach.clear();
     reach_bytes = 0;
   }
@@ -431,12 +455,17 @@ Response Api::handle(const std::string& method, const std::string& path,
     };
     if (path == "/api/info") {
       expect("GET");
-      nlohmann::json j;
+      std::optional<nlohmann::json> cached;
       {
         const std::lock_guard<std::mutex> lock(cache_->mutex);
         cache_->follow(served);
-        if (!cache_->info) cache_->info = infoJson(label_, map, served->metadata.get());
-        j = *cache_->info;
+        cached = cache_->info;
+      }
+      nlohmann::json j = cached ? std::move(*cached) : infoJson(label_, map, served->metadata.get());
+      if (!cached) {
+        const std::lock_guard<std::mutex> lock(cache_->mutex);
+        cache_->follow(served);
+        cache_->info = j;
       }
       j["frames"] = served->frames;
       j["building"] = served->building;
@@ -597,19 +626,31 @@ Response Api::handle(const std::string& method, const std::string& path,
       expect("GET");
       const std::size_t max_cells = count(params, "max", 1000000).value_or(250000);
       if (max_cells == 0) throw Refusal(400, "query parameter max must be at least 1");
+      const std::size_t k = count(params, "level", std::numeric_limits<std::uint32_t>::max()).value_or(0);
+      // Answers are kept per map and query (a few, kLayerCacheBytes together): a viewer
+      // asks the same level again and again.
+      const std::string key = std::to_string(k) + "/" + std::to_string(max_cells);
+      {
+        const std::lock_guard<std::mutex> lock(cache_->mutex);
+        cache_->follow(served);
+        for (const auto& [q, answer] : cache_->layers) {
+          if (q == key) return {200, "application/json", *answer};
+        }
+      }
+      takeHeavySlot();  // up to a million cells over every column of the map
       const auto columns = map.surfaceColumns();
       const std::vector<mapping::LayerLevel> levels = mapping::layerLevels(*columns, 1.0);
       nlohmann::json listed = nlohmann::json::array();
-      for (std::size_t k = 0; k < levels.size(); ++k) {
-        listed.push_back({{"index", k}, {"z_m", levels[k].z_m}, {"share", levels[k].share}});
+      for (std::size_t i = 0; i < levels.size(); ++i) {
+        listed.push_back({{"index", i}, {"z_m", levels[i].z_m}, {"share", levels[i].share}});
       }
       if (levels.empty()) {
         return json({{"levels", listed}, {"level", nullptr}, {"frames", served->frames}});
       }
-      const std::size_t k = count(params, "level", std::numeric_limits<std::uint32_t>::max()).value_or(0);
       if (k >= levels.size()) {
         throw Refusal(400, "query parameter level must be below " + std::to_string(levels.size()) + " (the map's levels)");
       }
+      budget.check("the level's layers");
       // The finest cell, a power of two voxels, that keeps the map's whole extent (and so
       // any level in it) within `max` cells, up to cells of 100 m.
       const double res = columns->resolution();
@@ -631,7 +672,21 @@ Response Api::handle(const std::string& method, const std::string& path,
       out += ",\"mobility\":";
       appendGrid(out, l.mobility, 0, l.rows, l.cols);
       out += '}';
-      return {200, "application/json", std::move(out)};
+      auto answer = std::make_shared<const std::string>(std::move(out));
+      {
+        const std::lock_guard<std::mutex> lock(cache_->mutex);
+        cache_->follow(served);
+        if (answer->size() <= kLayerCacheBytes) {
+          while (!cache_->layers.empty() &&
+                 (cache_->layers.size() >= kLayerCacheEntries || cache_->layer_bytes + answer->size() > kLayerCacheBytes)) {
+            cache_->layer_bytes -= cache_->layers.front().second->size();
+            cache_->layers.erase(cache_->layers.begin());
+          }
+          cache_->layers.emplace_back(key, answer);
+          cache_->layer_bytes += answer->size();
+        }
+      }
+      return {200, "application/json", *answer};
     }
     if (path == "/api/voxels") {
       expect("GET");
@@ -642,18 +697,46 @@ Response Api::handle(const std::string& method, const std::string& path,
       const std::size_t offset = count(params, "offset", std::numeric_limits<std::uint32_t>::max()).value_or(0);
       const std::size_t limit = count(params, "limit", most).value_or(most);
       if (max == 0) throw Refusal(400, "query parameter max must be at least 1");
-      // The finest level whose cells number at most `max`, unless one is asked for.
+      // The finest level whose cells number at most `max`, unless one is asked for. A
+      // level not worked out yet is worked out outside the cache's lock (light requests
+      // never wait for it) in a heavy request's place, within the request's time, and
+      // stops as soon as it has more cells than it may: `max` (a coarser level then
+      // follows), or for a level asked outright kMaxLevelCellsPerPage pages of voxels.
       int level = level_asked ? static_cast<int>(*level_asked) : 0;
+      const std::size_t most_cells = level_asked ? kMaxLevelCellsPerPage * most : max;
       std::shared_ptr<const std::vector<Cell>> cells;
-      {
-        const std::lock_guard<std::mutex> lock(cache_->mutex);
-        cache_->follow(served);
-        for (;; ++level) {
-          auto& entry = cache_->cells[level];
-          if (!entry) entry = std::make_shared<const std::vector<Cell>>(surfaceCells(map.tree(), level));
-          cells = entry;
-          if (level_asked || cells->size() <= max || level >= 15) break;
+      for (;; ++level) {
+        bool over = false;
+        {
+          const std::lock_guard<std::mutex> lock(cache_->mutex);
+          cache_->follow(served);
+          const auto found = cache_->cells.find(level);
+          if (found != cache_->cells.end()) cells = found->second;
+          const auto passed = cache_->cells_over.find(level);
+          over = !cells && passed != cache_->cells_over.end() && passed->second >= most_cells;
         }
+        if (!cells && !over) {
+          takeHeavySlot();
+          auto computed = surfaceCellsWithin(map.tree(), level, most_cells, budget);
+          const std::lock_guard<std::mutex> lock(cache_->mutex);
+          cache_->follow(served);
+          if (computed) {
+            auto& entry = cache_->cells[level];
+            if (!entry) entry = std::make_shared<const std::vector<Cell>>(std::move(*computed));
+            cells = entry;
+          } else {
+            auto& passed = cache_->cells_over[level];
+            passed = std::max(passed, most_cells);
+            over = true;
+          }
+        }
+        if (over && level_asked) {
+          throw Refusal(413, "level " + std::to_string(level) + " of this map has more than " + std::to_string(most_cells) +
+                                 " surface cells, more than one request works out; ask for a coarser level");
+        }
+        if (!over && (level_asked || cells->size() <= max || level >= 15)) break;
+        if (level >= 15) throw Refusal(413, "the map has more than " + std::to_string(max) + " surface cells at every level");
+        cells.reset();
       }
       const std::size_t first = std::min(offset, cells->size());
       const std::size_t n = std::min(limit, cells->size() - first);

@@ -4,6 +4,7 @@
 // (http_server.hpp) only carries them over sockets, so tests and fuzzers can call them
 // directly.
 
+#include "mobmap/mapping/budget.hpp"
 #include "mobmap/mapping/map_metadata.hpp"
 #include "mobmap/mapping/mobility_map.hpp"
 
@@ -17,6 +18,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -120,6 +122,10 @@ struct Cell {
   float mobility;
 };
 std::vector<Cell> surfaceCells(const mapping::MobilityOcTree& tree, int level);
+/// surfaceCells() that stops early: nullopt as soon as there are more than `most`
+/// cells; BudgetExceeded when `budget` runs out first.
+std::optional<std::vector<Cell>> surfaceCellsWithin(const mapping::MobilityOcTree& tree, int level, std::size_t most,
+                                                    const mapping::Budget& budget);
 
 /// The error body the API answers with.
 std::string errorBody(const std::string& message);
