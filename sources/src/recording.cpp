@@ -84,6 +84,8 @@ class BagRecording : public Recording {
       imus_.clear();  // what gravity needed of them is kept
     } catch (const IoError& e) {
       imus_.clear();
+      // What the pass did not reach may be what is missing: said with the error.
+      if (!options_.describe_only && !fault_.empty()) throw IoError(e.path(), e.reason() + "; the recording ends early (" + fault_ + ")");
       if (!options_.describe_only) throw;
       problem_ = e.reason();
       images_.clear();

@@ -77,6 +77,7 @@ TEST_F(Bags, AnMcapDecompressionBombStopsAtItsBudgetWithinBoundedMemory) {
   const Result b = build(bomb, dir_ + "/bomb.ot");
   EXPECT_EQ(b.code, 1) << b.out;
   EXPECT_NE(b.out.find("error: " + bomb + ": has no depth image topic"), std::string::npos) << b.out;
+  EXPECT_NE(b.out.find("; the recording ends early (" + bomb + ": the chunk at byte "), std::string::npos) << b.out;
   EXPECT_FALSE(fs::exists(dir_ + "/bomb.ot"));
 
   const std::string huge = dir_ + "/huge-chunk.mcap";

@@ -26,6 +26,7 @@ class ScratchFile {
     out.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
     return path_;
   }
+  [[nodiscard]] const std::string& path() const { return path_; }
 
  private:
   std::string path_;
