@@ -209,8 +209,8 @@ void bindRecording(py::module_& m) {
       }, "A recording's TF links (parent, child, static, samples); empty for other inputs");
   m.def("open_recording", &openRecording, py::arg("path"),
         "Opens depth frames as `mobmap build` reads them: a 7-Scenes / 3DMatch folder, a TUM RGB-D folder, "
-        ".pcd frames (with poses=), a single .pcd or 16-bit depth .png, an .oni file, a ROS 2 bag (folder with "
-        "metadata.yaml, .db3 or .mcap) or a ROS 1 .bag. Keyword arguments: intrinsics ((fx, fy, cx, cy) or a "
+        ".pcd frames (with poses=), a single .pcd or 16-bit depth .png, an .oni file, a ROS 2 bag (folder, "
+        ".db3 or .mcap) or a ROS 1 .bag (or .bag.active). Keyword arguments: intrinsics ((fx, fy, cx, cy) or a "
         "camera file, instead of the input's own), poses (a TUM trajectory file: for .pcd frames, or a bag's "
         "camera poses by stamp instead of its TF tree), max_pose_gap (s, 0.05), depth_format ('sunrgbd' for SUN "
         "RGB-D's depth PNGs), and for bags depth_topic, "

@@ -76,7 +76,8 @@ inline constexpr const char* kBuildInputHelp =
     "A 7-Scenes / 3DMatch layout directory (frame-NNNNNN.depth.png + .pose.txt), a TUM RGB-D directory "
     "(depth.txt + groundtruth.txt), a directory of .pcd frames with --poses, one .pcd frame, one 16-bit "
     "depth .png in millimetres (with --intrinsics or a camera-intrinsics.txt beside it), an OpenNI2 .oni recording, "
-    "or a ROS 2 bag (its folder with metadata.yaml, a .db3 or an .mcap file; posed through its TF tree)";
+    "a ROS 2 bag (its folder, a .db3 or an .mcap file) or a ROS 1 .bag, posed through its TF tree (a crashed "
+    "recorder's folder without metadata.yaml, .db3 with its -wal, or .bag.active is read as far as it goes)";
 
 /// Registers `build` and its options on `app`; the options are filled when it parses.
 std::shared_ptr<BuildOptions> addBuildOptions(CLI::App& app);
