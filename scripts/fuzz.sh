@@ -79,7 +79,7 @@ for target in "${targets[@]}"; do
     api) link api tests/fuzz/fuzz_api.cpp apps/src/serve/api.cpp apps/src/serve/viewer_assets.cpp apps/src/answers/answers.cpp \
            "${mapping[@]}" "${perception[@]}" "${gp[@]}" \
            -- -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;
-    mcap|cdr|db3|ros1) link "$target" "tests/fuzz/fuzz_$target.cpp" "${bag_sources[@]}" sources/src/rosbag1_missing.cpp perception/src/camera.cpp \
+    mcap|cdr|db3|ros1) link "$target" "tests/fuzz/fuzz_$target.cpp" "${bag_sources[@]}" perception/src/camera.cpp \
                     -- -lpng -lz -lbz2 -lyaml-cpp -lsqlite3 -llz4 -lzstd ;;
     *) echo "fuzz.sh: unknown target $target" >&2; exit 2 ;;
   esac

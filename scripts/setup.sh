@@ -15,10 +15,10 @@ packages=(
   libgdal-dev gdal-bin
   # ROS 2 bags: sqlite3 storage, MCAP chunks compressed with lz4 or zstd
   libsqlite3-dev liblz4-dev libzstd-dev
-  # ROS 1 bags read without their index (a killed recorder's): bz2 chunks
+  # ROS 1 bags: bz2 chunks
   libbz2-dev
-  # ROS 1 bags: Debian's rosbag_storage (catkin: its CMake configuration needs it); the
-  # message types for the tests' bag writer
+  # The tests' ROS 1 bag writer: Debian's rosbag_storage (catkin: its CMake configuration
+  # needs it) and the message types
   librosbag-storage-dev catkin libsensor-msgs-dev libtf2-msgs-dev
   # the viewer's test draws the page in headless Chromium
   chromium

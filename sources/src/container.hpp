@@ -63,12 +63,10 @@ bool wireOf(const std::string& encoding, ros::Wire* wire);
 
 std::unique_ptr<Container> openMcap(const std::string& path);
 std::unique_ptr<Container> openDb3(const std::string& path);
-/// A ROS 1 .bag (IoError when this build has no ROS 1 libraries). A bag without its
-/// index (a `.bag.active` left by a killed `rosbag record`, or one cut short) is read by
-/// scanning its chunks, as `rosbag reindex` does, and recovered() says so.
+/// A ROS 1 bag (format 2.0), read record by record without its index (ros1_scan.cpp): a
+/// bag without one (a `.bag.active` left by a killed `rosbag record`, or one cut short)
+/// reads as far as it goes, and recovered() says so.
 std::unique_ptr<Container> openRos1Bag(const std::string& path);
-/// A ROS 1 bag read record by record, without its index (ros1_scan.cpp).
-std::unique_ptr<Container> openRos1Unindexed(const std::string& path);
 /// True for NAME.bag.active (what `rosbag record` writes until it closes the bag).
 bool isActiveRos1Bag(const std::string& path);
 /// Several files of one ROS 2 bag (metadata.yaml's relative_file_paths), in order.

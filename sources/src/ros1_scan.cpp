@@ -1,6 +1,7 @@
-// A ROS 1 bag (format 2.0) read record by record, without its index: what `rosbag
-// reindex` does for a bag whose recorder was killed (`rosbag record` writes NAME.bag.active
-// and its index only when it closes). The format (wiki.ros.org/Bags/Format/2.0): after
+// A ROS 1 bag (format 2.0) read record by record, without its index: every bag, and so
+// also one whose recorder was killed (`rosbag record` writes NAME.bag.active and its
+// index only when it closes), as `rosbag reindex` reads it. No ROS library is involved:
+// a bag from a stranger costs what chunk_cache.hpp bounds. The format (wiki.ros.org/Bags/Format/2.0): after
 // "#ROSBAG V2.0\n", records of a header (length, then fields "name=value", each with
 // its length) and data (length, bytes). Chunks (op 5) hold connection records (op 7) and
 // messages (op 2), uncompressed, bz2 or lz4 (the LZ4 frame format). A chunk the recorder
@@ -62,9 +63,12 @@ std::string textField(const std::map<std::string, std::string>& f, const char* n
 class Ros1Scan : public Container {
  public:
   explicit Ros1Scan(const std::string& path) : file_(path), budget_(file_.size()) {
-    char magic[kMagicBytes];
-    if (!file_.readAt(0, magic, kMagicBytes) || std::memcmp(magic, kMagic, kMagicBytes) != 0) {
-      throw IoError(path, "not a ROS 1 bag of format 2.0 (no #ROSBAG V2.0 line at its start)");
+    char magic[kMagicBytes] = {0};
+    (void)file_.readAt(0, magic, kMagicBytes);
+    const std::string version(magic, kMagicBytes);
+    if (version.rfind("#ROSBAG V", 0) != 0) throw IoError(path, "not a ROS 1 bag (no #ROSBAG header)");
+    if (version != kMagic) {
+      throw IoError(path, "a ROS 1 bag of format " + version.substr(9, 3) + "; mobmap reads format 2.0 (`rosbag fix` converts it)");
     }
   }
 
@@ -85,6 +89,9 @@ class Ros1Scan : public Container {
           if (auto fault = chunk(at, f, data_at, data_len, visit)) return fault;
           ++chunks_;
         } else if (code == kBagHeader) {
+          if (f.count("encryptor") && !f.at("encryptor").empty()) {
+            throw IoError(file_.path(), "an encrypted ROS 1 bag (" + f.at("encryptor") + "); `rosbag decrypt` writes it in the clear");
+          }
           // Its index: where the header says, when that lies inside the file (0 until closed).
           const auto index = f.find("index_pos");
           std::uint64_t pos = 0;
@@ -314,6 +321,6 @@ bool isActiveRos1Bag(const std::string& path) {
   return path.size() > suffix.size() && path.compare(path.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
-std::unique_ptr<Container> openRos1Unindexed(const std::string& path) { return std::make_unique<Ros1Scan>(path); }
+std::unique_ptr<Container> openRos1Bag(const std::string& path) { return std::make_unique<Ros1Scan>(path); }
 
 }  // namespace mobmap::sources

@@ -195,7 +195,7 @@ TEST_F(Bags, ACrashedRos2RecordingBuildsEveryFrameFromItsLog) {
 // is mapped, and the map is the 7-Scenes layout's of those frames, byte for byte.
 TEST_F(Bags, AKilledRosbagRecordsActiveBagBuildsTheFramesItHolds) {
 #ifndef MOBMAP_WRITE_BAG1
-  GTEST_SKIP() << "built without ROS 1 (librosbag-storage-dev): .bag files are refused";
+  GTEST_SKIP() << "the ROS 1 bag writer is not built (librosbag-storage-dev is not installed)";
 #else
   // Uncompressed in 4 MiB chunks, the kill comes inside the second chunk (its sizes still
   // the placeholders rosbag writes first): read up to its last whole message.

@@ -17,7 +17,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::string& path = scratch.write(data, size);
   using mobmap::sources::IoError;
   try {
-    auto bag = mobmap::sources::openRos1Unindexed(path);
+    auto bag = mobmap::sources::openRos1Bag(path);
     std::vector<std::pair<mobmap::sources::MessageRef, std::vector<std::uint8_t>>> seen;
     (void)bag->scan([&](const mobmap::sources::RawMessage& m) {
       if (static_cast<std::size_t>(m.topic) >= bag->topics().size()) std::abort();
