@@ -155,53 +155,88 @@ class BagRecording : public Recording {
     std::map<std::string, std::uint32_t> frame_ids;
     std::vector<TopicStats> stats;
     std::size_t order = 0;
-    auto fault = container_->scan([&](const RawMessage& m) {
-      const auto& topics = container_->topics();
-      if (stats.size() < topics.size()) stats.resize(topics.size());
-      const ContainerTopic& topic = topics[static_cast<std::size_t>(m.topic)];
-      TopicStats& s = stats[static_cast<std::size_t>(m.topic)];
-      if (s.count == 0) s.first = m.log_time_ns;
-      s.last = m.log_time_ns;
-      ++s.count;
-      ros::Wire wire;
-      if (!wireOf(topic.encoding, &wire)) return;
-      try {
-        if (topic.type == kTf || topic.type == kTfOld) {
-          // /tf_static, or a robot's namespaced one (/robot1/tf_static).
-          const bool is_static = topic.name.size() >= 10 && topic.name.compare(topic.name.size() - 10, 10, "/tf_static") == 0;
-          for (const auto& t : ros::decodeTfMessage(m.data, m.size, wire)) {
-            const Eigen::Quaterniond q(t.rotation_xyzw[3], t.rotation_xyzw[0], t.rotation_xyzw[1], t.rotation_xyzw[2]);
-            tf_.add(strip(t.header.frame_id), strip(t.child_frame_id), t.header.stamp_ns,
-                    Eigen::Vector3d(t.translation[0], t.translation[1], t.translation[2]), q, is_static);
-          }
-        } else if (topic.type == kImu) {
-          const ros::Imu imu = ros::decodeImu(m.data, m.size, wire);
-          const auto id = frame_ids.emplace(strip(imu.header.frame_id), static_cast<std::uint32_t>(frame_ids.size()));
-          imus_[m.topic].push_back({imu.header.stamp_ns, id.first->second,
-                                    Eigen::Vector3d(imu.linear_acceleration[0], imu.linear_acceleration[1], imu.linear_acceleration[2])});
-        } else if (topic.type == kCameraInfo) {
-          if (!infos.count(m.topic)) infos[m.topic] = ros::decodeCameraInfo(m.data, m.size, wire);
-        } else if (topic.type == kImage || topic.type == kCompressed) {
-          IndexedImage img;
-          if (s.count == 1) {
-            s.first_encoding = topic.type == kImage ? ros::decodeImage(m.data, m.size, wire).encoding
-                                                    : ros::decodeCompressedImage(m.data, m.size, wire).format;
-          }
-          const ros::Header h = ros::decodeHeader(m.data, m.size, wire);
-          img.stamp_ns = h.stamp_ns;
-          img.order = order++;
-          img.ref = m.ref;
-          img.bytes = m.size;
-          const auto id = frame_ids.emplace(strip(h.frame_id), static_cast<std::uint32_t>(frame_ids.size()));
-          img.frame_id = id.first->second;
-          images[m.topic].push_back(img);
+    // What the index may hold: 64 MiB + 16 times the files' sizes. A recorder's messages
+    // are larger than what the index keeps of them (an image's place, a transform), so
+    // only a hostile file (millions of tiny messages in chunks that expand a
+    // thousand-fold) reaches it; the pass ends there as at a fault.
+    std::uint64_t file_bytes = 0;
+    for (const std::string& f : container_->files()) {
+      std::error_code ec;
+      const auto n = fs::file_size(f, ec);
+      if (!ec) file_bytes += n;
+    }
+    const std::uint64_t most = (64ULL << 20) + 16 * file_bytes;
+    std::uint64_t held = 0;
+    struct IndexFull {};
+    const auto hold = [&](std::uint64_t bytes) {
+      held += bytes;
+      if (held > most) throw IndexFull{};
+    };
+    const auto frameId = [&](const std::string& name) {
+      const auto id = frame_ids.emplace(name, static_cast<std::uint32_t>(frame_ids.size()));
+      if (id.second) hold(name.size() + 64);
+      return id.first->second;
+    };
+    std::optional<ContainerFault> fault;
+    try {
+      fault = container_->scan([&](const RawMessage& m) {
+        const auto& topics = container_->topics();
+        while (stats.size() < topics.size()) {
+          hold(topics[stats.size()].name.size() + topics[stats.size()].type.size() + 128);
+          stats.emplace_back();
         }
-      } catch (const ros::MessageError& e) {
-        throw IoError(path_, "a " + topic.type + " message on " + topic.name + " cannot be decoded: " + e.what());
-      } catch (const TfError& e) {
-        throw IoError(path_, e.what());
-      }
-    });
+        const ContainerTopic& topic = topics[static_cast<std::size_t>(m.topic)];
+        TopicStats& s = stats[static_cast<std::size_t>(m.topic)];
+        if (s.count == 0) s.first = m.log_time_ns;
+        s.last = m.log_time_ns;
+        ++s.count;
+        ros::Wire wire;
+        if (!wireOf(topic.encoding, &wire)) return;
+        try {
+          if (topic.type == kTf || topic.type == kTfOld) {
+            // /tf_static, or a robot's namespaced one (/robot1/tf_static).
+            const bool is_static = topic.name.size() >= 10 && topic.name.compare(topic.name.size() - 10, 10, "/tf_static") == 0;
+            for (const auto& t : ros::decodeTfMessage(m.data, m.size, wire)) {
+              hold(64 + t.header.frame_id.size() + t.child_frame_id.size());
+              const Eigen::Quaterniond q(t.rotation_xyzw[3], t.rotation_xyzw[0], t.rotation_xyzw[1], t.rotation_xyzw[2]);
+              tf_.add(strip(t.header.frame_id), strip(t.child_frame_id), t.header.stamp_ns,
+                      Eigen::Vector3d(t.translation[0], t.translation[1], t.translation[2]), q, is_static);
+            }
+          } else if (topic.type == kImu) {
+            const ros::Imu imu = ros::decodeImu(m.data, m.size, wire);
+            hold(sizeof(ImuReading));
+            imus_[m.topic].push_back({imu.header.stamp_ns, frameId(strip(imu.header.frame_id)),
+                                      Eigen::Vector3d(imu.linear_acceleration[0], imu.linear_acceleration[1], imu.linear_acceleration[2])});
+          } else if (topic.type == kCameraInfo) {
+            if (!infos.count(m.topic)) {
+              infos[m.topic] = ros::decodeCameraInfo(m.data, m.size, wire);
+              hold(sizeof(ros::CameraInfo) + 8 * infos[m.topic].d.size() + infos[m.topic].distortion_model.size());
+            }
+          } else if (topic.type == kImage || topic.type == kCompressed) {
+            IndexedImage img;
+            if (s.count == 1) {
+              s.first_encoding = topic.type == kImage ? ros::decodeImage(m.data, m.size, wire).encoding
+                                                      : ros::decodeCompressedImage(m.data, m.size, wire).format;
+            }
+            const ros::Header h = ros::decodeHeader(m.data, m.size, wire);
+            img.stamp_ns = h.stamp_ns;
+            img.order = order++;
+            img.ref = m.ref;
+            img.bytes = m.size;
+            hold(sizeof(IndexedImage));
+            img.frame_id = frameId(strip(h.frame_id));
+            images[m.topic].push_back(img);
+          }
+        } catch (const ros::MessageError& e) {
+          throw IoError(path_, "a " + topic.type + " message on " + topic.name + " cannot be decoded: " + e.what());
+        } catch (const TfError& e) {
+          throw IoError(path_, e.what());
+        }
+      });
+    } catch (const IndexFull&) {
+      fault = ContainerFault{path_ + ": indexing it would hold more than " + std::to_string(most >> 20) + " MiB (64 MiB + 16 times its " +
+                             std::to_string(file_bytes) + " bytes): far more, or far smaller, messages than a recorder writes"};
+    }
     if (fault) fault_ = fault->what;
     tf_.sortSamples();
     const auto& topics = container_->topics();

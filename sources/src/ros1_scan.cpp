@@ -16,8 +16,11 @@
 #include <bzlib.h>
 #include <lz4frame.h>
 
+#include <array>
 #include <cstring>
 #include <map>
+#include <optional>
+#include <string_view>
 
 namespace mobmap::sources {
 namespace {
@@ -29,35 +32,50 @@ enum Op : std::uint8_t { kMessage = 0x02, kBagHeader = 0x03, kChunk = 0x05, kCon
 
 std::uint32_t le32(const std::uint8_t* p) { return std::uint32_t{p[0]} | std::uint32_t{p[1]} << 8 | std::uint32_t{p[2]} << 16 | std::uint32_t{p[3]} << 24; }
 
-// A record's header fields by name.
-std::map<std::string, std::string> fields(const std::uint8_t* p, std::size_t n) {
-  std::map<std::string, std::string> out;
-  std::size_t at = 0;
-  while (at < n) {
-    if (n - at < 4) throw ros::MessageError("a header field's length runs past its header");
-    const std::uint32_t len = le32(p + at);
-    at += 4;
-    if (len > n - at) throw ros::MessageError("a header field runs past its header");
-    const char* f = reinterpret_cast<const char*>(p + at);
-    const void* eq = std::memchr(f, '=', len);
-    if (!eq) throw ros::MessageError("a header field without '='");
-    const auto name_len = static_cast<std::size_t>(static_cast<const char*>(eq) - f);
-    out[std::string(f, name_len)] = std::string(f + name_len + 1, len - name_len - 1);
-    at += len;
+// A record's header fields that mobmap reads, as views into the record's bytes (any
+// other field is skipped): a chunk of a hostile bag may hold millions of them.
+class Header {
+ public:
+  Header() = default;
+  Header(const std::uint8_t* p, std::size_t n) {
+    std::size_t at = 0;
+    while (at < n) {
+      if (n - at < 4) throw ros::MessageError("a header field's length runs past its header");
+      const std::uint32_t len = le32(p + at);
+      at += 4;
+      if (len > n - at) throw ros::MessageError("a header field runs past its header");
+      const std::string_view field(reinterpret_cast<const char*>(p + at), len);
+      const auto eq = field.find('=');
+      if (eq == std::string_view::npos) throw ros::MessageError("a header field without '='");
+      for (std::size_t i = 0; i < kNames.size(); ++i) {
+        if (field.substr(0, eq) == kNames[i]) values_[i] = field.substr(eq + 1);
+      }
+      at += len;
+    }
   }
-  return out;
+  [[nodiscard]] std::optional<std::string_view> find(std::string_view name) const {
+    for (std::size_t i = 0; i < kNames.size(); ++i) {
+      if (kNames[i] == name) return values_[i];
+    }
+    return std::nullopt;
+  }
+
+ private:
+  static constexpr std::array<std::string_view, 9> kNames = {"op",          "conn", "time",      "topic",    "type",
+                                                             "compression", "size", "index_pos", "encryptor"};
+  std::array<std::optional<std::string_view>, 9> values_;
+};
+
+std::uint32_t u32Field(const Header& f, const char* name) {
+  const auto v = f.find(name);
+  if (!v || v->size() != 4) throw ros::MessageError(std::string("no 4-byte field ") + name);
+  return le32(reinterpret_cast<const std::uint8_t*>(v->data()));
 }
 
-std::uint32_t u32Field(const std::map<std::string, std::string>& f, const char* name) {
-  const auto it = f.find(name);
-  if (it == f.end() || it->second.size() != 4) throw ros::MessageError(std::string("no 4-byte field ") + name);
-  return le32(reinterpret_cast<const std::uint8_t*>(it->second.data()));
-}
-
-std::string textField(const std::map<std::string, std::string>& f, const char* name) {
-  const auto it = f.find(name);
-  if (it == f.end()) throw ros::MessageError(std::string("no field ") + name);
-  return it->second;
+std::string textField(const Header& f, const char* name) {
+  const auto v = f.find(name);
+  if (!v) throw ros::MessageError(std::string("no field ") + name);
+  return std::string(*v);
 }
 
 class Ros1Scan : public Container {
@@ -77,7 +95,7 @@ class Ros1Scan : public Container {
     std::vector<std::uint8_t> head, data;
     chunks_ = 0;
     while (at < file_.size()) {
-      std::map<std::string, std::string> f;
+      Header f;
       std::uint64_t data_at = 0;
       std::uint32_t data_len = 0;
       if (auto fault = readRecord(at, &head, &f, &data_at, &data_len)) return fault;
@@ -89,14 +107,14 @@ class Ros1Scan : public Container {
           if (auto fault = chunk(at, f, data_at, data_len, visit)) return fault;
           ++chunks_;
         } else if (code == kBagHeader) {
-          if (f.count("encryptor") && !f.at("encryptor").empty()) {
-            throw IoError(file_.path(), "an encrypted ROS 1 bag (" + f.at("encryptor") + "); `rosbag decrypt` writes it in the clear");
+          if (const auto encryptor = f.find("encryptor"); encryptor && !encryptor->empty()) {
+            throw IoError(file_.path(), "an encrypted ROS 1 bag (" + std::string(*encryptor) + "); `rosbag decrypt` writes it in the clear");
           }
           // Its index: where the header says, when that lies inside the file (0 until closed).
           const auto index = f.find("index_pos");
           std::uint64_t pos = 0;
-          if (index != f.end() && index->second.size() == 8) {
-            const auto* b = reinterpret_cast<const std::uint8_t*>(index->second.data());
+          if (index && index->size() == 8) {
+            const auto* b = reinterpret_cast<const std::uint8_t*>(index->data());
             pos = std::uint64_t{le32(b)} | std::uint64_t{le32(b + 4)} << 32;
           }
           indexed_ = pos != 0 && pos < file_.size();
@@ -134,7 +152,7 @@ class Ros1Scan : public Container {
   std::optional<ContainerFault> fault(const std::string& what) const { return ContainerFault{file_.path() + ": " + what}; }
 
   // The record at `at`: its header fields, where its data lies and how long it is.
-  std::optional<ContainerFault> readRecord(std::uint64_t at, std::vector<std::uint8_t>* head, std::map<std::string, std::string>* f,
+  std::optional<ContainerFault> readRecord(std::uint64_t at, std::vector<std::uint8_t>* head, Header* f,
                                            std::uint64_t* data_at, std::uint32_t* data_len) const {
     std::uint8_t len[4];
     const std::string where = "the record at byte " + std::to_string(at);
@@ -146,7 +164,7 @@ class Ros1Scan : public Container {
       return fault("the file is cut short inside " + where);
     }
     try {
-      *f = fields(head->data(), head->size());
+      *f = Header(head->data(), head->size());
     } catch (const ros::MessageError& e) {
       return fault(where + " is malformed: " + e.what());
     }
@@ -156,29 +174,24 @@ class Ros1Scan : public Container {
     return std::nullopt;
   }
 
-  void connection(const std::map<std::string, std::string>& f, const std::uint8_t* data, std::size_t n) {
+  void connection(const Header& f, const std::uint8_t* data, std::size_t n) {
     const std::uint32_t id = u32Field(f, "conn");
     if (connections_.count(id)) return;  // in a chunk and again at the end
-    const auto described = fields(data, n);
+    const Header described(data, n);
     ContainerTopic t{textField(f, "topic"), textField(described, "type"), "ros1"};
-    int index = -1;
-    for (std::size_t i = 0; i < topics_.size(); ++i) {
-      if (topics_[i].name == t.name && topics_[i].type == t.type) index = static_cast<int>(i);
-    }
-    if (index < 0) {
-      index = static_cast<int>(topics_.size());
-      topics_.push_back(t);
-    }
-    connections_[id] = index;
+    const auto [it, fresh] = topic_of_.try_emplace({t.name, t.type}, static_cast<int>(topics_.size()));
+    if (fresh) topics_.push_back(std::move(t));
+    connections_[id] = it->second;
   }
 
   // The chunk's records decompressed; "" or why not.
-  std::string unpack(const std::map<std::string, std::string>& f, std::uint64_t data_at, std::uint32_t data_len,
+  std::string unpack(const Header& f, std::uint64_t data_at, std::uint32_t data_len,
                      ChunkBytes* records, bool reading_again) const {
     const std::string compression = textField(f, "compression");
     const std::uint32_t size = u32Field(f, "size");
     if (compression == "none") {
       if (size != data_len) return "its uncompressed records are " + std::to_string(data_len) + " bytes, not the " + std::to_string(size) + " it declares";
+      if (std::string over = budget_.charge(size, reading_again); !over.empty()) return over;
       records->resize(data_len);
       return file_.readAt(data_at, records->data(), records->size()) ? "" : "cannot be read";
     }
@@ -219,7 +232,7 @@ class Ros1Scan : public Container {
     return err;
   }
 
-  std::optional<ContainerFault> chunk(std::uint64_t at, const std::map<std::string, std::string>& f, std::uint64_t data_at,
+  std::optional<ContainerFault> chunk(std::uint64_t at, const Header& f, std::uint64_t data_at,
                                       std::uint32_t data_len, const std::function<void(const RawMessage&)>& visit) {
     const std::string where = "the chunk at byte " + std::to_string(at);
     ChunkBytes records;
@@ -254,16 +267,17 @@ class Ros1Scan : public Container {
       }
       const std::uint8_t* data = p + 8 + head_len;
       try {
-        const auto h = fields(p + 4, head_len);
-        const std::string op = textField(h, "op");
-        if (op == std::string(1, static_cast<char>(kConnection))) {
+        const Header h(p + 4, head_len);
+        const auto op = h.find("op");
+        if (!op || op->size() != 1) throw ros::MessageError("a record without a one-byte op");
+        if ((*op)[0] == static_cast<char>(kConnection)) {
           connection(h, data, len);
-        } else if (op == std::string(1, static_cast<char>(kMessage))) {
+        } else if ((*op)[0] == static_cast<char>(kMessage)) {
           const auto c = connections_.find(u32Field(h, "conn"));
           if (c == connections_.end()) throw ros::MessageError("a message on a connection no record declares");
           const auto time = h.find("time");
-          if (time == h.end() || time->second.size() != 8) throw ros::MessageError("a message without an 8-byte time");
-          const auto* t = reinterpret_cast<const std::uint8_t*>(time->second.data());
+          if (!time || time->size() != 8) throw ros::MessageError("a message without an 8-byte time");
+          const auto* t = reinterpret_cast<const std::uint8_t*>(time->data());
           RawMessage m;
           m.topic = c->second;
           m.log_time_ns = static_cast<std::int64_t>(le32(t)) * 1000000000 + static_cast<std::int64_t>(le32(t + 4));
@@ -284,7 +298,7 @@ class Ros1Scan : public Container {
 
   ChunkBytes unpackAgain(std::uint64_t at) const {
     std::vector<std::uint8_t> head;
-    std::map<std::string, std::string> f;
+    Header f;
     std::uint64_t data_at = 0;
     std::uint32_t data_len = 0;
     if (auto fault = readRecord(at, &head, &f, &data_at, &data_len)) throw IoError(file_.path(), fault->what);
@@ -308,6 +322,7 @@ class Ros1Scan : public Container {
   InflateBudget budget_;
   ChunkCache cache_;
   std::map<std::uint32_t, int> connections_;  // connection id -> topic
+  std::map<std::pair<std::string, std::string>, int> topic_of_;  // (name, type) -> topic
   std::vector<ContainerTopic> topics_;
   std::map<std::uint64_t, std::uint64_t> declared_;  // chunk offset -> its records' size
   std::size_t chunks_ = 0;

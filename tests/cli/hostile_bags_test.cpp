@@ -89,6 +89,28 @@ TEST_F(Bags, AnMcapDecompressionBombStopsAtItsBudgetWithinBoundedMemory) {
       << h.out;
 }
 
+// 94 KB of zstd chunks that expand to 18 million valid 1 x 1 depth images (1 GiB, within
+// the decompression budget): what the index holds stops at 64 MiB + 16 times the file's
+// size, so `info` and `build` stay within 512 MB (the index alone took 860 MB before) and
+// say why the recording ended there.
+TEST_F(Bags, MillionsOfTinyMessagesStopAtTheIndexBound) {
+  const std::string flood = dir_ + "/flood.mcap";
+  const Result w = runShell("node " + kFixtures + "/write_flood.mjs --out " + flood + " --chunks 32 --mib 32");
+  ASSERT_EQ(w.code, 0) << w.out;
+  ASSERT_LT(fs::file_size(flood), 1024 * 1024u);
+  const Result info = run("info " + flood + " --json");
+  ASSERT_EQ(info.code, 0) << info.out;
+  EXPECT_NE(jsonLine(info.out)["fault"].get<std::string>().find("indexing it would hold more than 65 MiB (64 MiB + 16 times its"),
+            std::string::npos)
+      << info.out;
+  const long info_kib = peakRssKib("info " + flood);
+  EXPECT_GT(info_kib, 0);
+  EXPECT_LT(info_kib, 512 * 1024) << "info: " << info_kib << " KiB";
+  const Result b = build(flood, dir_ + "/flood.ot", "--intrinsics 1,1,0.5,0.5");
+  EXPECT_EQ(b.code, 1) << b.out;
+  EXPECT_NE(b.out.find("indexing it would hold more than"), std::string::npos) << b.out;
+}
+
 // Chunks of 48 MiB that store a few hundred KiB (a frame and 48 MiB of zeros): the frames
 // are read again from a cache of at most 64 MiB of chunks, so a build holds one such
 // chunk at a time (four at once before: 192 MiB), and maps what the frames alone map.
