@@ -200,7 +200,9 @@ TEST(FramePipeline, PerGroundConeResultsAreThoseOfAPipelineWithThatCone) {
         EXPECT_EQ(got.segment_of_point, alone.segment_of_point);
         EXPECT_EQ(got.point_of_pixel, alone.point_of_pixel);
         ASSERT_EQ(got.ground_plane.has_value(), alone.ground_plane.has_value());
-        if (got.ground_plane) EXPECT_EQ(*got.ground_plane, *alone.ground_plane);
+        if (got.ground_plane) {
+          EXPECT_EQ(*got.ground_plane, *alone.ground_plane);
+        }
         ASSERT_EQ(got.segments.size(), alone.segments.size());
         for (std::size_t s = 0; s < got.segments.size(); ++s) {
           EXPECT_EQ(got.segments[s].points, alone.segments[s].points);
