@@ -90,8 +90,7 @@ std::unique_ptr<Container> openChain(std::vector<std::unique_ptr<Container>> par
   return std::make_unique<Chain>(std::move(parts));
 }
 
-// A ROS 2 bag folder: its files in metadata.yaml's order (every .db3 / .mcap in it
-// when metadata.yaml does not list them).
+// The .db3 and .mcap files of a folder, in rosbag2's order.
 static std::vector<std::string> bagFiles(const std::string& dir) {
   std::vector<std::string> names;
   std::error_code ec;
@@ -124,6 +123,8 @@ bool isBagFolderWithoutMetadata(const std::string& dir) {
   return fs::is_directory(dir, ec) && !fs::exists(fs::path(dir) / "metadata.yaml", ec) && !bagFiles(dir).empty();
 }
 
+// A ROS 2 bag folder: its files in metadata.yaml's order (every .db3 / .mcap in it
+// when metadata.yaml does not list them, or when its recorder died before writing it).
 std::unique_ptr<Container> openBagFolder(const std::string& dir) {
   const fs::path meta = fs::path(dir) / "metadata.yaml";
   std::vector<std::string> names;
