@@ -1,5 +1,7 @@
 #include "chunk_cache.hpp"
 
+#include <lz4frame.h>
+
 #include <iterator>
 #include <stdexcept>
 
@@ -9,6 +11,33 @@ namespace {
 std::string mib(std::uint64_t bytes) { return std::to_string(bytes >> 20) + " MiB"; }
 
 }  // namespace
+
+std::string expandLz4Frame(const std::uint8_t* in, std::size_t n, ChunkBytes* out) {
+  LZ4F_dctx* ctx = nullptr;
+  if (LZ4F_isError(LZ4F_createDecompressionContext(&ctx, LZ4F_VERSION))) return "out of memory";
+  std::size_t out_at = 0, in_at = 0;
+  std::string err;
+  while (in_at < n) {
+    std::size_t out_n = out->size() - out_at, in_n = n - in_at;
+    const std::size_t r = LZ4F_decompress(ctx, out->data() + out_at, &out_n, in + in_at, &in_n, nullptr);
+    if (LZ4F_isError(r)) {
+      err = std::string("lz4 cannot decompress it (") + LZ4F_getErrorName(r) + ")";
+      break;
+    }
+    out_at += out_n;
+    in_at += in_n;
+    if (r == 0) break;
+    if (out_n == 0 && in_n == 0) {
+      err = "lz4 decompresses it to more than the " + std::to_string(out->size()) + " bytes it declares";
+      break;
+    }
+  }
+  LZ4F_freeDecompressionContext(ctx);
+  if (err.empty() && out_at != out->size()) {
+    err = "it decompresses to " + std::to_string(out_at) + " bytes, not " + std::to_string(out->size());
+  }
+  return err;
+}
 
 std::string InflateBudget::charge(std::uint64_t declared, bool reading_again, unsigned weight) const {
   if (declared > kMaxChunkBytes) {

@@ -46,6 +46,10 @@ struct PageAllocator {
 /// A chunk's records, decompressed.
 using ChunkBytes = std::vector<std::uint8_t, PageAllocator<std::uint8_t>>;
 
+/// Expands the LZ4 frame (or frames) `in` into `out`, which holds the size it declares;
+/// "" when it fills `out` exactly, else why not.
+std::string expandLz4Frame(const std::uint8_t* in, std::size_t n, ChunkBytes* out);
+
 /// Decompressed bytes a file may cost: 1 GiB + 1024 times its size for the pass over
 /// it, twice that with its frames read again.
 class InflateBudget {

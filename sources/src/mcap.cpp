@@ -12,7 +12,6 @@
 
 #include "mobmap/sources/io_error.hpp"
 
-#include <lz4frame.h>
 #include <zlib.h>
 #include <zstd.h>
 
@@ -206,28 +205,7 @@ class McapContainer : public Container {
       if (ZSTD_isError(got)) return std::string("zstd cannot decompress it (") + ZSTD_getErrorName(got) + ")";
       if (got != size) return "it decompresses to " + std::to_string(got) + " bytes, not " + std::to_string(size);
     } else if (compression == "lz4") {
-      LZ4F_dctx* ctx = nullptr;
-      if (LZ4F_isError(LZ4F_createDecompressionContext(&ctx, LZ4F_VERSION))) return "out of memory";
-      std::size_t out_at = 0, in_at = 0;
-      std::string err;
-      while (in_at < stored) {
-        std::size_t out_n = records->size() - out_at, in_n = static_cast<std::size_t>(stored) - in_at;
-        const std::size_t r = LZ4F_decompress(ctx, records->data() + out_at, &out_n, in + in_at, &in_n, nullptr);
-        if (LZ4F_isError(r)) {
-          err = std::string("lz4 cannot decompress it (") + LZ4F_getErrorName(r) + ")";
-          break;
-        }
-        out_at += out_n;
-        in_at += in_n;
-        if (r == 0) break;
-        if (out_n == 0 && in_n == 0) {
-          err = "lz4 decompresses it to more than the " + std::to_string(size) + " bytes it declares";
-          break;
-        }
-      }
-      LZ4F_freeDecompressionContext(ctx);
-      if (!err.empty()) return err;
-      if (out_at != size) return "it decompresses to " + std::to_string(out_at) + " bytes, not " + std::to_string(size);
+      if (std::string err = expandLz4Frame(in, static_cast<std::size_t>(stored), records); !err.empty()) return err;
     } else {
       return "its compression \"" + compression + "\" is not one MCAP defines (none, lz4, zstd)";
     }

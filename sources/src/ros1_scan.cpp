@@ -14,7 +14,6 @@
 #include "mobmap/sources/io_error.hpp"
 
 #include <bzlib.h>
-#include <lz4frame.h>
 
 #include <array>
 #include <cstring>
@@ -208,28 +207,7 @@ class Ros1Scan : public Container {
       if (out != size) return "it decompresses to " + std::to_string(out) + " bytes, not " + std::to_string(size);
       return {};
     }
-    LZ4F_dctx* ctx = nullptr;
-    if (LZ4F_isError(LZ4F_createDecompressionContext(&ctx, LZ4F_VERSION))) return "out of memory";
-    std::size_t out_at = 0, in_at = 0;
-    std::string err;
-    while (in_at < stored.size()) {
-      std::size_t out_n = records->size() - out_at, in_n = stored.size() - in_at;
-      const std::size_t r = LZ4F_decompress(ctx, records->data() + out_at, &out_n, stored.data() + in_at, &in_n, nullptr);
-      if (LZ4F_isError(r)) {
-        err = std::string("lz4 cannot decompress it (") + LZ4F_getErrorName(r) + ")";
-        break;
-      }
-      out_at += out_n;
-      in_at += in_n;
-      if (r == 0) break;
-      if (out_n == 0 && in_n == 0) {
-        err = "lz4 decompresses it to more than the " + std::to_string(size) + " bytes it declares";
-        break;
-      }
-    }
-    LZ4F_freeDecompressionContext(ctx);
-    if (err.empty() && out_at != size) err = "it decompresses to " + std::to_string(out_at) + " bytes, not " + std::to_string(size);
-    return err;
+    return expandLz4Frame(stored.data(), stored.size(), records);
   }
 
   std::optional<ContainerFault> chunk(std::uint64_t at, const Header& f, std::uint64_t data_at,
