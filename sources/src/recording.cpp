@@ -332,6 +332,30 @@ class BagRecording : public Recording {
     }
     checkSize(first, 0);
     camera_known_ = true;
+    limitPixels();
+  }
+
+  // What decoding the images may cost: at most 16 Mi pixels + 16 a byte of the files
+  // (raw depth stores 2 bytes a pixel; compressed, a recorder's depth keeps well under
+  // 16 pixels a byte). A hostile file whose chunks or PNGs expand to millions of frames
+  // is read up to there, as at a fault.
+  void limitPixels() {
+    std::uint64_t file_bytes = 0;
+    for (const std::string& f : container_->files()) {
+      std::error_code ec;
+      const auto n = fs::file_size(f, ec);
+      if (!ec) file_bytes += n;
+    }
+    const std::uint64_t most = (16ULL << 20) + 16 * file_bytes;
+    const auto pixels = static_cast<std::uint64_t>(intrinsics_.width) * static_cast<std::uint64_t>(intrinsics_.height);
+    if (pixels == 0 || images_.size() * pixels <= most) return;
+    const std::size_t keep = static_cast<std::size_t>(std::max<std::uint64_t>(1, most / pixels));
+    const std::string why = path_ + ": its " + std::to_string(images_.size()) + " depth images of " + std::to_string(intrinsics_.width) +
+                            "x" + std::to_string(intrinsics_.height) + " would decode to more than " + std::to_string(most) +
+                            " pixels (16 Mi + 16 a byte of its " + std::to_string(file_bytes) + " bytes): the first " +
+                            std::to_string(keep) + " are read";
+    images_.resize(keep);
+    fault_ += (fault_.empty() ? "" : "; ") + why;
   }
 
   perception::DepthImage decodeDepth(int n, double* units_per_m = nullptr) const {

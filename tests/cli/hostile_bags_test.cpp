@@ -92,7 +92,8 @@ TEST_F(Bags, AnMcapDecompressionBombStopsAtItsBudgetWithinBoundedMemory) {
 // 94 KB of zstd chunks that expand to 18 million valid 1 x 1 depth images (1 GiB, within
 // the decompression budget): what the index holds stops at 64 MiB + 16 times the file's
 // size, so `info` and `build` stay within 512 MB (the index alone took 860 MB before) and
-// say why the recording ended there.
+// say why the recording ended there. Large images that compress to nothing are bounded
+// by the pixels they decode to.
 TEST_F(Bags, MillionsOfTinyMessagesStopAtTheIndexBound) {
   const std::string flood = dir_ + "/flood.mcap";
   const Result w = runShell("node " + kFixtures + "/write_flood.mjs --out " + flood + " --chunks 32 --mib 32");
@@ -109,6 +110,15 @@ TEST_F(Bags, MillionsOfTinyMessagesStopAtTheIndexBound) {
   const Result b = build(flood, dir_ + "/flood.ot", "--intrinsics 1,1,0.5,0.5");
   EXPECT_EQ(b.code, 1) << b.out;
   EXPECT_NE(b.out.find("indexing it would hold more than"), std::string::npos) << b.out;
+  // 34 KB that expand to 40 depth images of 2048 x 2048 (160 Mi pixels to decode and
+  // perceive): the images are read up to 16 Mi pixels + 16 a stored byte, the first 4.
+  const std::string large = dir_ + "/large-frames.mcap";
+  const Result wl = runShell("node " + kFixtures + "/write_flood.mjs --out " + large + " --chunks 40 --mib 9 --side 2048");
+  ASSERT_EQ(wl.code, 0) << wl.out;
+  const Result l = build(large, dir_ + "/large.ot", "--intrinsics 1000,1000,1024,1024");
+  EXPECT_EQ(l.code, 1) << l.out;  // no TF: the reason, and where the recording ended
+  EXPECT_NE(l.out.find("its 40 depth images of 2048x2048 would decode to more than"), std::string::npos) << l.out;
+  EXPECT_NE(l.out.find("the first 4 are read"), std::string::npos) << l.out;
 }
 
 // Chunks of 48 MiB that store a few hundred KiB (a frame and 48 MiB of zeros): the frames

@@ -1,10 +1,11 @@
 // Writes a hostile MCAP for mobmap's tests: one depth topic, then CHUNKS zstd chunks that
-// each repeat one tiny valid message (a 1 x 1 16UC1 sensor_msgs/Image, 60 bytes) until
-// the chunk holds MIB MiB. zstd stores a chunk in a few hundred bytes, so the file is
-// small and expands to millions of images: what indexing a recording may hold must be
-// bounded, not only what decompressing it costs.
+// each repeat one valid message (a SIDE x SIDE 16UC1 sensor_msgs/Image of 1 m depth; SIDE 1:
+// 60 bytes) until the chunk holds MIB MiB. zstd stores a chunk in a few hundred bytes, so
+// the file is small and expands to millions of images, or to thousands of large ones:
+// what indexing and decoding a recording may cost must be bounded, not only what
+// decompressing it costs.
 //
-//   node write_flood.mjs --out FILE.mcap [--chunks 32] [--mib 32]
+//   node write_flood.mjs --out FILE.mcap [--chunks 32] [--mib 32] [--side 1]
 import fs from "node:fs";
 import { createRequire } from "node:module";
 import { parse } from "@foxglove/rosmsg";
@@ -15,14 +16,14 @@ const zstd = require("@foxglove/wasm-zstd");
 
 const args = {};
 for (let i = 2; i + 1 < process.argv.length; i += 2) args[process.argv[i].replace(/^--/, "")] = process.argv[i + 1];
-const chunks = Number(args.chunks ?? 32), mib = Number(args.mib ?? 32);
+const chunks = Number(args.chunks ?? 32), mib = Number(args.mib ?? 32), side = Number(args.side ?? 1);
 
 const SEP = "\n================================================================================\nMSG: ";
 const imageDef = "std_msgs/Header header\nuint32 height\nuint32 width\nstring encoding\nuint8 is_bigendian\nuint32 step\nuint8[] data" +
   SEP + "std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id" + SEP + "builtin_interfaces/Time\nint32 sec\nuint32 nanosec";
 const image = new MessageWriter(parse(imageDef, { ros2: true })).writeMessage({
-  header: { stamp: { sec: 1700000000, nanosec: 0 }, frame_id: "cam" }, height: 1, width: 1, encoding: "16UC1", is_bigendian: 0, step: 2,
-  data: new Uint8Array([0xe8, 0x03]),
+  header: { stamp: { sec: 1700000000, nanosec: 0 }, frame_id: "cam" }, height: side, width: side, encoding: "16UC1", is_bigendian: 0,
+  step: 2 * side, data: new Uint8Array(new Uint16Array(side * side).fill(1000).buffer),
 });
 
 const le = (value, bytes) => {
