@@ -121,7 +121,7 @@ class Ros1Scan : public Container {
           data.resize(data_len);
           if (!file_.readAt(data_at, data.data(), data.size())) return fault("cannot read the record at byte " + std::to_string(at));
           connection(f, data.data(), data.size());
-        }  // the bag header, index data and chunk infos: an index is what this reading does without
+        }  // index data and chunk infos: an index is what this reading does without
       } catch (const ros::MessageError& e) {
         return fault("the record at byte " + std::to_string(at) + " is malformed: " + e.what());
       }
