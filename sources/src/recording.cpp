@@ -76,6 +76,10 @@ class BagRecording : public Recording {
     const bool mcap = std::all_of(files.begin(), files.end(), [](const std::string& f) { return fs::path(f).extension() == ".mcap"; });
     const bool ros1 = p.extension() == ".bag" || isActiveRos1Bag(path);
     format_ = ros1 ? "ROS 1 bag" : mcap ? "ROS 2 bag (MCAP)" : "ROS 2 bag (sqlite3)";
+    for (const std::string& f : files) {
+      const auto n = fs::file_size(f, ec);
+      if (!ec) file_bytes_ += n;
+    }
     index();
     try {
       chooseTopics();
@@ -159,13 +163,7 @@ class BagRecording : public Recording {
     // are larger than what the index keeps of them (an image's place, a transform), so
     // only a hostile file (millions of tiny messages in chunks that expand a
     // thousand-fold) reaches it; the pass ends there as at a fault.
-    std::uint64_t file_bytes = 0;
-    for (const std::string& f : container_->files()) {
-      std::error_code ec;
-      const auto n = fs::file_size(f, ec);
-      if (!ec) file_bytes += n;
-    }
-    const std::uint64_t most = (64ULL << 20) + 16 * file_bytes;
+    const std::uint64_t most = (64ULL << 20) + 16 * file_bytes_;
     std::uint64_t held = 0;
     struct IndexFull {};
     const auto hold = [&](std::uint64_t bytes) {
@@ -235,7 +233,7 @@ class BagRecording : public Recording {
       });
     } catch (const IndexFull&) {
       fault = ContainerFault{path_ + ": indexing it would hold more than " + std::to_string(most >> 20) + " MiB (64 MiB + 16 times its " +
-                             std::to_string(file_bytes) + " bytes): far more, or far smaller, messages than a recorder writes"};
+                             std::to_string(file_bytes_) + " bytes): far more, or far smaller, messages than a recorder writes"};
     }
     if (fault) fault_ = fault->what;
     tf_.sortSamples();
@@ -340,19 +338,13 @@ class BagRecording : public Recording {
   // 16 pixels a byte). A hostile file whose chunks or PNGs expand to millions of frames
   // is read up to there, as at a fault.
   void limitPixels() {
-    std::uint64_t file_bytes = 0;
-    for (const std::string& f : container_->files()) {
-      std::error_code ec;
-      const auto n = fs::file_size(f, ec);
-      if (!ec) file_bytes += n;
-    }
-    const std::uint64_t most = (16ULL << 20) + 16 * file_bytes;
+    const std::uint64_t most = (16ULL << 20) + 16 * file_bytes_;
     const auto pixels = static_cast<std::uint64_t>(intrinsics_.width) * static_cast<std::uint64_t>(intrinsics_.height);
     if (pixels == 0 || images_.size() * pixels <= most) return;
     const std::size_t keep = static_cast<std::size_t>(std::max<std::uint64_t>(1, most / pixels));
     const std::string why = path_ + ": its " + std::to_string(images_.size()) + " depth images of " + std::to_string(intrinsics_.width) +
                             "x" + std::to_string(intrinsics_.height) + " would decode to more than " + std::to_string(most) +
-                            " pixels (16 Mi + 16 a byte of its " + std::to_string(file_bytes) + " bytes): the first " +
+                            " pixels (16 Mi + 16 a byte of its " + std::to_string(file_bytes_) + " bytes): the first " +
                             std::to_string(keep) + " are read";
     images_.resize(keep);
     fault_ += (fault_.empty() ? "" : "; ") + why;
@@ -585,6 +577,7 @@ class BagRecording : public Recording {
   std::string path_;
   RecordingOptions options_;
   std::unique_ptr<Container> container_;
+  std::uint64_t file_bytes_ = 0;  // the container's files together: what the index and the pixels are bounded by
   std::string format_;
   TfTree tf_;
   std::vector<TopicSummary> summaries_;
