@@ -344,6 +344,35 @@ class HeavySlot {
 
 }  // namespace
 
+// Answers kept by key, oldest first, within a count and a byte bound: each `keep` drops
+// the oldest until the new one fits; one larger than the byte bound alone is not kept.
+template <typename T>
+struct Kept {
+  std::vector<std::pair<std::string, std::shared_ptr<const T>>> entries;
+  std::size_t bytes = 0;
+
+  [[nodiscard]] std::shared_ptr<const T> find(const std::string& key) const {
+    for (const auto& [k, v] : entries) {
+      if (k == key) return v;
+    }
+    return nullptr;
+  }
+  void keep(const std::string& key, std::shared_ptr<const T> value, std::size_t value_bytes, std::size_t max_entries,
+            std::size_t max_bytes, const std::function<std::size_t(const T&)>& size_of) {
+    if (value_bytes > max_bytes || max_entries == 0 || find(key)) return;
+    while (!entries.empty() && (entries.size() >= max_entries || bytes + value_bytes > max_bytes)) {
+      bytes -= size_of(*entries.front().second);
+      entries.erase(entries.begin());
+    }
+    entries.emplace_back(key, std::move(value));
+    bytes += value_bytes;
+  }
+  void clear() {
+    entries.clear();
+    bytes = 0;
+  }
+};
+
 struct Api::Cache {
   std::mutex mutex;
   // What the entries below were computed from. Not held: a live map's snapshot kept
@@ -352,12 +381,8 @@ struct Api::Cache {
   std::optional<nlohmann::json> info;
   std::map<int, std::shared_ptr<const std::vector<Cell>>> cells;  // by level
   std::map<int, std::size_t> cells_over;  // level -> a count its cells are known to pass
-  // /api/layer's answers by their query, oldest first; their bytes together.
-  std::vector<std::pair<std::string, std::shared_ptr<const std::string>>> layers;
-  std::size_t layer_bytes = 0;
-  // By ReachRequest::key, oldest first; their memory together.
-  std::vector<std::pair<std::string, std::shared_ptr<const mapping::Reachability>>> reach;
-  std::size_t reach_bytes = 0;
+  Kept<std::string> layers;                // /api/layer's answers by their query
+  Kept<mapping::Reachability> reach;       // by ReachRequest::key
 
   // Drops what belongs to an older map.
   void follow(const std::shared_ptr<const ServedMap>& s) {
@@ -367,28 +392,16 @@ struct Api::Cache {
     cells.clear();
     cells_over.clear();
     layers.clear();
-    layer_bytes = 0;
     reach.clear();
-    reach_bytes = 0;
   }
-  [[nodiscard]] std::shared_ptr<const mapping::Reachability> findReach(const std::string& key) const {
-    for (const auto& [k, r] : reach) {
-      if (k == key) return r;
-    }
-    return nullptr;
-  }
-  // Keeps `r` unless it alone is over the byte bound, dropping the oldest entries to
-  // stay within both bounds.
   void keepReach(const std::string& key, std::shared_ptr<const mapping::Reachability> r, const Limits& limits) {
     const std::size_t bytes = r->memoryBytes();
-    if (bytes > limits.max_reach_cache_bytes || limits.max_reach_cache_entries == 0 || findReach(key)) return;
-    while (!reach.empty() &&
-           (reach.size() >= limits.max_reach_cache_entries || reach_bytes + bytes > limits.max_reach_cache_bytes)) {
-      reach_bytes -= reach.front().second->memoryBytes();
-      reach.erase(reach.begin());
-    }
-    reach.emplace_back(key, std::move(r));
-    reach_bytes += bytes;
+    reach.keep(key, std::move(r), bytes, limits.max_reach_cache_entries, limits.max_reach_cache_bytes,
+               [](const mapping::Reachability& x) { return x.memoryBytes(); });
+  }
+  void keepLayer(const std::string& key, std::shared_ptr<const std::string> answer) {
+    const std::size_t bytes = answer->size();
+    layers.keep(key, std::move(answer), bytes, kLayerCacheEntries, kLayerCacheBytes, [](const std::string& x) { return x.size(); });
   }
 };
 
@@ -401,7 +414,7 @@ Api::Api(std::string map_label, const MapSource& source, Limits limits)
 
 Api::ReachCacheFigures Api::reachCache() const {
   const std::lock_guard<std::mutex> lock(cache_->mutex);
-  return {cache_->reach.size(), cache_->reach_bytes};
+  return {cache_->reach.entries.size(), cache_->reach.bytes};
 }
 
 Response Api::handle(const std::string& method, const std::string& path,
@@ -429,7 +442,7 @@ Response Api::handle(const std::string& method, const std::string& path,
       {
         const std::lock_guard<std::mutex> lock(cache_->mutex);
         cache_->follow(served);
-        if (auto r = cache_->findReach(q->key)) return r;
+        if (auto r = cache_->reach.find(q->key)) return r;
       }
       takeHeavySlot();
       std::shared_ptr<const mapping::Reachability> r;
@@ -633,9 +646,7 @@ Response Api::handle(const std::string& method, const std::string& path,
       {
         const std::lock_guard<std::mutex> lock(cache_->mutex);
         cache_->follow(served);
-        for (const auto& [q, answer] : cache_->layers) {
-          if (q == key) return {200, "application/json", *answer};
-        }
+        if (const auto answer = cache_->layers.find(key)) return {200, "application/json", *answer};
       }
       takeHeavySlot();  // up to a million cells over every column of the map
       const auto columns = map.surfaceColumns();
@@ -676,15 +687,7 @@ Response Api::handle(const std::string& method, const std::string& path,
       {
         const std::lock_guard<std::mutex> lock(cache_->mutex);
         cache_->follow(served);
-        if (answer->size() <= kLayerCacheBytes) {
-          while (!cache_->layers.empty() &&
-                 (cache_->layers.size() >= kLayerCacheEntries || cache_->layer_bytes + answer->size() > kLayerCacheBytes)) {
-            cache_->layer_bytes -= cache_->layers.front().second->size();
-            cache_->layers.erase(cache_->layers.begin());
-          }
-          cache_->layers.emplace_back(key, answer);
-          cache_->layer_bytes += answer->size();
-        }
+        cache_->keepLayer(key, answer);
       }
       return {200, "application/json", *answer};
     }
