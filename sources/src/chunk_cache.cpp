@@ -58,15 +58,16 @@ std::string InflateBudget::charge(std::uint64_t declared, bool reading_again, un
   return {};
 }
 
-std::vector<std::uint8_t> ChunkCache::copy(std::uint64_t at, std::uint64_t declared, std::uint64_t begin, std::uint64_t n,
-                                           const std::function<ChunkBytes()>& load) const {
+std::vector<std::uint8_t> ChunkCache::copy(std::uint64_t at, std::uint64_t begin, std::uint64_t n,
+                                           const std::function<std::uint64_t()>& declared, const std::function<ChunkBytes()>& load) const {
   std::lock_guard<std::mutex> lock(mutex_);
   auto it = chunks_.begin();
   while (it != chunks_.end() && it->first != at) ++it;
   if (it != chunks_.end()) {
     chunks_.splice(chunks_.end(), chunks_, it);  // the most recent last
   } else {
-    while (!chunks_.empty() && bytes_ + declared > kCacheBytes) {  // room first
+    const std::uint64_t size = declared();
+    while (!chunks_.empty() && bytes_ + size > kCacheBytes) {  // room first
       bytes_ -= chunks_.front().second.size();
       chunks_.pop_front();
     }

@@ -70,10 +70,11 @@ class InflateBudget {
 /// does copying a message out, so the chunks in memory are the cache's alone.
 class ChunkCache {
  public:
-  /// Bytes [begin, begin + n) of the chunk at `at`, loaded with `load` when not cached
-  /// (`declared`: the size it will have, to make room first). std::out_of_range when the
-  /// range lies outside the chunk; what `load` throws passes through.
-  std::vector<std::uint8_t> copy(std::uint64_t at, std::uint64_t declared, std::uint64_t begin, std::uint64_t n,
+  /// Bytes [begin, begin + n) of the chunk at `at`; when it is not cached, `declared`
+  /// gives the size it will have (room is made first) and `load` loads it.
+  /// std::out_of_range when the range lies outside the chunk; what `load` throws passes
+  /// through.
+  std::vector<std::uint8_t> copy(std::uint64_t at, std::uint64_t begin, std::uint64_t n, const std::function<std::uint64_t()>& declared,
                                  const std::function<ChunkBytes()>& load) const;
 
  private:

@@ -12,7 +12,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The files of one ROS 2 bag, one after another; a message's ref names its file.
+// The files of one ROS 2 bag (openBagFolder), one after another; a message's ref names its file.
 class Chain : public Container {
  public:
   explicit Chain(std::vector<std::unique_ptr<Container>> parts) : parts_(std::move(parts)) {}
@@ -86,9 +86,6 @@ bool wireOf(const std::string& encoding, ros::Wire* wire) {
   return false;
 }
 
-std::unique_ptr<Container> openChain(std::vector<std::unique_ptr<Container>> parts) {
-  return std::make_unique<Chain>(std::move(parts));
-}
 
 // The .db3 and .mcap files of a folder, in rosbag2's order.
 static std::vector<std::string> bagFiles(const std::string& dir) {

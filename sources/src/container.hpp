@@ -69,8 +69,6 @@ std::unique_ptr<Container> openDb3(const std::string& path);
 std::unique_ptr<Container> openRos1Bag(const std::string& path);
 /// True for NAME.bag.active (what `rosbag record` writes until it closes the bag).
 bool isActiveRos1Bag(const std::string& path);
-/// Several files of one ROS 2 bag (metadata.yaml's relative_file_paths), in order.
-std::unique_ptr<Container> openChain(std::vector<std::unique_ptr<Container>> parts);
 /// A ROS 2 bag folder: its files in metadata.yaml's order (every .db3 / .mcap in it
 /// when metadata.yaml does not list them, or when there is no metadata.yaml: a recorder
 /// killed before writing it, whose folder is read as `ros2 bag reindex` would, and

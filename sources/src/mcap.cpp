@@ -123,7 +123,7 @@ class McapContainer : public Container {
     }
     std::vector<std::uint8_t> content;
     try {
-      content = cache_.copy(ref.a, declaredSize(ref.a), ref.b, ref.c, [&] { return unpackAgain(ref.a); });
+      content = cache_.copy(ref.a, ref.b, ref.c, [&] { return declaredSize(ref.a); }, [&] { return unpackAgain(ref.a); });
     } catch (const std::out_of_range& e) {
       throw IoError(file_.path(), e.what());
     }

@@ -141,7 +141,7 @@ class Ros1Scan : public Container {
   std::vector<std::uint8_t> read(const MessageRef& ref) const override {
     // a: the chunk record's offset, b: the message's data in its records, c: its length.
     try {
-      return cache_.copy(ref.a, declared_.at(ref.a), ref.b, ref.c, [&] { return unpackAgain(ref.a); });
+      return cache_.copy(ref.a, ref.b, ref.c, [&] { return declared_.at(ref.a); }, [&] { return unpackAgain(ref.a); });
     } catch (const std::out_of_range&) {
       throw IoError(file_.path(), "a message lies outside its chunk at byte " + std::to_string(ref.a));
     }
