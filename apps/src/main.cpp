@@ -1,5 +1,6 @@
 // mobmap: RGB-D depth frames -> 3D mobility maps for legged robots.
 #include "commands/commands.hpp"
+#include "io/cli_text.hpp"
 #include "io/io_error.hpp"
 
 #include <cstdio>
@@ -66,8 +67,11 @@ int main(int argc, char** argv) {
   } catch (const mobmap::app::UsageError& e) {
     std::cerr << "error: " << e.what() << "\n";
     return 2;
+  } catch (const mobmap::app::FieldError& e) {  // a value the library cannot take: a usage mistake
+    std::cerr << "error: " << mobmap::app::cliText(e) << "\n";
+    return 2;
   } catch (const std::exception& e) {
-    std::cerr << "error: " << e.what() << "\n";
+    std::cerr << "error: " << mobmap::app::cliText(e) << "\n";
     return 1;
   }
   return 2;

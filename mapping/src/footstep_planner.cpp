@@ -53,19 +53,19 @@ bool solesOverlap(double xa, double ya, double ta, double xb, double yb, double 
 std::string describeProblem(const Foothold& f, const RobotParams& r) {
   switch (f.problem) {
     case FootholdProblem::kNoSurface:
-      return format("only %.0f %% of a sole there rests on known surface (--min-support ", 100 * f.support_fraction) +
+      return format("only %.0f %% of a sole there rests on known surface (`min_support_fraction` ", 100 * f.support_fraction) +
              formatLimit(100 * r.min_support_fraction) + " %)";
     case FootholdProblem::kTooSteep:
-      return format("its surface tilts %.1f degrees, over --max-tilt ", f.tilt_deg) + formatLimit(r.max_tilt_deg);
+      return format("its surface tilts %.1f degrees, over `max_tilt_deg` ", f.tilt_deg) + formatLimit(r.max_tilt_deg);
     case FootholdProblem::kUneven:
-      return format("the surface under a sole is uneven by %.3f m, over --max-unevenness ", f.unevenness_m) +
+      return format("the surface under a sole is uneven by %.3f m, over `max_unevenness_m` ", f.unevenness_m) +
              formatLimit(r.max_unevenness_m);
     case FootholdProblem::kObstacle:
-      return "something occupied stands inside the sole's space (within --swing-clearance or --clearance above it)";
+      return "something occupied stands inside the sole's space (within `swing_clearance_m` or `clearance_m` above it)";
     case FootholdProblem::kLowMobility:
-      return format("%.0f %% of the surface under the sole has mobility under --min-mobility ", 100 * f.poor_fraction) +
+      return format("%.0f %% of the surface under the sole has mobility under `min_mobility` ", 100 * f.poor_fraction) +
              formatLimit(r.min_mobility) + format(" (mean %.2f; at most ", f.mean_mobility) +
-             formatLimit(100 * r.max_poor_fraction) + " % may: --max-poor)";
+             formatLimit(100 * r.max_poor_fraction) + " % may: `max_poor_fraction`)";
     case FootholdProblem::kNone: break;
   }
   return "it can be stood on";
@@ -292,7 +292,7 @@ std::string diagnose(const SurfaceColumns& cols, const Reachability& reach, cons
   const double res = cols.resolution();
   if (goalReachable(reach, goals)) {
     return "no footstep sequence found: the goal's surface can be reached, but not with the planner's strides and turns "
-           "(a narrow passage or a tight turn); try a larger --max-stride or --goal-tolerance";
+           "(a narrow passage or a tight turn); try a larger `max_stride_m` or `goal_tolerance_m`";
   }
   // The easiest way there: the smallest possible highest step (minimax Dijkstra over the
   // soles, every other limit kept).
@@ -326,8 +326,8 @@ std::string diagnose(const SurfaceColumns& cols, const Reachability& reach, cons
   }
   if (!reached) {
     return "the goal is cut off from the start: every way there crosses a wall or an obstacle higher than "
-           "--swing-clearance, a stretch over --max-gap without surface, or surface the robot cannot stand on "
-           "(--min-mobility, --max-tilt)";
+           "`swing_clearance_m`, a stretch over `max_gap_m` without surface, or surface the robot cannot stand on "
+           "(`min_mobility`, `max_tilt_deg`)";
   }
   // The first step on that way (from the start) over the limit.
   std::vector<std::size_t> path;
@@ -345,10 +345,10 @@ std::string diagnose(const SurfaceColumns& cols, const Reachability& reach, cons
            format(" on the easiest way there measures %.4f m, from a sole resting at z = %.4f m to one at z = %.4f m "
                   "(near x = %.2f, y = %.2f; each height known to one voxel, %g m); ",
                   rise, z0, z1, to.x, to.y, res) +
-           "a step passes when its measured rise plus one voxel to spare is at most --max-step " +
+           "a step passes when its measured rise plus one voxel to spare is at most `max_step_m` " +
            formatLimit(robot.max_step_m) + format(": this one needs %.4f m", rise + res);
   }
-  return "the goal is cut off from the start (no step over the limits found on the way; --max-gap or --swing-clearance "
+  return "the goal is cut off from the start (no step over the limits found on the way; `max_gap_m` or `swing_clearance_m` "
          "may block it)";
 }
 
@@ -393,7 +393,7 @@ bool setPlanParameter(PlanParams& params, const std::string& name, double value)
   }
   if (name != kMaxExpansions) return false;
   if (!(value >= 1 && value <= 1e12 && value == std::floor(value))) {
-    throw std::invalid_argument("PlanParams: max_expansions must be a whole number >= 1");
+    throw util::FieldError("max_expansions", "must be a whole number >= 1", "PlanParams");
   }
   params.max_expansions = static_cast<std::size_t>(value);
   return true;
@@ -447,8 +447,8 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
   const RobotParams& robot = params.robot;
   const double res = cols.resolution();
   if (robot.max_step_m < 2 * res - 1e-9) {
-    throw std::invalid_argument(format("PlanParams: robot.max_step_m is %g (must be at least two voxels, %g m in this map)",
-                                       robot.max_step_m, 2 * res));
+    throw util::FieldError("max_step_m", format("is %g (must be at least two voxels, %g m in this map)", robot.max_step_m, 2 * res),
+                           "PlanParams");
   }
   Plan plan;
   const auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
@@ -610,7 +610,7 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
   const auto outOfTime = [&] {
     plan.time_limit_reached = plan.expansions < params.max_expansions;
     return finish(format("no plan within the limits (%.1f s, ", params.time_limit_s) + std::to_string(plan.expansions) +
-                  " states expanded); raise --time-limit, or --weight to search faster for a costlier plan");
+                  " states expanded); raise `time_limit_s`, or `heuristic_weight` to search faster for a costlier plan");
   };
   while (!open.empty()) {
     // Plain variables, not structured bindings: the lambda below captures them (C++17

@@ -3,7 +3,7 @@
 #include "mobmap/mapping/map_metadata.hpp"
 
 #include "mobmap/mapping/gravity.hpp"
-#include "mobmap/mapping/json_limits.hpp"
+#include "mobmap/util/json_limits.hpp"
 #include "mobmap/mapping/mobility_map.hpp"
 
 #include "atomic_write.hpp"
@@ -348,7 +348,7 @@ MapMetadata parseMapMetadata(const std::string& text, const std::string& path) {
   Json meta;
   // Nesting is bounded before parsing: copying or printing a value nested 100,000 deep
   // recurses past the stack.
-  if (const JsonLimitProblem problem = checkJsonLimits(text)) fail(path, "not a map metadata file: " + problem.message);
+  if (const util::JsonLimitProblem problem = util::checkJsonLimits(text)) fail(path, "not a map metadata file: " + problem.message);
   try {
     meta = Json::parse(text);
   } catch (const Json::exception& e) {

@@ -104,9 +104,9 @@ Reachability computeReachability(std::shared_ptr<const SurfaceColumns> columns, 
   const RobotParams& robot = params.robot;
   if (robot.max_step_m < 2 * res - 1e-9) {
     std::ostringstream msg;
-    msg << "ReachParams: max_step_m is " << robot.max_step_m << " (must be at least two voxels, " << 2 * res
+    msg << "is " << robot.max_step_m << " (must be at least two voxels, " << 2 * res
         << " m in this map: support heights are known to a voxel)";
-    throw std::invalid_argument(msg.str());
+    throw util::FieldError("max_step_m", msg.str(), "ReachParams");
   }
   Reachability r;
   r.params_ = params;

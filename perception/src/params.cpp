@@ -1,6 +1,7 @@
 // PerceptionParams' checks and its rescaling to another voxel size (params.hpp).
 
 #include "mobmap/perception/params.hpp"
+#include "mobmap/util/field_error.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -10,10 +11,10 @@
 namespace mobmap::perception {
 namespace {
 
-void fail(const char* field, double value, const char* rule) {
+[[noreturn]] void fail(const char* field, double value, const char* rule) {
   std::ostringstream msg;
-  msg << "PerceptionParams: " << field << " is " << value << " (" << rule << ")";
-  throw std::invalid_argument(msg.str());
+  msg << "is " << value << " (" << rule << ")";
+  throw util::FieldError(field, msg.str(), "PerceptionParams");
 }
 
 }  // namespace

@@ -1,12 +1,20 @@
 #include "convert.hpp"
 
 #include "mobmap/mapping/gravity.hpp"
+#include "mobmap/util/field_error.hpp"
 
 #include <cmath>
 #include <cstdint>
 #include <limits>
 
 namespace mobmap::python {
+
+std::string pythonText(const std::string& message) {
+  return util::respellFields(message, [](std::string_view field) -> std::optional<std::string> {
+    if (field == "max_pose_gap_s") return std::string("`max_pose_gap`");  // open_recording's keyword
+    return std::nullopt;
+  });
+}
 
 Frame parseFrame(const std::string& frame) {
   if (frame == "map") return Frame::kMap;

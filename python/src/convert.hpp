@@ -17,6 +17,11 @@ namespace mobmap::python {
 
 namespace py = pybind11;
 
+/// A library message as Python users read it: each field it names (`max_pose_gap_s`)
+/// spelled as the keyword argument that sets it (`max_pose_gap`); fields whose keyword is
+/// their own name keep it.
+std::string pythonText(const std::string& message);
+
 /// The frame points and soles are given in: the map's (z up, `mobmap build`'s map
 /// frame) or the world frame of the poses.
 enum class Frame { kMap, kWorld };

@@ -81,7 +81,7 @@ py::dict plan(const MapHandle& h, const py::handle& start, const py::handle& goa
   }
   py::dict out;
   out["found"] = p.found;
-  out["reason"] = p.reason;
+  out["reason"] = pythonText(p.reason);
   out["xyz"] = xyz;
   out["yaw"] = yaw;
   out["side"] = side;

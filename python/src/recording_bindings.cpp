@@ -2,6 +2,7 @@
 // RGB-D, .pcd frames, a depth PNG, a ROS 1 or ROS 2 bag, an .oni file) through the
 // library's readers, frame by frame into numpy.
 
+#include "convert.hpp"
 #include "map_handle.hpp"
 
 #include "mobmap/sources/io_error.hpp"
@@ -119,14 +120,6 @@ py::object ofRecording(const sources::Sequence& s, F get, py::object otherwise =
 }  // namespace
 
 void bindRecording(py::module_& m) {
-  py::register_exception<sources::IoError>(m, "RecordingError", PyExc_OSError);
-  py::register_exception_translator([](std::exception_ptr p) {
-    try {
-      if (p) std::rethrow_exception(p);
-    } catch (const sources::UsageError& e) {
-      PyErr_SetString(PyExc_ValueError, e.what());
-    }
-  });
   py::class_<FrameIterator>(m, "_FrameIterator")
       .def("__iter__", [](FrameIterator& it) -> FrameIterator& { return it; })
       .def("__next__", &FrameIterator::next);
@@ -147,7 +140,8 @@ void bindRecording(py::module_& m) {
         return frameDict(s, loadFrame(s, n));
       })
       .def_property_readonly("format", &sources::Sequence::format)
-      .def_property_readonly("description", &sources::Sequence::describe, "What was read and how, as `build` prints it")
+      .def_property_readonly("description", [](const sources::Sequence& s) { return pythonText(s.describe()); },
+                             "What was read and how, as `build` prints it")
       .def_property_readonly("intrinsics", [](const sources::Sequence& s) -> py::object {
         if (!s.hasDepth()) return py::none();
         const auto& k = s.intrinsics();
@@ -165,7 +159,8 @@ void bindRecording(py::module_& m) {
       })
       .def_property_readonly("posed", &sources::Sequence::posed, "False for a lone file, whose frame has no pose")
       .def_property_readonly("frames", &sources::Sequence::frames, "Numbers of the frames with a pose")
-      .def_property_readonly("skipped", &sources::Sequence::skipped, "Frames left out and why, or ''")
+      .def_property_readonly("skipped", [](const sources::Sequence& s) { return pythonText(s.skipped()); },
+                             "Frames left out and why, or ''")
       .def_property_readonly("path", [](const sources::Sequence& s) {
         return ofRecording(s, [](const sources::Recording& r) { return r.path(); });
       }, "A recording's path, else None")

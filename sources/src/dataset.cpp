@@ -197,7 +197,9 @@ perception::DepthImage readDepthPng(const std::string& path) {
 
 perception::PinholeIntrinsics intrinsicsFromFov(double horizontal_fov_deg, int width, int height) {
   if (!(horizontal_fov_deg > 1.0 && horizontal_fov_deg < 179.0)) {
-    throw UsageError("--fov must be a horizontal field of view between 1 and 179 degrees");
+    std::ostringstream value;
+    value << horizontal_fov_deg;
+    throw util::FieldError("intrinsics", "'fov:" + value.str() + "': the horizontal field of view must lie between 1 and 179 degrees");
   }
   const double f = 0.5 * width / std::tan(0.5 * horizontal_fov_deg * M_PI / 180.0);
   perception::PinholeIntrinsics k{width, height, f, f, 0.5 * (width - 1), 0.5 * (height - 1)};
@@ -208,7 +210,7 @@ perception::PinholeIntrinsics intrinsicsFromFov(double horizontal_fov_deg, int w
 perception::PinholeIntrinsics parseIntrinsics(const std::string& spec, int width, int height) {
   if (spec.rfind(kFovSpecPrefix, 0) == 0) {
     const auto fov = parseFiniteNumber(spec.substr(std::string(kFovSpecPrefix).size()));
-    if (!fov) throw UsageError("--fov must be a number of degrees, got '" + spec.substr(std::string(kFovSpecPrefix).size()) + "'");
+    if (!fov) throw util::FieldError("intrinsics", "'" + spec + "': the field of view must be a number of degrees");
     return intrinsicsFromFov(*fov, width, height);
   }
   const auto v = splitNumbers(spec);
@@ -217,13 +219,13 @@ perception::PinholeIntrinsics parseIntrinsics(const std::string& spec, int width
     try {
       perception::validate(k);
     } catch (const std::invalid_argument& e) {
-      throw UsageError(std::string("--intrinsics: ") + e.what());
+      throw util::FieldError("intrinsics", "'" + spec + "': " + e.what());
     }
     return k;
   }
   if (!std::filesystem::exists(spec)) {
-    throw UsageError("--intrinsics must be fx,fy,cx,cy or a camera file (3x3 matrix text, ROS camera_info or OpenCV YAML); '" +
-                     spec + "' is neither");
+    throw util::FieldError("intrinsics", "must be fx,fy,cx,cy or a camera file (3x3 matrix text, ROS camera_info or OpenCV "
+                                         "YAML); '" + spec + "' is neither");
   }
   return readIntrinsicsFile(spec, width, height);
 }
@@ -289,7 +291,7 @@ SevenScenesDirectory::SevenScenesDirectory(std::string dir, const std::string& i
     if (!fs::exists(kpath, ec)) {
       const std::string parent = (fs::absolute(dir_, ec).parent_path() / "camera-intrinsics.txt").string();
       if (!fs::exists(parent, ec)) {
-        throw IoError(dir_, "no camera-intrinsics.txt here or in the parent directory: pass --intrinsics "
+        throw IoError(dir_, "no camera-intrinsics.txt here or in the parent directory: give `intrinsics` "
                             "fx,fy,cx,cy (Microsoft's 7-Scenes Kinect: 585,585,320,240)");
       }
       kpath = parent;

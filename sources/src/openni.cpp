@@ -70,7 +70,7 @@ void openDevice(openni::Device& device, const std::string& uri, bool is_file, co
     openni::Array<openni::DeviceInfo> list;
     openni::OpenNI::enumerateDevices(&list);
     if (list.getSize() == 0) {
-      throw IoError("--device", "no depth sensor is attached: OpenNI2 found no device (check the cable, and that this "
+      throw IoError("OpenNI2", "no depth sensor is attached: OpenNI2 found no device (check the cable, and that this "
                                 "user may open it: libopenni2-0 installs udev rules)");
     }
   }
@@ -166,7 +166,7 @@ class OpenNiSequence : public Sequence {
     s << name_ << " (OpenNI2 " << (o_.is_file ? ".oni recording of " + std::to_string(recorded_) + " depth frames" : "live sensor")
       << ", " << k_.width << "x" << k_.height << (registered_ ? ", depth registered to colour by the driver" : "")
       << ", fx " << k_.fx << " fy " << k_.fy << " cx " << k_.cx << " cy " << k_.cy << ", "
-      << (o_.poses_path.empty() ? "static camera (no --poses)" : "poses from " + o_.poses_path + " by time stamp") << ")";
+      << (o_.poses_path.empty() ? "static camera (no `poses`)" : "poses from " + o_.poses_path + " by time stamp") << ")";
     return s.str();
   }
   const perception::PinholeIntrinsics& intrinsics() const override { return k_; }
@@ -188,7 +188,7 @@ class OpenNiSequence : public Sequence {
     if (dropped <= 0) return {};
     std::ostringstream s;
     s << name_ << " sent " << sent << " depth frames while " << (read_ + 1) << " were read: " << dropped
-      << " arrived while perception was busy and were dropped (--voxel 0.02 perceives about 3 times faster)";
+      << " arrived while perception was busy and were dropped (`voxel_size_m` 0.02 perceives about 3 times faster)";
     return s.str();
   }
 
@@ -228,7 +228,7 @@ class OpenNiSequence : public Sequence {
       }
     }
     if (!(hfov > 0.f && hfov < 3.1f) || !(vfov > 0.f && vfov < 3.1f)) {
-      throw IoError(name_, "reports no usable field of view, so its intrinsics are unknown: pass --intrinsics fx,fy,cx,cy");
+      throw IoError(name_, "reports no usable field of view, so its intrinsics are unknown: give `intrinsics` fx,fy,cx,cy");
     }
     perception::PinholeIntrinsics k;
     k.width = w, k.height = h;

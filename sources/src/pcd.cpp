@@ -322,7 +322,7 @@ void recoverCameraFrame(Frame& f, const std::string& path) {
     std::snprintf(text, sizeof text,
                   "%s: an organized cloud whose points do not lie on their pixels' rays for any pinhole camera "
                   "(best fit: %s; %.0f %% are needed): its frame cannot be recovered, so it is scored as it is, with "
-                  "the image's up axis taken as up (--gravity in the cloud's frame says otherwise)",
+                  "the image's up axis taken as up (`gravity` in the cloud's frame says otherwise)",
                   path.c_str(), fit, 100.0 * kMinCameraInlierShare);
     f.note = text;
     return;

@@ -305,7 +305,7 @@ class BagRecording : public Recording {
                                  listed(others));
       }
       if (candidates.size() > 1) {
-        throw IoError(path_, "has " + std::to_string(candidates.size()) + " depth image topics; choose one with --depth-topic: " + listed(names));
+        throw IoError(path_, "has " + std::to_string(candidates.size()) + " depth image topics; choose one with `depth_topic`: " + listed(names));
       }
       depth = candidates.front();
     }
@@ -414,8 +414,8 @@ class BagRecording : public Recording {
         throw IoError(path_, "has no camera_info topic " + options_.camera_info_topic + " (its camera_info topics: " + listed(all) + ")");
       }
       throw IoError(path_, "has no camera_info in " + (ns.empty() ? std::string("/") : ns) + " for " + depth_topic_ +
-                               "; choose one with --camera-info-topic (its camera_info topics: " + listed(all) +
-                               ") or give --intrinsics");
+                               "; choose one with `camera_info_topic` (its camera_info topics: " + listed(all) +
+                               ") or give `intrinsics`");
     }
     camera_info_topic_ = topics[static_cast<std::size_t>(chosen)].name;
     const auto info = infos_.find(chosen);
@@ -439,7 +439,7 @@ class BagRecording : public Recording {
     if (!distorted) return;
     if (ci.distortion_model != "plumb_bob" || ci.d.size() < 4) {
       throw IoError(what, "its distortion model \"" + ci.distortion_model + "\" has non-zero coefficients; mobmap undoes plumb_bob "
-                          "only (give --intrinsics to read the images as they are)");
+                          "only (give `intrinsics` to read the images as they are)");
     }
     undistort_ = std::make_unique<Undistorter>(k, ci.d);
     char note[200];
@@ -454,7 +454,7 @@ class BagRecording : public Recording {
   void imuGravity() {
     if (options_.poses) {
       if (!options_.imu_topic.empty()) {
-        throw IoError(path_, "--imu-topic places the IMU through the TF tree, whose world frame a trajectory given instead has not");
+        throw IoError(path_, "`imu_topic` places the IMU through the TF tree, whose world frame a trajectory given instead has not");
       }
       return;
     }
@@ -471,7 +471,7 @@ class BagRecording : public Recording {
       if (world_frame_ == "map" || world_frame_ == "odom" || imus_.empty()) return;
       if (imus_.size() > 1) {
         throw IoError(path_, "the world frame " + world_frame_ + " does not say where down is and the recording has " +
-                                 std::to_string(imus_.size()) + " Imu topics; choose one with --imu-topic: " + listed(names));
+                                 std::to_string(imus_.size()) + " Imu topics; choose one with `imu_topic`: " + listed(names));
       }
       chosen = imus_.begin()->first;
     }
@@ -497,7 +497,7 @@ class BagRecording : public Recording {
     if (downs.size() < 10 || sum.norm() < 1e-9) {
       throw IoError(path_, imu_topic_ + " has " + std::to_string(downs.size()) + " of " + std::to_string(readings.size()) +
                                " readings taken while still (|a| within 2 % of g) and placed in " + world_frame_ +
-                               " through TF; at least 10 are needed to find gravity (or give --gravity)");
+                               " through TF; at least 10 are needed to find gravity (or give `gravity`)");
     }
     const Eigen::Vector3d mean = sum.normalized();
     double spread = 0.0;
@@ -545,7 +545,7 @@ class BagRecording : public Recording {
                                listed(tf_.frames()) + ")");
     }
     if (!tf_.has(world_frame_)) {
-      throw IoError(path_, "--world-frame " + world_frame_ + " is not in the TF tree (its frames: " + listed(tf_.frames()) + ")");
+      throw IoError(path_, "`world_frame` " + world_frame_ + " is not in the TF tree (its frames: " + listed(tf_.frames()) + ")");
     }
     const auto gap = static_cast<std::int64_t>(std::llround(options_.max_pose_gap_s * 1e9));
     poses_.resize(images_.size());
@@ -570,7 +570,7 @@ class BagRecording : public Recording {
       char gap_text[32];
       std::snprintf(gap_text, sizeof gap_text, "%g", options_.max_pose_gap_s);
       skipped_ = std::to_string(unposed) + " of " + std::to_string(images_.size()) + " depth images without a pose in " + world_frame_ +
-                 " within --max-pose-gap " + gap_text + " s (" + first_why + ")";
+                 " within `max_pose_gap_s` " + gap_text + " s (" + first_why + ")";
     }
   }
 

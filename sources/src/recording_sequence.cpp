@@ -15,7 +15,7 @@ class RecordingSequence : public Sequence {
   std::string describe() const override {
     std::string text = r_->path() + " (" + r_->format() + ": depth " + r_->depthTopic() + ", " +
                        std::to_string(r_->frames().size()) + " of " + std::to_string(r_->imageCount()) + " images posed " +
-                       (r_->worldFrame().empty() ? std::string("by --poses") : "in " + r_->worldFrame() + " through TF");
+                       (r_->worldFrame().empty() ? std::string("by `poses`") : "in " + r_->worldFrame() + " through TF");
     if (!r_->cameraInfoTopic().empty()) text += ", intrinsics from " + r_->cameraInfoTopic();
     if (!r_->distortionNote().empty()) text += ", " + r_->distortionNote();
     return text + ")";

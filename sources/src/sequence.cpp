@@ -12,6 +12,7 @@
 #include "mobmap/sources/trajectory_files.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <cmath>
 #include <filesystem>
 #include <sstream>
@@ -20,6 +21,13 @@ namespace mobmap::sources {
 namespace {
 
 namespace fs = std::filesystem;
+
+// A pose gap as the notes print it: "0.05".
+std::string gapText(double seconds) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", seconds);
+  return text;
+}
 
 class SevenScenesSequence : public Sequence {
  public:
@@ -78,7 +86,7 @@ class PcdSequence : public Sequence {
       files.push_back(input);
     }
     if (poses.empty()) {
-      throw IoError(input, std::to_string(files.size()) + " .pcd frames but no poses: pass --poses FILE (TUM format " +
+      throw IoError(input, std::to_string(files.size()) + " .pcd frames but no poses: give `poses` FILE (TUM format " +
                                "'t tx ty tz qx qy qz qw'); only a single frame can be mapped without poses");
     }
     const auto list = readTumPoses(poses);
@@ -108,15 +116,15 @@ class PcdSequence : public Sequence {
         }
       }
       if (skipped > 0) {
-        skipped_ = std::to_string(skipped) + " of " + std::to_string(files.size()) + " .pcd frames have no pose within " +
-                   std::to_string(max_gap) + " s and were skipped";
+        skipped_ = std::to_string(skipped) + " of " + std::to_string(files.size()) +
+                   " .pcd frames have no pose within `max_pose_gap_s` " + gapText(max_gap) + " s and were skipped";
       }
       if (entries_.empty()) {
         std::ostringstream msg;
         msg.precision(15);
         msg << "no .pcd frame has poses within " << max_gap << " s around its time stamp (frames span " << first_t
             << " to " << last_t << " s, poses " << list.front().first << " to " << list.back().first
-            << " s; --max-pose-gap sets the tolerance)";
+            << " s; `max_pose_gap_s` sets the tolerance)";
         throw IoError(poses, msg.str());
       }
       how_ = "poses matched by the time stamps in the file names";
@@ -252,7 +260,7 @@ class TumSequence : public Sequence {
     }
     if (skipped > 0) {
       skipped_ = std::to_string(skipped) + " of " + std::to_string(depth_list.size()) +
-                 " depth frames have no ground-truth pose within " + std::to_string(max_gap) + " s and were skipped";
+                 " depth frames have no ground-truth pose within `max_pose_gap_s` " + gapText(max_gap) + " s and were skipped";
     }
     if (entries_.empty()) throw IoError(dir, "no depth frame of depth.txt has a ground-truth pose");
     const fs::path rgb_txt = fs::path(dir) / "rgb.txt";
@@ -344,10 +352,11 @@ class SingleFileSequence : public Sequence {
     if (spec.empty()) {
       const fs::path beside = fs::path(input).parent_path() / "camera-intrinsics.txt";
       if (!fs::is_regular_file(beside, ec)) {
-        throw UsageError("a depth PNG needs --intrinsics fx,fy,cx,cy or FILE (or a camera-intrinsics.txt beside it)");
+        throw util::FieldError("intrinsics", "(fx,fy,cx,cy or a camera file) is needed for a depth PNG without a "
+                                             "camera-intrinsics.txt beside it: " + input);
       }
       spec = beside.string();
-      frame_.note = "intrinsics from " + spec + ", beside the PNG (--intrinsics gives others)";
+      frame_.note = "intrinsics from " + spec + ", beside the PNG (`intrinsics` gives others)";
     }
     frame_.description = input;
     frame_.depth = readDepthPng(input);
@@ -384,7 +393,7 @@ void undoDepthFormat(perception::DepthImage& depth, double units_per_m, const st
   if (format != "sunrgbd") {
     std::string known;
     for (const auto& [name, what] : depthFormats()) known += (known.empty() ? "" : ", ") + name + " (" + what + ")";
-    throw UsageError("--depth-format must be one of: " + known + "; got '" + format + "'");
+    throw util::FieldError("depth_format", "must be one of: " + known + "; got '" + format + "'");
   }
   for (float& d : depth.depth_m) {
     if (!(d > 0.f) || !std::isfinite(d)) continue;
@@ -430,7 +439,7 @@ std::unique_ptr<Sequence> openSequence(const std::string& input, const SequenceO
   perception::DepthImage probe(1, 1);
   undoDepthFormat(probe, 1000.0, options.depth_format);  // an unknown name is refused before a run
   if (!seq->hasDepth() || seq->depthUnit().cloud || seq->depthUnit().units_per_m < 2.0) {
-    throw UsageError("--depth-format " + options.depth_format + " is for 16-bit depth images; " + input +
+    throw util::FieldError("depth_format", options.depth_format + " is for 16-bit depth images; " + input +
                      " gives " + (seq->hasDepth() && !seq->depthUnit().cloud ? "depth in metres as floats" : "point clouds"));
   }
   return std::make_unique<DepthFormatSequence>(std::move(seq), options.depth_format);
@@ -459,14 +468,14 @@ std::unique_ptr<Sequence> openPlainSequence(const std::string& input, const Sequ
       return std::make_unique<PcdSequence>(input, intrinsics_spec, max_pose_gap_s, poses_path);
     }
     if (ext == ".pcd" || ext == ".png") {
-      if (!poses_path.empty()) throw IoError(poses_path, "--poses is for .pcd frames; a depth .png is mapped on its own");
+      if (!poses_path.empty()) throw IoError(poses_path, "`poses` is for .pcd frames; a depth .png is mapped on its own");
       return std::make_unique<SingleFileSequence>(input, intrinsics_spec);
     }
     if (!fs::exists(input, ec)) throw IoError(input, "no such file or directory");
     throw IoError(input, "not a directory");
   }
   if (fs::exists(fs::path(input) / "depth.txt", ec)) {
-    if (!poses_path.empty()) throw IoError(poses_path, "a TUM directory brings its own groundtruth.txt; --poses is for .pcd frames");
+    if (!poses_path.empty()) throw IoError(poses_path, "a TUM directory brings its own groundtruth.txt; `poses` is for .pcd frames");
     return std::make_unique<TumSequence>(input, intrinsics_spec, max_pose_gap_s);
   }
   bool pcd = false, seven = false;
@@ -476,7 +485,7 @@ std::unique_ptr<Sequence> openPlainSequence(const std::string& input, const Sequ
     seven = seven || (name.rfind("frame-", 0) == 0 && name.find(".depth.") != std::string::npos);
   }
   if (pcd && !seven) return std::make_unique<PcdSequence>(input, intrinsics_spec, max_pose_gap_s, poses_path);
-  if (!poses_path.empty()) throw IoError(poses_path, "a 7-Scenes directory brings its own frame-*.pose.txt; --poses is for .pcd frames");
+  if (!poses_path.empty()) throw IoError(poses_path, "a 7-Scenes directory brings its own frame-*.pose.txt; `poses` is for .pcd frames");
   return std::make_unique<SevenScenesSequence>(input, intrinsics_spec);
 }
 

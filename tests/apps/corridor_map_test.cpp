@@ -272,7 +272,7 @@ void CorridorMap::footstepPlansAgreeWithTheTruth() const {
     ASSERT_EQ(std::sscanf(low.reason.c_str(),
                           "the step up on the easiest way there measures %lf m, from a sole resting at z = %lf m to one at "
                           "z = %lf m (near x = %lf, y = %lf; each height known to one voxel, %lf m); a step passes when its "
-                          "measured rise plus one voxel to spare is at most --max-step %15[0-9.]: this one needs %lf m",
+                          "measured rise plus one voxel to spare is at most `max_step_m` %15[0-9.]: this one needs %lf m",
                           &rise, &z0, &z1, &x, &y, &voxel, limit_text, &needs),
               8)
         << low.reason;

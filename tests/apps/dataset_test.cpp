@@ -170,7 +170,7 @@ TEST(SevenScenesDirectory, MismatchedInputsNameTheFile) {
   EXPECT_NE(errorOf([&] { SevenScenesDirectory{dir.str()}; }).find("no frame-NNNNNN.depth.png"), std::string::npos);
   writePng16(dir.file("frame-000000.depth.png"), Image16{8, 6, std::vector<std::uint16_t>(48, 1000)});
   const std::string no_k = errorOf([&] { SevenScenesDirectory{dir.str()}; });
-  EXPECT_NE(no_k.find("no camera-intrinsics.txt here or in the parent directory: pass --intrinsics"), std::string::npos)
+  EXPECT_NE(no_k.find("no camera-intrinsics.txt here or in the parent directory: give `intrinsics`"), std::string::npos)
       << no_k;
   // Microsoft's 7-Scenes download has no camera-intrinsics.txt: --intrinsics stands in.
   {

@@ -169,7 +169,7 @@ TEST(PcdSequence, PosesInFileOrderOrByTimeStampAndAMapFromThem) {
     (void)sources::openSequence((dir / "plain").string(), {"", 0.05, "", {}, ""});
     FAIL();
   } catch (const app::IoError& e) {
-    EXPECT_NE(std::string(e.what()).find("--poses"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("give `poses`"), std::string::npos) << e.what();
   }
   // A later frame that is not the first one's pinhole image (here stretched 5 % in x,
   // as a differently registered cloud would be) is refused, not misread as depth.

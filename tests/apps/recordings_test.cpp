@@ -294,8 +294,8 @@ TEST(CameraFiles, RosAndOpenCvYamlGiveTheSameCameraAsTheMatrixText) {
   EXPECT_EQ(fov.fx, fov.fy);
   EXPECT_EQ(fov.cx, 319.5);
   EXPECT_EQ(fov.cy, 239.5);
-  EXPECT_THROW(parseIntrinsics("fov:180", 640, 480), UsageError);
-  EXPECT_THROW(parseIntrinsics("fov:wide", 640, 480), UsageError);
+  EXPECT_THROW(parseIntrinsics("fov:180", 640, 480), util::FieldError);
+  EXPECT_THROW(parseIntrinsics("fov:wide", 640, 480), util::FieldError);
 }
 
 // Looking straight down at the stairs (no gravity given): the largest plane is the floor

@@ -177,7 +177,7 @@ TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   EXPECT_NE(nowhere.out.find("no place for a 0.25 x 0.12 m sole to stand"), std::string::npos) << nowhere.out;
   const Result bad_step = run("reach " + map + " --max-step -0.1");
   EXPECT_EQ(bad_step.code, 2);
-  EXPECT_NE(bad_step.out.find("max_step_m"), std::string::npos) << bad_step.out;
+  EXPECT_NE(bad_step.out.find("error: --max-step is -0.1 ("), std::string::npos) << bad_step.out;
   EXPECT_EQ(run("reach " + map + " --max-z 0").code, 2);  // the cut is for --png
   // query --reach: the floor under a point from the same start; the robot's options need --reach.
   const Result on_floor = run("query " + map + " 2.01 0.01 0.3 --snap 0.5 --reach --from 2.01 0.01 0");
@@ -301,7 +301,7 @@ TEST(Cli, CoarserVoxelsReduceTheCloudAndKeepTheFloor) {
   EXPECT_NEAR(j["ground_plane"][3].get<double>(), 0.4, 0.02);
   const Result bad = run("analyze " + pcd + " --voxel 2");
   EXPECT_EQ(bad.code, 2);
-  EXPECT_NE(bad.out.find("voxel_size_m is 2"), std::string::npos) << bad.out;
+  EXPECT_NE(bad.out.find("error: --voxel is 2 ("), std::string::npos) << bad.out;
   const Result b = run("build " + pcd + " --out " + dir + "/m.ot --gravity 0,1,0 --voxel 0.02 --quiet");
   ASSERT_EQ(b.code, 0) << b.out;
   EXPECT_NE(b.out.find("frames/s)"), std::string::npos) << b.out;  // the summary's rate
@@ -366,7 +366,7 @@ TEST(Cli, MaxRangeBoundsWhatIsKeptAndNoFreeSpaceKeepsWhatMoved) {
   EXPECT_LT(near_n, all_n);
   const Result bad = run("analyze " + dir + "/seq --max-range 0.1");
   EXPECT_EQ(bad.code, 2) << bad.out;
-  EXPECT_NE(bad.out.find("max_range_m"), std::string::npos) << bad.out;
+  EXPECT_NE(bad.out.find("error: --max-range is 0.1 ("), std::string::npos) << bad.out;
   // build: voxel centres within 2 m of a camera position, give or take a map voxel's
   // half diagonal (0.02 * sqrt(3) / 2) and the perception voxel's centroid (0.01).
   const Result b = run("build " + dir + "/seq --frames 0:23:4 --out " + dir + "/m.ot --max-range 2.0 --quiet");
@@ -423,7 +423,7 @@ TEST(Cli, BuildMapsASingleDepthPngWithItsIntrinsics) {
   fs::copy_file(png, dir + "/loose/depth_image_1.png");
   const Result bare = run("build " + dir + "/loose/depth_image_1.png --out " + dir + "/m.ot --quiet");
   EXPECT_EQ(bare.code, 2);
-  EXPECT_NE(bare.out.find("a depth PNG needs --intrinsics"), std::string::npos) << bare.out;
+  EXPECT_NE(bare.out.find("--intrinsics (fx,fy,cx,cy or a camera file) is needed for a depth PNG"), std::string::npos) << bare.out;
   EXPECT_FALSE(fs::exists(dir + "/m.ot"));
   // One beside it is used, and said so; --intrinsics wins over it.
   const Result beside = run("analyze " + png + " --json");

@@ -20,7 +20,7 @@ TEST(Cli, SevenScenesSequenceFoldersAndIntrinsicsFromTheCommandLine) {
       << scene.out;
   const Result no_k = run("build " + dir + "/scene/seq-01 --out " + dir + "/m.ot --quiet");
   EXPECT_EQ(no_k.code, 1);
-  EXPECT_NE(no_k.out.find("no camera-intrinsics.txt here or in the parent directory: pass --intrinsics fx,fy,cx,cy"),
+  EXPECT_NE(no_k.out.find("no camera-intrinsics.txt here or in the parent directory: give --intrinsics fx,fy,cx,cy"),
             std::string::npos)
       << no_k.out;
   EXPECT_FALSE(fs::exists(dir + "/m.ot"));

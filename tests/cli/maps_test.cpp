@@ -222,9 +222,9 @@ TEST(Cli, PlanGivesFootstepsOrTheReasonThereAreNone) {
   EXPECT_EQ(outside.code, 1);
   EXPECT_NE(outside.out.find(map + ": the goal (50.00, 0.00, 0.00) has no surface"), std::string::npos) << outside.out;
   for (const auto& [options, field] : {std::pair<std::string, std::string>{" --to nan 0 0", "--to"},
-                                       {" --to 2 0 0 --sole -1 0.1", "sole_length_m"},
-                                       {" --to 2 0 0 --max-step 0.01", "max_step_m"},
-                                       {" --to 2 0 0 --weight 0.5", "heuristic_weight"},
+                                       {" --to 2 0 0 --sole -1 0.1", "error: --sole is -1 ("},
+                                       {" --to 2 0 0 --max-step 0.01", "error: --max-step is 0.01 (must be at least two voxels"},
+                                       {" --to 2 0 0 --weight 0.5", "error: --weight is 0.5 ("},
                                        {" --to 2 0 0 --png " + map, "is the map " + map}}) {
     const Result bad = run("plan " + map + " --from 1.2 0 0" + options);
     EXPECT_EQ(bad.code, 2) << options << ": " << bad.out;

@@ -58,13 +58,15 @@ TEST(Cli, RobotLimitsPictureSizesEvaluateToleranceAndDemoStep) {
   EXPECT_FALSE(lj["reach"]["standable"].get<bool>()) << low.out;
   EXPECT_LT(lj["reach"]["headroom_m"].get<double>(), 1.9) << low.out;
   EXPECT_NE(run("query " + map + " " + at + " --reach --clearance 1.9").out.find("cannot be stood on"), std::string::npos);
-  for (const auto& [options, field] : {std::pair<const char*, const char*>{" --clearance -1", "clearance_m"},
-                                       {" --max-gap 5", "max_gap_m"},
-                                       {" --min-mobility 1.5", "min_mobility"}}) {
+  // The library names the field; the command line says the flag and the value.
+  for (const auto& [options, field] : {std::pair<const char*, const char*>{" --clearance -1", "error: --clearance is -1 ("},
+                                       {" --max-gap 5", "error: --max-gap is 5 ("},
+                                       {" --min-mobility 1.5", "error: --min-mobility is 1.5 ("}}) {
     for (const std::string& cmd : {"reach " + map, "query " + map + " 1 0 0 --reach"}) {
       const Result bad = run(cmd + options);
       EXPECT_EQ(bad.code, 2) << cmd << options << ": " << bad.out;
       EXPECT_NE(bad.out.find(field), std::string::npos) << bad.out;
+      EXPECT_EQ(bad.out.find_first_of("`_"), std::string::npos) << bad.out;
     }
   }
   // --max-pixels: the default draws one 2 cm voxel as several pixels; 64 draws cells of

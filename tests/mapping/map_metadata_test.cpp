@@ -1,7 +1,6 @@
 // MAP.json: the typed record round trips, keeps what it does not know, reads what older
 // versions wrote, and names the entry that is wrong.
 #include "mobmap/mapping/gravity.hpp"
-#include "mobmap/mapping/json_limits.hpp"
 #include "mobmap/mapping/map_metadata.hpp"
 #include "mobmap/mapping/mobility_map.hpp"
 
@@ -12,7 +11,6 @@
 
 #include <algorithm>
 #include <functional>
-#include <random>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -243,52 +241,6 @@ TEST(MapMetadata, AMalformedEntryIsNamed) {
   } catch (const MapIoError& e) {
     EXPECT_NE(std::string(e.what()).find("m.json: not valid JSON"), std::string::npos) << e.what();
   }
-}
-
-// checkJsonLimits against the parsed document: depth and value counts of random JSON
-// (brackets, quotes and backslashes inside strings among them) equal what a walk of the
-// parsed value finds, and each limit is refused exactly past its number.
-TEST(JsonLimits, DepthAndValuesAreThoseOfTheParsedDocument) {
-  std::mt19937 rng(7);
-  const std::vector<std::string> strings{"\"a\"", "\"[{\"", "\"\\\"]\"", "\"\\\\\"", "\"}}}\""};
-  // A random value of at most `depth` levels; its depth and count by construction.
-  std::function<std::string(int, std::size_t&, std::size_t&)> value = [&](int depth, std::size_t& deepest,
-                                                                           std::size_t& count) -> std::string {
-    ++count;
-    const int kind = depth == 0 ? static_cast<int>(rng() % 3) : static_cast<int>(rng() % 5);
-    if (kind == 0) return std::to_string(static_cast<int>(rng() % 2000) - 1000);
-    if (kind == 1) return strings[rng() % strings.size()];
-    if (kind == 2) return rng() % 2 ? "true" : "null";
-    std::size_t inner = 0;
-    std::string out = kind == 3 ? "[" : "{";
-    const int n = static_cast<int>(rng() % 4);
-    for (int i = 0; i < n; ++i) {
-      std::size_t d = 0;
-      if (i) out += ",";
-      if (kind == 4) {
-        out += strings[rng() % strings.size()] + ":";
-        ++count;  // a key is a string too
-      }
-      out += value(depth - 1, d, count);
-      inner = std::max(inner, d);
-    }
-    deepest = inner + 1;
-    return out + (kind == 3 ? "]" : "}");
-  };
-  for (int trial = 0; trial < 300; ++trial) {
-    std::size_t depth = 0, count = 0;
-    const std::string text = value(static_cast<int>(rng() % 8), depth, count);
-    Json parsed;
-    ASSERT_NO_THROW(parsed = Json::parse(text)) << text;  // valid JSON, as generated
-    EXPECT_FALSE(checkJsonLimits(text, {depth, count})) << text;
-    if (depth > 0) {
-      const JsonLimitProblem deep = checkJsonLimits(text, {depth - 1, count});
-      EXPECT_EQ(deep.kind, JsonLimitProblem::Kind::kTooDeep) << text;
-    }
-    EXPECT_EQ(checkJsonLimits(text, {depth, count - 1}).kind, JsonLimitProblem::Kind::kTooManyValues) << text;
-  }
-  EXPECT_EQ(checkJsonLimits(std::string("{}\0{}", 5)).kind, JsonLimitProblem::Kind::kNulByte);
-  EXPECT_FALSE(checkJsonLimits("\"a\\u0000b\""));  // an escaped NUL inside a string is text
 }
 
 // Nesting is bounded before parsing: 100,000 nested objects, even under a key nobody

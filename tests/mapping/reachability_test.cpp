@@ -206,7 +206,7 @@ TEST(Reachability, EdgeVoxelsPartWayUpARiserAreNoSteppingStones) {
   plan.robot.max_step_m = 0.15;
   const Plan no = planFootsteps(t, {0.2, 0.5, 0.02}, {0.9, 0.5, 0.18}, plan);
   EXPECT_FALSE(no.found);
-  EXPECT_NE(no.reason.find("--max-step 0.15"), std::string::npos) << no.reason;
+  EXPECT_NE(no.reason.find("`max_step_m` 0.15"), std::string::npos) << no.reason;
   EXPECT_NE(no.reason.find("the step up"), std::string::npos) << no.reason;
   plan.robot.max_step_m = 0.2;
   const Plan yes = planFootsteps(t, {0.2, 0.5, 0.02}, {0.9, 0.5, 0.18}, plan);
@@ -528,7 +528,7 @@ TEST(FootstepPlanner, EachNamedParameterSetsTheFieldOfThatName) {
       validate(p);
       ADD_FAILURE() << name << " = NaN accepted: the name set no field validate() checks";
     } catch (const std::invalid_argument& e) {
-      EXPECT_NE(std::string(e.what()).find(": " + name + " is"), std::string::npos) << name << ": " << e.what();
+      EXPECT_NE(std::string(e.what()).find(": `" + name + "` is"), std::string::npos) << name << ": " << e.what();
     }
   }
   for (const std::string& name : robotParameterNames()) {
@@ -565,7 +565,7 @@ TEST(FootstepPlanner, StairsOfTenCentimetresAcrossTheFloorAndBadInput) {
   // The ledge is 30 cm up: no plan, and the reason names the step.
   const Plan ledge = planFootsteps(s.tree, {2.0, 0.3, 0.02}, {2.55, 0.3, 0.32}, p);
   EXPECT_FALSE(ledge.found);
-  EXPECT_NE(ledge.reason.find("--max-step"), std::string::npos) << ledge.reason;
+  EXPECT_NE(ledge.reason.find("`max_step_m`"), std::string::npos) << ledge.reason;
   // The goal on the wall top: cannot be stood on.
   const Plan wall = planFootsteps(s.tree, {1.5, 1.0, 0.02}, {2.21, 1.5, 1.0}, p);
   EXPECT_FALSE(wall.found);

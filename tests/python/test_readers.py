@@ -68,7 +68,7 @@ def test_other_files_are_recording_errors(tmp_path):
     (tmp_path / "cut.png").write_bytes(png[:-30])
     with pytest.raises(mobmap.RecordingError, match="cut.png"):
         mobmap.open_recording(str(tmp_path / "cut.png"), intrinsics=(10.0, 10.0, 2.0, 2.0))
-    with pytest.raises(ValueError, match="needs --intrinsics"):
+    with pytest.raises(ValueError, match="^`intrinsics` .* is needed for a depth PNG"):
         mobmap.open_recording(str(tmp_path / "cut.png"))
     with pytest.raises(ValueError, match="intrinsics"):
         mobmap.open_recording(str(tmp_path / "text.png"), intrinsics=(10.0, 10.0, 2.0))
@@ -102,6 +102,8 @@ def test_a_tum_folder_gives_depth_at_5000_per_metre_stamps_and_poses(tmp_path):
     rec = mobmap.open_recording(str(tmp_path), intrinsics=(500.0, 500.0, 3.5, 2.5), max_pose_gap=0.3)
     assert rec.format == "TUM RGB-D"
     assert rec.frames == [0, 1] and "1 of 3 depth frames" in rec.skipped
+    # The library's field, as the keyword that set it.
+    assert "within `max_pose_gap` 0.3 s" in rec.skipped and "max_pose_gap_s" not in rec.skipped
     got = list(rec)
     assert [f["stamp"] for f in got] == [10.0, 10.5]
     for frame, image in zip(got, images):

@@ -1,3 +1,4 @@
+#include "io/cli_text.hpp"
 #include "pictures/canvas.hpp"
 #include "commands/commands.hpp"
 #include "io/config.hpp"
@@ -171,7 +172,7 @@ Command addAnalyzeCommand(CLI::App& app) {
       for (const std::string& file : f.sources) inputs.push_back({"the frame's file", file});
       refuseToOverwriteInputs({{"--segments", o->segments}, {"--overlay", o->overlay}}, inputs);
     }
-    if (!f.note.empty()) std::fprintf(stderr, "note: %s\n", f.note.c_str());
+    if (!f.note.empty()) std::fprintf(stderr, "note: %s\n", cliText(f.note).c_str());
     if (!o->depth_format.empty()) decodeDepthFormat(f, o->depth_format, o->input);
     if (depth_scale->count() > 0) rescaleDepth(f, o->depth_scale);
     if (!o->gravity.empty()) {
@@ -186,7 +187,7 @@ Command addAnalyzeCommand(CLI::App& app) {
       if (voxel->count() > 0) config.perception = perception::scaledToVoxel(config.perception, o->voxel);
       perception::validate(config.perception);
     } catch (const std::invalid_argument& e) {
-      throw UsageError(e.what());
+      throw UsageError(cliText(e));
     }
     const perception::FramePipeline pipeline(config.perception, makeModel(config));
     perception::FrameResult r = perceiveFrame(pipeline, f, f.gravity_camera);

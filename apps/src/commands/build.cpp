@@ -1,5 +1,6 @@
 // `mobmap build`: the command, and the steps of its run before the frames (BuildRun,
 // build_run.hpp; the run itself and what follows it are in build_run.cpp).
+#include "io/cli_text.hpp"
 #include "commands/build_run.hpp"
 #include "commands/build_steps.hpp"
 #include "commands/commands.hpp"
@@ -89,7 +90,7 @@ void BuildRun::prepare() {
     perception::validate(pp);
     mapping::validate(mp);
   } catch (const std::invalid_argument& e) {
-    throw UsageError(e.what());
+    throw UsageError(cliText(e));
   }
   if (o->extend) {
     existing = openForExtension(o->out);
@@ -200,13 +201,14 @@ void BuildRun::openInput() {
       for (std::size_t i : keep) kept.push_back(frames[i]);
       frames = std::move(kept);
     }
-    if (!o->quiet) std::fprintf(stderr, "%s\n", dir->describe().c_str());
+    if (!o->quiet) std::fprintf(stderr, "%s\n", cliText(dir->describe()).c_str());
     if (dir->recording() && !dir->recording()->recovered().empty()) {
-      std::fprintf(stderr, "warning: a recording its recorder did not finish, recovered: %s\n", dir->recording()->recovered().c_str());
+      std::fprintf(stderr, "warning: a recording its recorder did not finish, recovered: %s\n",
+                   cliText(dir->recording()->recovered()).c_str());
     }
     if (!dir->skipped().empty()) {
       const bool ended_early = dir->recording() && !dir->recording()->fault().empty();
-      std::fprintf(stderr, "%s: %s\n", ended_early ? "warning" : "note", dir->skipped().c_str());
+      std::fprintf(stderr, "%s: %s\n", ended_early ? "warning" : "note", cliText(dir->skipped()).c_str());
     }
     if (keyframes_considered > 0 && !o->quiet) {
       std::fprintf(stderr, "keyframes: %zu of the %d selected frames (%s)\n", frames.size(), keyframes_considered,
@@ -214,7 +216,7 @@ void BuildRun::openInput() {
     }
   } else {
     single = loadSingleFrame(o->input, -1, o->intrinsics);
-    if (!single.note.empty()) std::fprintf(stderr, "note: %s\n", single.note.c_str());
+    if (!single.note.empty()) std::fprintf(stderr, "note: %s\n", cliText(single.note).c_str());
     if (!o->depth_format.empty()) decodeDepthFormat(single, o->depth_format, o->input);
     if (given.depth_scale->count() > 0) rescaleDepth(single, o->depth_scale);
     frames.push_back(0);

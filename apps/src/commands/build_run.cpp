@@ -1,5 +1,6 @@
 // `mobmap build`'s run: the frames read, perceived and fused with checkpoints, the map
 // written, the result checked and summarised (BuildRun, build_run.hpp).
+#include "io/cli_text.hpp"
 #include "commands/build_run.hpp"
 
 #include "io/extrinsics.hpp"
@@ -377,7 +378,7 @@ int BuildRun::finish() {
     std::printf("%d frames skipped: no pose within %g s of their time stamp in %s\n", no_pose, o->max_pose_gap,
                 o->poses.c_str());
   }
-  if (live && !dir->skipped().empty()) std::printf("%s\n", dir->skipped().c_str());
+  if (live && !dir->skipped().empty()) std::printf("%s\n", cliText(dir->skipped()).c_str());
   if (!unreadable.empty()) {
     if (unreadable.size() == 1) {
       std::printf("1 frame skipped as unreadable (--skip-bad-frames): %s\n", unreadable.front().c_str());

@@ -3,6 +3,7 @@
 // the function that runs it (exit code).
 
 #include "io/files.hpp"
+#include "io/io_error.hpp"
 #include "io/sequence.hpp"
 
 #include <CLI/CLI.hpp>
@@ -45,9 +46,14 @@ inline constexpr const char* kFovHelp =
     "For a camera whose calibration is unknown: its horizontal field of view in degrees (fx = fy from it, the principal "
     "point at the image centre; Kinect v1 about 57, Kinect v2 about 70, RealSense D435 depth about 87)";
 
-/// "fov:DEGREES", the intrinsics spec `--fov` stands for (parseIntrinsics).
+/// "fov:DEGREES", the intrinsics spec `--fov` stands for (parseIntrinsics); UsageError
+/// naming --fov unless it lies between 1 and 179 degrees.
 inline std::string fovSpec(double degrees) {
   char text[64];
+  if (!(degrees > 1.0 && degrees < 179.0)) {
+    std::snprintf(text, sizeof text, "%g", degrees);
+    throw UsageError(std::string("--fov must be a horizontal field of view between 1 and 179 degrees, got ") + text);
+  }
   std::snprintf(text, sizeof text, "fov:%.17g", degrees);
   return text;
 }

@@ -1,3 +1,4 @@
+#include "io/cli_text.hpp"
 #include "commands/export_layers.hpp"
 
 #include "io/files.hpp"
@@ -188,7 +189,7 @@ void exportLayers(const LayersOptions& o, const OpenedMap& opened, const std::st
   try {
     reach = mapping::computeReachability(columns, from.value_or(Eigen::Vector3d::Zero()), o.reach.params);
   } catch (const std::invalid_argument& e) {
-    throw UsageError(e.what());
+    throw UsageError(cliText(e));
   }
   const std::vector<mapping::LayerLevel> levels = mapping::layerLevels(*columns, o.clearance_m);
   const std::vector<std::size_t> chosen = chosenLevels(o.level, levels, reach, map_path);

@@ -1,4 +1,5 @@
 // `mobmap plan`: footsteps from a start to a goal over a map (mapping::planFootsteps).
+#include "io/cli_text.hpp"
 #include "answers/answers.hpp"
 #include "commands/commands.hpp"
 #include "io/files.hpp"
@@ -65,7 +66,7 @@ Command addPlanCommand(CLI::App& app) {
     try {
       mapping::validate(o->params);
     } catch (const std::invalid_argument& e) {
-      throw UsageError(e.what());
+      throw UsageError(cliText(e));
     }
     const Eigen::Vector3d from_in(o->from[0], o->from[1], o->from[2]), to_in(o->to[0], o->to[1], o->to[2]);
     if (!from_in.allFinite()) throw UsageError("--from: values must be finite");
@@ -82,11 +83,13 @@ Command addPlanCommand(CLI::App& app) {
     } catch (const mapping::PlanInputError& e) {
       throw IoError(o->map, e.what());
     } catch (const std::invalid_argument& e) {  // a step under two voxels of this map
-      throw UsageError(e.what());
+      throw UsageError(cliText(e));
     }
     const InputFrame frame = world ? InputFrame::kWorld : InputFrame::kMap;
     if (o->json) {
-      std::cout << planJson(map, plan, o->params, frame).dump() << "\n";
+      nlohmann::json answer = planJson(map, plan, o->params, frame);
+      if (answer.contains("reason")) answer["reason"] = cliText(answer["reason"].get<std::string>());
+      std::cout << answer.dump() << "\n";
     } else if (plan.found) {
       const auto& robot = o->params.robot;
       std::printf("plan: %zu footsteps after the start stance, %.2f m walked, highest step %.3f m, cost %.2f (%zu states "
@@ -103,7 +106,7 @@ Command addPlanCommand(CLI::App& app) {
                     f.mean_mobility, 100 * f.poor_fraction, f.tilt_deg, i < 2 ? "  (start)" : "");
       }
     } else {
-      std::printf("no plan: %s\n", plan.reason.c_str());
+      std::printf("no plan: %s\n", cliText(plan.reason).c_str());
     }
     if (!o->png.empty()) {
       TopView view;
@@ -114,7 +117,7 @@ Command addPlanCommand(CLI::App& app) {
         throw IoError(o->map, std::string("cannot draw a top view: ") + e.what());
       }
       TopViewPicture picture;
-      picture.title = plan.found ? "FOOTSTEP PLAN" : "NO PLAN: " + plan.reason.substr(0, 120);
+      picture.title = plan.found ? "FOOTSTEP PLAN" : "NO PLAN: " + cliText(plan.reason).substr(0, 120);
       const double l = o->params.robot.sole_length_m / 2, w = o->params.robot.sole_width_m / 2;
       for (const auto& f : plan.footsteps) {
         TopViewPicture::Outline sole;

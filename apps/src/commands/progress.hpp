@@ -2,6 +2,8 @@
 // Progress for long jobs: a rewritten status line on a terminal, plain log lines
 // (every 10 %) otherwise, nothing with --quiet.
 
+#include "io/cli_text.hpp"
+
 #include <chrono>
 #include <cstdio>
 #include <string>
@@ -19,9 +21,10 @@ class Progress {
       : label_(std::move(label)), total_(total), quiet_(quiet), tty_(::isatty(2) == 1), start_(start) {}
 
   /// Writes `line` (and a newline) to stderr over the status line on a terminal, which
-  /// the next update() draws again below it; shown with --quiet too.
+  /// the next update() draws again below it; shown with --quiet too. The fields the
+  /// library names in it are spelled as flags.
   static void message(const std::string& line) {
-    std::fprintf(stderr, "%s%s\n", ::isatty(2) == 1 ? "\r\x1b[K" : "", line.c_str());
+    std::fprintf(stderr, "%s%s\n", ::isatty(2) == 1 ? "\r\x1b[K" : "", cliText(line).c_str());
   }
 
   void update(int done, const std::string& extra = "") {

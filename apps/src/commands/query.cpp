@@ -1,3 +1,4 @@
+#include "io/cli_text.hpp"
 #include "answers/answers.hpp"
 #include "commands/commands.hpp"
 #include "io/io_error.hpp"
@@ -140,7 +141,7 @@ Command addQueryCommand(CLI::App& app) {
       try {
         a = app::answerFoot(map, {s[0], s[1], s[2], s[3], s[4], s[5]}, frame, o->snap, reach_run);
       } catch (const std::invalid_argument& e) {
-        throw UsageError(where + ": " + e.what());
+        throw UsageError(where + ": " + cliText(e));
       }
       if (o->json) {
         std::cout << toJson(a).dump() << "\n";

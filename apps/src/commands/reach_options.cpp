@@ -1,3 +1,4 @@
+#include "io/cli_text.hpp"
 #include "commands/reach_options.hpp"
 
 #include "io/io_error.hpp"
@@ -79,7 +80,7 @@ void resolveReachOptions(ReachOptions& o) {
   try {
     mapping::validate(o.params);
   } catch (const std::invalid_argument& e) {
-    throw UsageError(e.what());
+    throw UsageError(cliText(e));
   }
   if (!o.from.empty() && !Eigen::Map<const Eigen::Vector3d>(o.from.data()).allFinite()) {
     throw UsageError("--from: values must be finite");
@@ -144,7 +145,7 @@ ReachRun runReach(const ReachOptions& o, const mapping::MobilityMap& map, const 
   try {
     run.result = mapping::computeReachability(map.tree(), run.from, o.params);
   } catch (const std::invalid_argument& e) {  // a step under two voxels of this map
-    throw UsageError(e.what());
+    throw UsageError(cliText(e));
   }
   if (!run.result.start()) {
     const auto& robot = o.params.robot;

@@ -1,3 +1,4 @@
+#include "io/cli_text.hpp"
 #include "commands/recording_info.hpp"
 
 #include "mobmap/sources/sequence.hpp"
@@ -40,12 +41,12 @@ int describeRecording(const std::string& path, const RecordingChoice& choice, do
     j["intrinsics"] = {{"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy}, {"width", k.width}, {"height", k.height}};
     if (!rec->distortionNote().empty()) j["distortion"] = rec->distortionNote();
     if (rec->gravityDown()) j["gravity_source"] = rec->gravitySource();
-    if (!rec->skipped().empty()) j["skipped"] = rec->skipped();
+    if (!rec->skipped().empty()) j["skipped"] = cliText(rec->skipped());
   } else {
     j["problem"] = rec->problem();
   }
   if (!rec->fault().empty()) j["fault"] = rec->fault();
-  if (!rec->recovered().empty()) j["recovered"] = rec->recovered();
+  if (!rec->recovered().empty()) j["recovered"] = cliText(rec->recovered());
   if (json) {
     std::printf("%s\n", j.dump().c_str());
     return 0;
@@ -65,7 +66,7 @@ int describeRecording(const std::string& path, const RecordingChoice& choice, do
       std::printf("  %s -> %s (%zu samples)\n", e.parent.c_str(), e.child.c_str(), e.samples);
     }
   }
-  if (!rec->recovered().empty()) std::printf("\nwarning: a recording its recorder did not finish, recovered: %s\n", rec->recovered().c_str());
+  if (!rec->recovered().empty()) std::printf("\nwarning: a recording its recorder did not finish, recovered: %s\n", cliText(rec->recovered()).c_str());
   if (!rec->fault().empty()) std::printf("\nwarning: the recording ends early (%s)\n", rec->fault().c_str());
   if (!chosen) {
     std::printf("\nbuild cannot read it as it is: %s\n", rec->problem().c_str());
@@ -81,7 +82,7 @@ int describeRecording(const std::string& path, const RecordingChoice& choice, do
               rec->gravityDown() ? rec->gravitySource().c_str() : "");
   std::printf("  camera_frame       %s\n", rec->cameraFrame().c_str());
   std::printf("  frames             %zu of %d depth images have a pose\n", rec->frames().size(), rec->imageCount());
-  if (!rec->skipped().empty()) std::printf("  skipped            %s\n", rec->skipped().c_str());
+  if (!rec->skipped().empty()) std::printf("  skipped            %s\n", cliText(rec->skipped()).c_str());
   return 0;
 }
 

@@ -1,5 +1,6 @@
 // `mobmap serve`: a map over HTTP for planners in other processes, with a 3D viewer in
 // the browser; with --live, a map being built, served as it grows (serve/api.hpp).
+#include "io/cli_text.hpp"
 #include "commands/build_steps.hpp"
 #include "commands/commands.hpp"
 #include "io/io_error.hpp"
@@ -183,7 +184,7 @@ Command addServeCommand(CLI::App& app) {
     try {
       initial.map = std::make_shared<const mapping::MobilityMap>(empty);
     } catch (const std::invalid_argument& e) {
-      throw UsageError(e.what());
+      throw UsageError(cliText(e));
     }
     serve::MapSource source(std::move(initial));
     const serve::Api api(b.out, source, limits);

@@ -1,3 +1,4 @@
+#include "io/cli_text.hpp"
 #include "commands/commands.hpp"
 #include "io/io_error.hpp"
 #include "commands/progress.hpp"
@@ -58,7 +59,7 @@ Command addSimulateCommand(CLI::App& app) {
     try {
       sim::validate(p);
     } catch (const std::invalid_argument& e) {
-      throw UsageError(e.what());
+      throw UsageError(cliText(e));
     }
     const sim::CorridorScene scene(p);
     if (o->force) {

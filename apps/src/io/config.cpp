@@ -112,7 +112,8 @@ static Config parseConfigUnchecked(const std::string& text, const std::string& o
     mapping::validate(c.mapping);
     gp::validate(c.model);
   } catch (const std::invalid_argument& e) {
-    throw IoError(origin, e.what());
+    // The fields are the file's keys, named as written there.
+    throw IoError(origin, util::respellFields(e.what(), [](std::string_view key) { return std::string(key); }));
   }
   return c;
 }

@@ -4,7 +4,7 @@
 #include "serve/viewer_assets.hpp"
 
 #include "mobmap/mapping/footstep_planner.hpp"
-#include "mobmap/mapping/json_limits.hpp"
+#include "mobmap/util/json_limits.hpp"
 #include "mobmap/mapping/layers.hpp"
 #include "mobmap/mapping/reachability.hpp"
 
@@ -111,15 +111,15 @@ struct Refusal : std::runtime_error {
 
 Response json(const nlohmann::json& j, int status = 200) { return {status, "application/json", text(j)}; }
 
-// Bounded before parsing (mapping/json_limits.hpp): nesting, which the error messages
+// Bounded before parsing (util/json_limits.hpp): nesting, which the error messages
 // and copies below would recurse through, and the number of values, which sets the
 // parsed document's memory (a few tens of bytes each).
 nlohmann::json parseBody(const std::string& body, const Limits& limits) {
-  mapping::JsonLimits bounds;
+  util::JsonLimits bounds;
   bounds.max_depth = limits.max_json_depth;
   bounds.max_values = limits.max_json_values();
-  if (const mapping::JsonLimitProblem problem = mapping::checkJsonLimits(body, bounds)) {
-    if (problem.kind == mapping::JsonLimitProblem::Kind::kTooManyValues) {
+  if (const util::JsonLimitProblem problem = util::checkJsonLimits(body, bounds)) {
+    if (problem.kind == util::JsonLimitProblem::Kind::kTooManyValues) {
       throw Refusal(413, "the request body holds " + problem.message + "; " + std::to_string(limits.max_batch) +
                              " points or soles (--max-batch) need fewer");
     }

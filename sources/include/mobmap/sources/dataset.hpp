@@ -24,12 +24,12 @@ namespace mobmap::sources {
 /// (depth images are taken as undistorted). IoError naming the file and the problem,
 /// also when a YAML file states another image size.
 perception::PinholeIntrinsics readIntrinsicsFile(const std::string& path, int width, int height);
-/// `--fov DEGREES` is passed on as the intrinsics spec "fov:DEGREES".
+/// A camera known by its field of view is given as the intrinsics spec "fov:DEGREES".
 inline constexpr const char* kFovSpecPrefix = "fov:";
 /// A camera known only by its horizontal field of view: fx = fy = (width / 2) /
-/// tan(fov / 2), the principal point at the image centre. UsageError unless 1 < fov < 179.
+/// tan(fov / 2), the principal point at the image centre. util::FieldError (`intrinsics`) unless 1 < fov < 179.
 perception::PinholeIntrinsics intrinsicsFromFov(double horizontal_fov_deg, int width, int height);
-/// Parses "fx,fy,cx,cy" (--intrinsics; UsageError if invalid), "fov:DEGREES" (--fov),
+/// Parses "fx,fy,cx,cy" (util::FieldError naming `intrinsics` if invalid), "fov:DEGREES",
 /// or reads a camera file (readIntrinsicsFile).
 perception::PinholeIntrinsics parseIntrinsics(const std::string& spec, int width, int height);
 /// Parses a 4x4 camera-to-world pose and checks it is rigid (mapping::checkRigid).

@@ -1,6 +1,9 @@
 #pragma once
 // Errors of the readers: IoError for a file (the message starts with its path and says
-// what is wrong with it), UsageError for a caller's argument (an intrinsics spec).
+// what is wrong with it); a caller's value they cannot take (an intrinsics spec) is a
+// util::FieldError naming the field.
+
+#include "mobmap/util/field_error.hpp"
 
 #include <stdexcept>
 #include <string>
@@ -18,13 +21,6 @@ class IoError : public std::runtime_error {
  private:
   std::string path_;
   std::string reason_;
-};
-
-/// An argument that is not valid ("--intrinsics must be fx,fy,cx,cy or a camera file");
-/// the command-line tool reports it as a usage mistake.
-class UsageError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
 };
 
 }  // namespace mobmap::sources

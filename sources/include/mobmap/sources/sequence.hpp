@@ -127,7 +127,7 @@ const std::vector<std::pair<std::string, std::string>>& depthFormats();
 
 /// Undoes `format` (depthFormats()) on `depth` read from 16-bit values at `units_per_m`
 /// values per metre: each value is taken back to its 16 bits, decoded, and read at the
-/// same unit (0 and 65535 stay "no measurement"). UsageError for an unknown format.
+/// same unit (0 and 65535 stay "no measurement"). util::FieldError (`depth_format`) for an unknown format.
 void undoDepthFormat(perception::DepthImage& depth, double units_per_m, const std::string& format);
 
 /// Opens INPUT: a robot's recording (isRecording: a ROS 2 bag folder, .db3 or .mcap, a
@@ -136,7 +136,7 @@ void undoDepthFormat(perception::DepthImage& depth, double units_per_m, const st
 /// 7-Scenes / 3DMatch layout directory, a single .pcd (a posed sequence of one with
 /// `poses`, else a lone frame whose organized cloud's camera is recovered, see
 /// recoverCameraFrame) or a single 16-bit depth .png in millimetres.
-/// IoError naming the file and the problem; UsageError for an invalid
+/// IoError naming the file and the problem; util::FieldError for an invalid
 /// `options.intrinsics`, a PNG without intrinsics, or a depth format for an input whose
 /// depth is not 16-bit images (clouds, 32-bit float images).
 std::unique_ptr<Sequence> openSequence(const std::string& input, const SequenceOptions& options = {});

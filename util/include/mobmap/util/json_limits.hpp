@@ -11,7 +11,7 @@
 #include <string>
 #include <string_view>
 
-namespace mobmap::mapping {
+namespace mobmap::util {
 
 struct JsonLimits {
   /// Arrays and objects inside one another: `[[1]]` is 2 deep. MAP.json needs 3; a request 3.
@@ -34,4 +34,4 @@ struct JsonLimitProblem {
 /// not check that the text is valid JSON; the parser does that afterwards. Linear time.
 [[nodiscard]] JsonLimitProblem checkJsonLimits(std::string_view text, const JsonLimits& limits = {});
 
-}  // namespace mobmap::mapping
+}  // namespace mobmap::util

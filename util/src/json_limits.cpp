@@ -1,6 +1,6 @@
-#include "mobmap/mapping/json_limits.hpp"
+#include "mobmap/util/json_limits.hpp"
 
-namespace mobmap::mapping {
+namespace mobmap::util {
 
 JsonLimitProblem checkJsonLimits(std::string_view text, const JsonLimits& limits) {
   using Kind = JsonLimitProblem::Kind;
@@ -56,4 +56,4 @@ JsonLimitProblem checkJsonLimits(std::string_view text, const JsonLimits& limits
   return {};
 }
 
-}  // namespace mobmap::mapping
+}  // namespace mobmap::util
