@@ -14,8 +14,7 @@ mkdir -p build-fuzz/obj
 # -ffp-contract=off as perception/CMakeLists.txt sets it (its vector kernels match the
 # portable loops bit for bit only without fused multiply-adds).
 flags=(-std=c++17 -O1 -g -ffp-contract=off -fsanitize=address,undefined -fno-sanitize-recover=undefined
-       -Igp/include -Iperception/include -Iperception/src -Imapping/include -Isources/include -Isources/src -Iapps/src -I/usr/include/eigen3 -I/usr/include/openni2 -Ibuild-fuzz)
-for d in /usr/include/mrpt/*/include; do flags+=("-I$d"); done
+       -Iutil/include -Igp/include -Iperception/include -Iperception/src -Imapping/include -Isources/include -Isources/src -Iapps/src -I/usr/include/eigen3 -I/usr/include/openni2 -Ibuild-fuzz)
 cmake -DIN=apps/default.yaml -DOUT=build-fuzz/default_yaml.inc -P apps/embed.cmake
 # The viewer's files (serve's API hands them out), as apps/CMakeLists.txt embeds them.
 for asset in apps/viewer/index.html:viewer_index_html apps/viewer/viewer.js:viewer_js \
@@ -26,7 +25,7 @@ done
 
 # Each source is compiled once, again when it or any first-party header is newer than
 # its object (a header change can change a struct's layout under an old object).
-newest_header=$(ls -t $(find gp perception mapping sources apps sim tests/fuzz -name '*.hpp') | head -n 1)
+newest_header=$(ls -t $(find util gp perception mapping sources apps sim tests/fuzz -name '*.hpp') | head -n 1)
 # The stale ones are compiled on every core at once; a failed compile stops the script.
 compile_flags=$(printf '%q ' "${flags[@]}")
 export compile_flags
@@ -48,13 +47,13 @@ objects() {
 module_sources() {
   sed -n '/SOURCES/,/_DEPS/p' "$1/CMakeLists.txt" | grep -o 'src/[A-Za-z0-9_/]*\.cpp' | sed "s|^|$1/|"
 }
+mapfile -t util < <(module_sources util)
 mapfile -t gp < <(module_sources gp)
 mapfile -t perception < <(module_sources perception)
 mapfile -t mapping < <(module_sources mapping)
 # The bag readers: the sources module without the folder, PCD and OpenNI2 readers.
 mapfile -t bag_sources < <(module_sources sources |
   grep -v -E '^sources/src/(dataset|trajectory_files|pcd|openni|sequence|recording_sequence)\.cpp$')
-mrpt=(-lmrpt-poses -lmrpt-math -lmrpt-serialization -lmrpt-core)
 link() {  # link TARGET SOURCES... -- LIBS...
   local target=$1; shift
   local srcs=() libs=()
@@ -68,18 +67,19 @@ link() {  # link TARGET SOURCES... -- LIBS...
 }
 for target in "${targets[@]}"; do
   case $target in
-    map_reader) link map_reader tests/fuzz/fuzz_map_reader.cpp "${mapping[@]}" "${perception[@]}" "${gp[@]}" \
-                  -- -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;
+    map_reader) link map_reader tests/fuzz/fuzz_map_reader.cpp "${mapping[@]}" "${perception[@]}" "${gp[@]}" "${util[@]}" \
+                  -- -loctomap -loctomath -lgmp -lmpfr ;;
     config) link config tests/fuzz/fuzz_config.cpp apps/src/io/config.cpp apps/src/io/files.cpp sources/src/text.cpp "${gp[@]}" "${perception[@]}" \
-              "${mapping[@]}" \
-              -- -lyaml-cpp -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;
+              "${mapping[@]}" "${util[@]}" \
+              -- -lyaml-cpp -loctomap -loctomath -lgmp -lmpfr ;;
     poses) link poses tests/fuzz/fuzz_poses.cpp sources/src/trajectory_files.cpp sources/src/dataset.cpp sources/src/text.cpp \
-             sources/src/png.cpp perception/src/camera.cpp mapping/src/gravity.cpp -- -lpng -lyaml-cpp "${mrpt[@]}" ;;
-    pipeline) link pipeline tests/fuzz/fuzz_pipeline.cpp "${gp[@]}" "${perception[@]}" -- -lgmp -lmpfr ;;
+             sources/src/png.cpp perception/src/camera.cpp mapping/src/gravity.cpp "${util[@]}" -- -lpng -lyaml-cpp ;;
+    pipeline) link pipeline tests/fuzz/fuzz_pipeline.cpp "${gp[@]}" "${perception[@]}" "${util[@]}" -- -lgmp -lmpfr ;;
     api) link api tests/fuzz/fuzz_api.cpp apps/src/serve/api.cpp apps/src/serve/viewer_assets.cpp apps/src/answers/answers.cpp \
-           "${mapping[@]}" "${perception[@]}" "${gp[@]}" \
-           -- -loctomap -loctomath "${mrpt[@]}" -lgmp -lmpfr ;;
+           "${mapping[@]}" "${perception[@]}" "${gp[@]}" "${util[@]}" \
+           -- -loctomap -loctomath -lgmp -lmpfr ;;
     mcap|cdr|db3|ros1) link "$target" "tests/fuzz/fuzz_$target.cpp" "${bag_sources[@]}" perception/src/camera.cpp \
+                    mapping/src/pose_samples.cpp "${util[@]}" \
                     -- -lpng -lz -lbz2 -lyaml-cpp -lsqlite3 -llz4 -lzstd ;;
     *) echo "fuzz.sh: unknown target $target" >&2; exit 2 ;;
   esac

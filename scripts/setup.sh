@@ -6,7 +6,7 @@ set -euo pipefail
 
 packages=(
   g++ cmake make pkg-config ccache
-  libeigen3-dev liboctomap-dev libpcl-dev libopenni2-dev libmrpt-poses-dev libcgal-dev
+  libeigen3-dev liboctomap-dev libpcl-dev libopenni2-dev libcgal-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev libpng-dev nlohmann-json3-dev libyaml-cpp-dev
   pybind11-dev python3-dev python3-numpy python3-pytest

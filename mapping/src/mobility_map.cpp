@@ -5,8 +5,6 @@
 #include "param_error.hpp"
 #include "support_plane.hpp"
 
-#include <mrpt/math/CMatrixFixed.h>
-#include <mrpt/poses/CPose3D.h>
 
 #include <octomap/OcTreeKey.h>
 
@@ -183,15 +181,6 @@ void MobilityMap::setOriginWorld(const Eigen::Vector3d& origin_world) {
 
 double MobilityMap::extentM() const {
   return tree_->getResolution() * static_cast<double>(1u << (tree_->getTreeDepth() - 1));
-}
-
-IntegrationReport MobilityMap::integrate(const perception::FrameResult& frame, const mrpt::poses::CPose3D& pose,
-                                         const perception::DepthImage* depth, const perception::PinholeIntrinsics* k) {
-  mrpt::math::CMatrixDouble44 m;
-  pose.getHomogeneousMatrix(m);
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.matrix() = m.asEigen();
-  return integrate(frame, T, depth, k);
 }
 
 IntegrationReport MobilityMap::integrate(const perception::FrameResult& frame, const Eigen::Isometry3d& T_world_camera,

@@ -1,10 +1,8 @@
 #include "mobmap/mapping/trajectory.hpp"
 
-#include <mrpt/core/Clock.h>
-#include <mrpt/math/CMatrixFixed.h>
-#include <mrpt/poses/CPose3D.h>
-#include <mrpt/poses/CPose3DInterpolator.h>
+#include "mobmap/mapping/pose_samples.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -13,14 +11,10 @@
 namespace mobmap::mapping {
 
 struct Trajectory::Impl {
-  mrpt::poses::CPose3DInterpolator path;
-  std::size_t n = 0;
-  double first = 0, last = 0;
+  std::vector<PoseSample> samples;  // by stamp; equal stamps in the order inserted
 };
 
-Trajectory::Trajectory() : impl_(std::make_unique<Impl>()) {
-  impl_->path.setInterpolationMethod(mrpt::poses::imLinearSlerp);
-}
+Trajectory::Trajectory() : impl_(std::make_unique<Impl>()) {}
 Trajectory::~Trajectory() = default;
 Trajectory::Trajectory(Trajectory&&) noexcept = default;
 Trajectory& Trajectory::operator=(Trajectory&&) noexcept = default;
@@ -29,42 +23,19 @@ void Trajectory::insert(double t, const Eigen::Isometry3d& T) {
   if (!std::isfinite(t) || !T.matrix().allFinite()) {
     throw std::invalid_argument("Trajectory::insert: time and pose must be finite");
   }
-  mrpt::math::CMatrixDouble44 m;
-  m.asEigen() = T.matrix();
-  impl_->path.insert(mrpt::Clock::fromDouble(t), mrpt::poses::CPose3D(m));
-  if (impl_->n == 0) impl_->first = impl_->last = t;
-  impl_->first = std::min(impl_->first, t);
-  impl_->last = std::max(impl_->last, t);
-  ++impl_->n;
+  const PoseSample sample{stampNs(t), T.translation(), Eigen::Quaterniond(T.linear()).normalized()};
+  auto& v = impl_->samples;
+  // In order (a trajectory file's usual case) it is appended; else put in its place.
+  const auto at = std::upper_bound(v.begin(), v.end(), sample.stamp_ns,
+                                   [](std::int64_t stamp, const PoseSample& s) { return stamp < s.stamp_ns; });
+  v.insert(at, sample);
 }
 
-std::size_t Trajectory::size() const { return impl_->n; }
+std::size_t Trajectory::size() const { return impl_->samples.size(); }
 
 std::optional<Eigen::Isometry3d> Trajectory::at(double t, double max_gap) const {
-  if (impl_->n == 0 || !std::isfinite(t) || t < impl_->first || t > impl_->last) return std::nullopt;
-  // Both neighbours within max_gap (MRPT checks the span between them against it).
-  const auto& path = impl_->path;
-  const auto tp = mrpt::Clock::fromDouble(t);
-  auto after = path.lower_bound(tp);
-  if (after == path.end()) return std::nullopt;
-  if (after->first == tp) {
-    mrpt::poses::CPose3D exact(after->second);
-    Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
-    out.matrix() = exact.getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>().asEigen();
-    return out;
-  }
-  if (after == path.begin()) return std::nullopt;
-  auto before = std::prev(after);
-  const double gap_after = mrpt::Clock::toDouble(after->first) - t;
-  const double gap_before = t - mrpt::Clock::toDouble(before->first);
-  if (gap_after > max_gap || gap_before > max_gap) return std::nullopt;
-  mrpt::poses::CPose3D pose;
-  bool valid = false;
-  path.interpolate(tp, pose, valid);
-  if (!valid) return std::nullopt;
-  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
-  out.matrix() = pose.getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>().asEigen();
-  return out;
+  if (!(std::abs(t) <= 9e9) || !(max_gap >= 0)) return std::nullopt;
+  return poseAt(impl_->samples, stampNs(t), stampNs(std::min(max_gap, 9e9)));
 }
 
 std::vector<std::size_t> selectKeyframes(const std::vector<Eigen::Isometry3d>& poses, double min_translation_m,

@@ -1,5 +1,7 @@
 #include "mobmap/sources/tf_tree.hpp"
 
+#include "mobmap/mapping/pose_samples.hpp"
+
 #include "words.hpp"
 
 #include <algorithm>
@@ -96,32 +98,10 @@ std::vector<std::string> TfTree::chainToRoot(const std::string& frame) const {
 
 std::optional<Eigen::Isometry3d> TfTree::linkAt(const std::string& child, const Link& link, std::int64_t stamp_ns,
                                                 std::int64_t max_gap_ns, std::string* why) const {
-  auto pose = [](const Sample& s) {
-    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    T.linear() = s.q.toRotationMatrix();
-    T.translation() = s.t;
-    return T;
-  };
-  if (link.is_static) return pose(link.samples.front());
-  const auto& s = link.samples;
-  const auto after = std::lower_bound(s.begin(), s.end(), stamp_ns, [](const Sample& a, std::int64_t t) { return a.stamp_ns < t; });
-  if (after != s.end() && after->stamp_ns == stamp_ns) return pose(*after);
-  if (after == s.begin() || after == s.end()) {
-    if (why) {
-      *why = link.parent + " -> " + child + " has no sample " + (after == s.begin() ? "before" : "after") + " the stamp";
-    }
-    return std::nullopt;
-  }
-  const Sample& a = *(after - 1);
-  const Sample& b = *after;
-  if (b.stamp_ns - a.stamp_ns > max_gap_ns) {
-    if (why) *why = link.parent + " -> " + child + "'s samples around the stamp are " + seconds(b.stamp_ns - a.stamp_ns) + " apart";
-    return std::nullopt;
-  }
-  const double w = static_cast<double>(stamp_ns - a.stamp_ns) / static_cast<double>(b.stamp_ns - a.stamp_ns);
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = a.q.slerp(w, b.q).toRotationMatrix();
-  T.translation() = (1.0 - w) * a.t + w * b.t;
+  if (link.is_static) return mapping::poseAt(link.samples, link.samples.front().stamp_ns, 0);
+  std::string link_why;
+  auto T = mapping::poseAt(link.samples, stamp_ns, max_gap_ns, why ? &link_why : nullptr);
+  if (!T && why) *why = link.parent + " -> " + child + " " + link_why;
   return T;
 }
 

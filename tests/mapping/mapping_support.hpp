@@ -7,7 +7,6 @@
 #include "mobmap/mapping/mobility_octree.hpp"
 #include "mobmap/sim/corridor_scene.hpp"
 
-#include <mrpt/poses/CPose3D.h>
 #include <octomap/ColorOcTree.h>
 #include <octomap/OcTree.h>
 

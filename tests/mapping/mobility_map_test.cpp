@@ -20,19 +20,6 @@ TEST(MobilityMap, SurfacesGetTheirSegmentsMobilityInTheGravityAlignedFrame) {
   EXPECT_EQ(map.query({5, 5, 5}).state, VoxelState::kUnknown);
 }
 
-TEST(MobilityMap, MrptPoseGivesTheSameMapAsEigen) {
-  MobilityMap a, b;
-  const auto frame = syntheticFrame();
-  const Eigen::Isometry3d T = cameraLookingForward();
-  a.integrate(frame, T);
-  mrpt::math::CMatrixDouble44 m;
-  m.asEigen() = T.matrix();
-  b.integrate(frame, mrpt::poses::CPose3D(m));
-  EXPECT_EQ(a.tree().size(), b.tree().size());
-  const auto q = b.query({1.3, 0.1, 0.005});
-  EXPECT_EQ(q.state, VoxelState::kSurface);
-}
-
 // n x n x n voxels of 2 cm from the voxel whose centre is `first`, in one segment.
 perception::FrameResult cubeFrame(const Eigen::Vector3f& first, int n, double mobility) {
   perception::FrameResult r;

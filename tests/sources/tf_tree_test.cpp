@@ -3,9 +3,12 @@
 // the broken trees it refuses.
 #include "mobmap/sources/tf_tree.hpp"
 
+#include "mobmap/mapping/trajectory.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 #include <vector>
 
 namespace mobmap::sources {
@@ -58,6 +61,42 @@ TEST(TfTree, ComposesStaticAndSampledLinksThroughTheCommonAncestor) {
   ASSERT_TRUE(imu_in_optical);
   expectNear(*imu_in_optical, (T_base_link * T_link_optical).inverse() * pose(Eigen::Vector3d::UnitX(), 0.1, Eigen::Vector3d(0, 0, 0.3)));
   expectNear(*tree.lookup("optical", "optical", 5, 0), Eigen::Isometry3d::Identity());
+}
+
+// One interpolator, one meaning of the gap: a TUM trajectory (mapping::Trajectory) and a
+// TF link with the same samples give the same pose, bit for bit, or both none, at random
+// stamps and gaps, on samples irregularly spaced in time.
+TEST(TfTree, AgreesWithATrajectoryOfTheSameSamples) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> step(0.01, 0.2), unit(0.0, 1.0);
+  TfTree tree;
+  mapping::Trajectory trajectory;
+  double t = 1000.0;
+  for (int i = 0; i < 60; ++i) {
+    t += step(rng);
+    const std::int64_t ns = mapping::stampNs(t);
+    // A wobbling motion: interpolation is not exact, so both must take the same way.
+    const Eigen::Isometry3d T = pose(Eigen::Vector3d(unit(rng), unit(rng), 1.0), 3.0 * unit(rng),
+                                     Eigen::Vector3d(t, std::sin(t), unit(rng)));
+    add(tree, "odom", "camera", ns, T, false);
+    trajectory.insert(static_cast<double>(ns) * 1e-9, T);
+  }
+  int posed = 0, unposed = 0;
+  for (int i = 0; i < 2000; ++i) {
+    const std::int64_t stamp = mapping::stampNs(1000.0 + (t - 1000.0 + 0.1) * unit(rng));
+    const double gap = 0.25 * unit(rng);
+    const auto from_tf = tree.lookup("odom", "camera", stamp, mapping::stampNs(gap));
+    const auto from_trajectory = trajectory.at(static_cast<double>(stamp) * 1e-9, gap);
+    ASSERT_EQ(from_tf.has_value(), from_trajectory.has_value()) << stamp << " gap " << gap;
+    if (from_tf) {
+      ++posed;
+      EXPECT_TRUE(from_tf->matrix() == from_trajectory->matrix()) << stamp;
+    } else {
+      ++unposed;
+    }
+  }
+  EXPECT_GT(posed, 200);
+  EXPECT_GT(unposed, 200);
 }
 
 TEST(TfTree, NeverExtrapolatesAndHonoursTheGap) {

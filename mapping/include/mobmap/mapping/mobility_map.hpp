@@ -23,10 +23,6 @@
 #include <stdexcept>
 #include <string>
 
-namespace mrpt::poses {
-class CPose3D;
-}
-
 namespace mobmap::mapping {
 
 class SurfaceColumns;
@@ -161,9 +157,6 @@ class MobilityMap {
   IntegrationReport integrate(const perception::FrameResult& frame, const Eigen::Isometry3d& T_world_camera,
                               const perception::DepthImage* depth = nullptr,
                               const perception::PinholeIntrinsics* intrinsics = nullptr);
-  /// The same with an MRPT pose (camera-to-world).
-  IntegrationReport integrate(const perception::FrameResult& frame, const mrpt::poses::CPose3D& T_world_camera,
-                 const perception::DepthImage* depth = nullptr, const perception::PinholeIntrinsics* intrinsics = nullptr);
 
   /// Recomputes inner nodes (occupancy max, mobility min) and prunes equal children.
   /// Frames may be integrated afterwards (and into a loaded map): pruned blocks are

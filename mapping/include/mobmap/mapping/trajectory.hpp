@@ -1,7 +1,7 @@
 #pragma once
 /// @file trajectory.hpp
-/// A timestamped camera trajectory with interpolation (MRPT CPose3DInterpolator:
-/// linear in position, slerp in rotation).
+/// A timestamped camera trajectory, interpolated as every pose in mobmap is
+/// (pose_samples.hpp: linear in position, slerp in rotation).
 
 #include <Eigen/Geometry>
 
@@ -25,9 +25,9 @@ class Trajectory {
   void insert(double t_seconds, const Eigen::Isometry3d& T_world_camera);
   [[nodiscard]] std::size_t size() const;
 
-  /// The pose at `t_seconds`, interpolated between the samples around it; nullopt when
-  /// t lies outside the trajectory or either neighbouring sample is more than
-  /// `max_gap_seconds` away.
+  /// The pose at `t_seconds`: the sample at that time, else interpolated between the
+  /// samples around it (poseAt); nullopt when t lies outside the trajectory or those two
+  /// samples are more than `max_gap_seconds` apart. Times are kept to the nanosecond.
   [[nodiscard]] std::optional<Eigen::Isometry3d> at(double t_seconds, double max_gap_seconds) const;
 
  private:

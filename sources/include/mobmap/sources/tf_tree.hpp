@@ -5,6 +5,8 @@
 // BufferCore: a sampled transform is interpolated between the two samples around the
 // time (linearly in translation, spherically in rotation) and never extrapolated.
 
+#include "mobmap/mapping/pose_samples.hpp"
+
 #include <Eigen/Geometry>
 
 #include <cstdint>
@@ -66,11 +68,7 @@ class TfTree {
   [[nodiscard]] std::size_t memoryBytes() const;
 
  private:
-  struct Sample {
-    std::int64_t stamp_ns;
-    Eigen::Vector3d t;
-    Eigen::Quaterniond q;
-  };
+  using Sample = mapping::PoseSample;
   struct Link {
     std::string parent;
     bool is_static = false;
