@@ -417,379 +417,447 @@ Api::ReachCacheFigures Api::reachCache() const {
   return {cache_->reach.entries.size(), cache_->reach.bytes};
 }
 
+// One request being answered: what it asks, the map it is answered on, and what answering
+// it may use (its budget, a heavy slot, the caches). Each endpoint is one of its functions
+// (the route table in Api::handle).
+struct Api::Exchange {
+  Exchange(const Api& api_, const std::string& path_, const std::multimap<std::string, std::string>& params_,
+           const std::string& body_)
+      : api(api_),
+        path(path_),
+        params(params_),
+        body(body_),
+        served(api_.source_.current()),
+        map(*served->map),
+        // Every request's work ends at this deadline, or when the server stops.
+        budget(mapping::Budget::within(api_.limits_.max_request_s, &api_.state_->stop)) {}
+
+  const Api& api;
+  const std::string& path;
+  const std::multimap<std::string, std::string>& params;
+  const std::string& body;
+  const std::shared_ptr<const ServedMap> served;
+  const mapping::MobilityMap& map;
+  const mapping::Budget budget;
+  HeavySlot heavy;
+
+  // One of the places for heavy requests (plans, reachability, large batches), or 503.
+  void takeHeavySlot() {
+    if (heavy.held()) return;
+    if (!heavy.take(api.state_->heavy, api.limits_.max_heavy_requests)) {
+      throw Refusal(503, "the server is answering " + std::to_string(api.limits_.max_heavy_requests) +
+                             " heavy requests (plans, reachability, large batches), its most at once; try again shortly");
+    }
+  }
+
+  // Where the robot can get to, worked out once per map and request of "reach" (the
+  // cache keeps the last few), outside the cache's lock.
+  std::shared_ptr<const mapping::Reachability> reachability(const std::optional<ReachRequest>& q) {
+    if (!q) return nullptr;
+    {
+      const std::lock_guard<std::mutex> lock(api.cache_->mutex);
+      api.cache_->follow(served);
+      if (auto r = api.cache_->reach.find(q->key)) return r;
+    }
+    takeHeavySlot();
+    std::shared_ptr<const mapping::Reachability> r;
+    try {
+      r = std::make_shared<const mapping::Reachability>(
+          mapping::computeReachability(map.surfaceColumns(), q->from_map, q->params, budget));
+    } catch (const std::invalid_argument& e) {  // a step under two voxels of this map
+      throw Refusal(400, std::string("\"reach\": ") + e.what());
+    }
+    if (!r->start()) {
+      char text[300];
+      std::snprintf(text, sizeof text,
+                    "\"reach\": no place for a %.2f x %.2f m sole to stand (mobility >= %.2f) within %.2f m of (%.2f, "
+                    "%.2f, %.2f) (map frame); give reach.from nearer a walkable surface, or a larger reach.start_radius_m",
+                    q->params.robot.sole_length_m, q->params.robot.sole_width_m, q->params.robot.min_mobility,
+                    q->params.start_radius_m, q->from_map.x(), q->from_map.y(), q->from_map.z());
+      throw Refusal(400, text);
+    }
+    const std::lock_guard<std::mutex> lock(api.cache_->mutex);
+    api.cache_->follow(served);
+    api.cache_->keepReach(q->key, r, api.limits_);
+    return r;
+  }
+
+  // The endpoints.
+  Response info();
+  Response batch();  // /api/query (points) and /api/foot (soles)
+  Response heightScan();
+  Response plan();
+  Response layer();
+  Response voxels();
+  Response cameraPath();
+};
+
+// GET /api/info: the map, its metadata, and the frames fused so far.
+Response Api::Exchange::info() {
+  std::optional<nlohmann::json> cached;
+  {
+    const std::lock_guard<std::mutex> lock(api.cache_->mutex);
+    api.cache_->follow(served);
+    cached = api.cache_->info;
+  }
+  nlohmann::json j = cached ? std::move(*cached) : infoJson(api.label_, map, served->metadata.get());
+  if (!cached) {
+    const std::lock_guard<std::mutex> lock(api.cache_->mutex);
+    api.cache_->follow(served);
+    api.cache_->info = j;
+  }
+  j["frames"] = served->frames;
+  j["building"] = served->building;
+  return json(j);
+}
+
+// POST /api/query and /api/foot.
+Response Api::Exchange::batch() {
+  // A batch of points (x y z) or soles (x y z yaw length width) in one frame, with
+  // an optional snap distance and reachability.
+  const bool soles = path == "/api/foot";
+  const std::string field = soles ? "soles" : "points";
+  const nlohmann::json b = parseBody(body, api.limits_);
+  onlyKnownFields(b, {field, "frame", "snap", "reach"});
+  const InputFrame frame = frameOf(b);
+  const double snap = snapOf(b);
+  const auto batch = rows(b, field, soles ? 6 : 3, api.limits_.max_batch);
+  const std::optional<ReachRequest> reach_request = reachOf(b, frame, map, served->camera_path);
+  // The work asked for, bounded before any is done (Limits::max_work).
+  const double res = map.tree().getResolution();
+  double work = 0;
+  for (std::size_t i = 0; i < batch.size(); ++i) {
+    if (soles) {
+      const double length = batch[i][4], width = batch[i][5];
+      try {
+        checkSoleSize(length, width);
+      } catch (const std::invalid_argument& e) {
+        throw Refusal(400, "soles[" + std::to_string(i) + "]: " + e.what());
+      }
+      const double samples = std::ceil(length / res) * std::ceil(width / res);
+      work += samples * (1 + voxelsDown(0.1 + (snap >= 0 ? snap : 0.1), res));
+    } else {
+      work += 1 + (snap >= 0 ? voxelsDown(snap, res) : 0);
+    }
+  }
+  if (reach_request) work *= 2;
+  if (work > api.limits_.max_work) {
+    char message[400];
+    std::snprintf(message, sizeof message,
+                  "this request asks for about %.3g voxel look-ups (%zu entries of \"%s\"%s at %g m voxels), more than the %.3g one "
+                  "request may: ask in smaller batches, with smaller soles or a smaller snap",
+                  work, batch.size(), field.c_str(), snap >= 0 ? " with snap" : "", res, api.limits_.max_work);
+    throw Refusal(413, message);
+  }
+  if (work > api.limits_.heavy_work) takeHeavySlot();
+  const auto reach = reachability(reach_request);
+  nlohmann::json answers = nlohmann::json::array();
+  for (std::size_t i = 0; i < batch.size(); ++i) {
+    if ((soles || (i & 1023u) == 0) && budget.exceeded()) budget.check(path.c_str());
+    const auto& q = batch[i];
+    if (!soles) {
+      answers.push_back(toJson(answerPoint(map, {q[0], q[1], q[2]}, frame, snap, reach.get())));
+      continue;
+    }
+    try {
+      answers.push_back(toJson(answerFoot(map, {q[0], q[1], q[2], q[3], q[4], q[5]}, frame, snap, reach.get())));
+    } catch (const std::invalid_argument& e) {
+      throw Refusal(400, "soles[" + std::to_string(i) + "]: " + e.what());
+    }
+  }
+  return json({{"answers", std::move(answers)}, {"frames", served->frames}});
+}
+
+// POST /api/height_scan.
+Response Api::Exchange::heightScan() {
+  // Heights and mobilities around many robot bases at once (mapping/height_scan.hpp).
+  const nlohmann::json b = parseBody(body, api.limits_);
+  onlyKnownFields(b, {"poses", "size", "resolution", "frame"});
+  const InputFrame frame = frameOf(b);
+  const auto batch = rows(b, "poses", 4, api.limits_.max_batch);
+  mapping::HeightScanGrid grid;
+  if (b.contains("size") && !b["size"].is_null()) {
+    const nlohmann::json& size = b["size"];
+    if (!size.is_array() || size.size() != 2) throw Refusal(400, "\"size\" must be an array of 2 numbers (length, width)");
+    grid.length_m = finiteNumber(size[0], "size[0]");
+    grid.width_m = finiteNumber(size[1], "size[1]");
+  }
+  if (b.contains("resolution") && !b["resolution"].is_null()) grid.resolution_m = finiteNumber(b["resolution"], "\"resolution\"");
+  try {
+    mapping::checkHeightScanGrid(grid, batch.size());
+  } catch (const std::invalid_argument& e) {
+    throw Refusal(400, e.what());
+  }
+  // The answer's size: about 20 bytes of JSON a point.
+  const double points = static_cast<double>(batch.size()) * grid.nx() * grid.ny();
+  const double max_points = 10.0 * static_cast<double>(api.limits_.max_batch);
+  if (points > max_points) {
+    char message[300];
+    std::snprintf(message, sizeof message,
+                  "this request asks for %.0f points (%zu poses x %d x %d); at most %.0f per request: ask in smaller "
+                  "batches or a coarser grid",
+                  points, batch.size(), grid.nx(), grid.ny(), max_points);
+    throw Refusal(413, message);
+  }
+  if (points > api.limits_.heavy_work) takeHeavySlot();
+  std::vector<mapping::HeightScanPose> poses;
+  poses.reserve(batch.size());
+  for (const auto& q : batch) {
+    const Eigen::Vector3d c = frame == InputFrame::kWorld ? map.worldToMap({q[0], q[1], q[2]}) : Eigen::Vector3d(q[0], q[1], q[2]);
+    poses.push_back({c.x(), c.y(), c.z(), frame == InputFrame::kWorld ? map.worldYawToMap(q[3]) : q[3]});
+  }
+  const mapping::HeightScan scan = map.heightScan(poses, grid);
+  std::string out = "{\"nx\":" + std::to_string(scan.nx) + ",\"ny\":" + std::to_string(scan.ny) + ",\"height\":";
+  out.reserve(out.size() + 24 * scan.height.size());
+  appendScanValues(out, scan.height, scan);
+  out += ",\"mobility\":";
+  appendScanValues(out, scan.mobility, scan);
+  out += ",\"frames\":" + std::to_string(served->frames) + "}";
+  return {200, "application/json", std::move(out)};
+}
+
+// POST /api/plan.
+Response Api::Exchange::plan() {
+  const nlohmann::json b = parseBody(body, api.limits_);
+  // The robot and the search by the names of mobmap.plan's keyword arguments in Python.
+  mapping::PlanParams plan_params;
+  std::vector<std::string> known{"from", "to", "frame"};
+  const std::vector<std::string>& names = mapping::planParameterNames();
+  known.insert(known.end(), names.begin(), names.end());
+  onlyKnownFields(b, known);
+  for (const std::string& name : names) {
+    if (!b.contains(name)) continue;
+    try {
+      mapping::setPlanParameter(plan_params, name, finiteNumber(b[name], "\"" + name + "\""));
+    } catch (const std::invalid_argument& e) {
+      throw Refusal(400, e.what());
+    }
+  }
+  if (plan_params.time_limit_s > api.limits_.max_plan_time_s) {
+    char message[120];
+    std::snprintf(message, sizeof message, "\"time_limit_s\" may be at most %g s on this server", api.limits_.max_plan_time_s);
+    throw Refusal(400, message);
+  }
+  try {
+    mapping::validate(plan_params);
+  } catch (const std::invalid_argument& e) {
+    throw Refusal(400, e.what());
+  }
+  const InputFrame frame = frameOf(b);
+  const Eigen::Vector3d from_in = point(b, "from"), to_in = point(b, "to");
+  const bool world = frame == InputFrame::kWorld;
+  const Eigen::Vector3d from = world ? map.worldToMap(from_in) : from_in;
+  const Eigen::Vector3d to = world ? map.worldToMap(to_in) : to_in;
+  mapping::Plan plan;
+  takeHeavySlot();
+  try {
+    // The plan's own time limit (at most max_plan_time_s) bounds it; the budget stops it
+    // when the server stops.
+    mapping::Budget stop;
+    stop.stop = &api.state_->stop;
+    plan = mapping::planFootsteps(map.surfaceColumns(), from, to, plan_params, stop);
+  } catch (const mapping::PlanInputError& e) {
+    throw Refusal(400, e.what());
+  } catch (const std::invalid_argument& e) {
+    throw Refusal(400, e.what());
+  }
+  return json(planJson(map, plan, plan_params, frame));
+}
+
+// GET /api/layer.
+Response Api::Exchange::layer() {
+  // A level's elevation and mobility on a grid (mapping/layers.hpp), for the viewer.
+  const std::size_t max_cells = count(params, "max", 1000000).value_or(250000);
+  if (max_cells == 0) throw Refusal(400, "query parameter max must be at least 1");
+  const std::size_t k = count(params, "level", std::numeric_limits<std::uint32_t>::max()).value_or(0);
+  // Answers are kept per map and query (a few, kLayerCacheBytes together): a viewer
+  // asks the same level again and again.
+  const std::string key = std::to_string(k) + "/" + std::to_string(max_cells);
+  {
+    const std::lock_guard<std::mutex> lock(api.cache_->mutex);
+    api.cache_->follow(served);
+    if (const auto answer = api.cache_->layers.find(key)) return {200, "application/json", *answer};
+  }
+  takeHeavySlot();  // up to a million cells over every column of the map
+  const auto columns = map.surfaceColumns();
+  const std::vector<mapping::LayerLevel> levels = mapping::layerLevels(*columns, 1.0);
+  nlohmann::json listed = nlohmann::json::array();
+  for (std::size_t i = 0; i < levels.size(); ++i) {
+    listed.push_back({{"index", i}, {"z_m", levels[i].z_m}, {"share", levels[i].share}});
+  }
+  if (levels.empty()) {
+    return json({{"levels", listed}, {"level", nullptr}, {"frames", served->frames}});
+  }
+  if (k >= levels.size()) {
+    throw Refusal(400, "query parameter level must be below " + std::to_string(levels.size()) + " (the map's levels)");
+  }
+  budget.check("the level's layers");
+  // The finest cell, a power of two voxels, that keeps the map's whole extent (and so
+  // any level in it) within `max` cells, up to cells of 100 m.
+  const double res = columns->resolution();
+  const double extent = static_cast<double>(columns->columnsX() + 1) * static_cast<double>(columns->columnsY() + 1);
+  int voxels = 1;
+  while (extent / (static_cast<double>(voxels) * voxels) > static_cast<double>(max_cells) &&
+         2 * voxels * res <= mapping::kMaxLayerCellM) {
+    voxels *= 2;
+  }
+  const mapping::LevelLayers l = mapping::levelLayers(*columns, levels[k], voxels * res);
+  std::string out = "{\"frames\":" + std::to_string(served->frames) + ",\"levels\":" + text(listed) +
+                    ",\"level\":" + std::to_string(k);
+  char head[256];
+  std::snprintf(head, sizeof head, ",\"z_m\":%.6g,\"cell_m\":%.6g,\"x_min\":%.9g,\"y_min\":%.9g,\"cols\":%d,\"rows\":%d",
+                l.level.z_m, l.cell_m, l.x_min, l.y_min, l.cols, l.rows);
+  out += head;
+  out += ",\"elevation\":";
+  appendGrid(out, l.elevation, 0, l.rows, l.cols);
+  out += ",\"mobility\":";
+  appendGrid(out, l.mobility, 0, l.rows, l.cols);
+  out += '}';
+  auto answer = std::make_shared<const std::string>(std::move(out));
+  {
+    const std::lock_guard<std::mutex> lock(api.cache_->mutex);
+    api.cache_->follow(served);
+    api.cache_->keepLayer(key, answer);
+  }
+  return {200, "application/json", *answer};
+}
+
+// GET /api/voxels.
+Response Api::Exchange::voxels() {
+  const std::size_t most = api.limits_.max_voxels;
+  const std::size_t max = count(params, "max", most).value_or(std::min<std::size_t>(200000, most));
+  const std::optional<std::size_t> level_asked = count(params, "level", std::numeric_limits<std::uint32_t>::max());
+  if (level_asked && *level_asked > 15) throw Refusal(400, "query parameter level must be 0 to 15 (the octree's depth)");
+  const std::size_t offset = count(params, "offset", std::numeric_limits<std::uint32_t>::max()).value_or(0);
+  const std::size_t limit = count(params, "limit", most).value_or(most);
+  if (max == 0) throw Refusal(400, "query parameter max must be at least 1");
+  // The finest level whose cells number at most `max`, unless one is asked for. A
+  // level not worked out yet is worked out outside the cache's lock (light requests
+  // never wait for it) in a heavy request's place, within the request's time, and
+  // stops as soon as it has more cells than it may: `max` (a coarser level then
+  // follows), or for a level asked outright kMaxLevelCellsPerPage pages of voxels.
+  int level = level_asked ? static_cast<int>(*level_asked) : 0;
+  const std::size_t most_cells = level_asked ? kMaxLevelCellsPerPage * most : max;
+  std::shared_ptr<const std::vector<Cell>> cells;
+  for (;; ++level) {
+    bool over = false;
+    {
+      const std::lock_guard<std::mutex> lock(api.cache_->mutex);
+      api.cache_->follow(served);
+      const auto found = api.cache_->cells.find(level);
+      if (found != api.cache_->cells.end()) cells = found->second;
+      const auto passed = api.cache_->cells_over.find(level);
+      over = !cells && passed != api.cache_->cells_over.end() && passed->second >= most_cells;
+    }
+    if (!cells && !over) {
+      takeHeavySlot();
+      auto computed = surfaceCellsWithin(map.tree(), level, most_cells, budget);
+      const std::lock_guard<std::mutex> lock(api.cache_->mutex);
+      api.cache_->follow(served);
+      if (computed) {
+        auto& entry = api.cache_->cells[level];
+        if (!entry) entry = std::make_shared<const std::vector<Cell>>(std::move(*computed));
+        cells = entry;
+      } else {
+        auto& passed = api.cache_->cells_over[level];
+        passed = std::max(passed, most_cells);
+        over = true;
+      }
+    }
+    if (over && level_asked) {
+      throw Refusal(413, "level " + std::to_string(level) + " of this map has more than " + std::to_string(most_cells) +
+                             " surface cells, more than one request works out; ask for a coarser level");
+    }
+    if (!over && (level_asked || cells->size() <= max || level >= 15)) break;
+    if (level >= 15) throw Refusal(413, "the map has more than " + std::to_string(max) + " surface cells at every level");
+    cells.reset();
+  }
+  const std::size_t first = std::min(offset, cells->size());
+  const std::size_t n = std::min(limit, cells->size() - first);
+  // Written by hand: a million voxels go out as fast as they are counted.
+  std::string v;
+  v.reserve(n * 40 + 2);
+  v += '[';
+  char number[128];
+  for (std::size_t i = first; i < first + n; ++i) {
+    const Cell& c = (*cells)[i];
+    int len = 0;
+    if (c.mobility == c.mobility) {
+      len = std::snprintf(number, sizeof number, "%s%.4f,%.4f,%.4f,%.3f", i == first ? "" : ",", c.centre.x(), c.centre.y(),
+                          c.centre.z(), static_cast<double>(c.mobility));
+    } else {
+      len = std::snprintf(number, sizeof number, "%s%.4f,%.4f,%.4f,null", i == first ? "" : ",", c.centre.x(), c.centre.y(),
+                          c.centre.z());
+    }
+    v.append(number, static_cast<std::size_t>(len));
+  }
+  v += ']';
+  nlohmann::json head{{"frame", "map"},
+                      {"frames", served->frames},
+                      {"building", served->building},
+                      {"level", level},
+                      {"cell_size_m", map.tree().getResolution() * std::ldexp(1.0, level)},
+                      {"total", cells->size()},
+                      {"offset", first},
+                      {"count", n}};
+  head["next"] = first + n < cells->size() ? nlohmann::json(first + n) : nlohmann::json(nullptr);
+  std::string out = text(head);
+  out.pop_back();  // the closing brace: the voxels follow
+  out += ",\"voxels\":";
+  out += v;
+  out += '}';
+  return {200, "application/json", std::move(out)};
+}
+
+// GET /api/camera_path: the camera positions, map frame.
+Response Api::Exchange::cameraPath() {
+  nlohmann::json positions = nlohmann::json::array();
+  for (const Eigen::Vector3d& p : served->camera_path) positions.push_back({p.x(), p.y(), p.z()});
+  return json({{"frame", "map"}, {"frames", served->frames}, {"positions", std::move(positions)}});
+}
+
 Response Api::handle(const std::string& method, const std::string& path,
                      const std::multimap<std::string, std::string>& params, const std::string& body) const {
+  struct Route {
+    const char* path;
+    const char* method;
+    Response (Exchange::*answer)();
+  };
+  static constexpr Route kRoutes[] = {
+      {"/api/info", "GET", &Exchange::info},
+      {"/api/voxels", "GET", &Exchange::voxels},
+      {"/api/camera_path", "GET", &Exchange::cameraPath},
+      {"/api/layer", "GET", &Exchange::layer},
+      {"/api/query", "POST", &Exchange::batch},
+      {"/api/foot", "POST", &Exchange::batch},
+      {"/api/plan", "POST", &Exchange::plan},
+      {"/api/height_scan", "POST", &Exchange::heightScan},
+  };
   try {
-    const std::shared_ptr<const ServedMap> served = source_.current();
-    const mapping::MobilityMap& map = *served->map;
     const auto expect = [&](const char* m) {
       if (method != m) throw Refusal(405, path + " takes " + m + " requests, not " + method);
     };
-    // Every request's work ends at this deadline, or when the server stops.
-    const mapping::Budget budget = mapping::Budget::within(limits_.max_request_s, &state_->stop);
-    HeavySlot heavy;
-    const auto takeHeavySlot = [&] {
-      if (heavy.held()) return;
-      if (!heavy.take(state_->heavy, limits_.max_heavy_requests)) {
-        throw Refusal(503, "the server is answering " + std::to_string(limits_.max_heavy_requests) +
-                               " heavy requests (plans, reachability, large batches), its most at once; try again shortly");
-      }
-    };
-    // Where the robot can get to, worked out once per map and request of "reach" (the
-    // cache keeps the last few), outside the cache's lock.
-    const auto reachability = [&](const std::optional<ReachRequest>& q) -> std::shared_ptr<const mapping::Reachability> {
-      if (!q) return nullptr;
-      {
-        const std::lock_guard<std::mutex> lock(cache_->mutex);
-        cache_->follow(served);
-        if (auto r = cache_->reach.find(q->key)) return r;
-      }
-      takeHeavySlot();
-      std::shared_ptr<const mapping::Reachability> r;
-      try {
-        r = std::make_shared<const mapping::Reachability>(
-            mapping::computeReachability(map.surfaceColumns(), q->from_map, q->params, budget));
-      } catch (const std::invalid_argument& e) {  // a step under two voxels of this map
-        throw Refusal(400, std::string("\"reach\": ") + e.what());
-      }
-      if (!r->start()) {
-        char text[300];
-        std::snprintf(text, sizeof text,
-                      "\"reach\": no place for a %.2f x %.2f m sole to stand (mobility >= %.2f) within %.2f m of (%.2f, "
-                      "%.2f, %.2f) (map frame); give reach.from nearer a walkable surface, or a larger reach.start_radius_m",
-                      q->params.robot.sole_length_m, q->params.robot.sole_width_m, q->params.robot.min_mobility,
-                      q->params.start_radius_m, q->from_map.x(), q->from_map.y(), q->from_map.z());
-        throw Refusal(400, text);
-      }
-      const std::lock_guard<std::mutex> lock(cache_->mutex);
-      cache_->follow(served);
-      cache_->keepReach(q->key, r, limits_);
-      return r;
-    };
-    if (path == "/api/info") {
-      expect("GET");
-      std::optional<nlohmann::json> cached;
-      {
-        const std::lock_guard<std::mutex> lock(cache_->mutex);
-        cache_->follow(served);
-        cached = cache_->info;
-      }
-      nlohmann::json j = cached ? std::move(*cached) : infoJson(label_, map, served->metadata.get());
-      if (!cached) {
-        const std::lock_guard<std::mutex> lock(cache_->mutex);
-        cache_->follow(served);
-        cache_->info = j;
-      }
-      j["frames"] = served->frames;
-      j["building"] = served->building;
-      return json(j);
-    }
-    if (path == "/api/query" || path == "/api/foot") {
-      // A batch of points (x y z) or soles (x y z yaw length width) in one frame, with
-      // an optional snap distance and reachability.
-      expect("POST");
-      const bool soles = path == "/api/foot";
-      const std::string field = soles ? "soles" : "points";
-      const nlohmann::json b = parseBody(body, limits_);
-      onlyKnownFields(b, {field, "frame", "snap", "reach"});
-      const InputFrame frame = frameOf(b);
-      const double snap = snapOf(b);
-      const auto batch = rows(b, field, soles ? 6 : 3, limits_.max_batch);
-      const std::optional<ReachRequest> reach_request = reachOf(b, frame, map, served->camera_path);
-      // The work asked for, bounded before any is done (Limits::max_work).
-      const double res = map.tree().getResolution();
-      double work = 0;
-      for (std::size_t i = 0; i < batch.size(); ++i) {
-        if (soles) {
-          const double length = batch[i][4], width = batch[i][5];
-          try {
-            checkSoleSize(length, width);
-          } catch (const std::invalid_argument& e) {
-            throw Refusal(400, "soles[" + std::to_string(i) + "]: " + e.what());
-          }
-          const double samples = std::ceil(length / res) * std::ceil(width / res);
-          work += samples * (1 + voxelsDown(0.1 + (snap >= 0 ? snap : 0.1), res));
-        } else {
-          work += 1 + (snap >= 0 ? voxelsDown(snap, res) : 0);
-        }
-      }
-      if (reach_request) work *= 2;
-      if (work > limits_.max_work) {
-        char message[400];
-        std::snprintf(message, sizeof message,
-                      "this request asks for about %.3g voxel look-ups (%zu entries of \"%s\"%s at %g m voxels), more than the %.3g one "
-                      "request may: ask in smaller batches, with smaller soles or a smaller snap",
-                      work, batch.size(), field.c_str(), snap >= 0 ? " with snap" : "", res, limits_.max_work);
-        throw Refusal(413, message);
-      }
-      if (work > limits_.heavy_work) takeHeavySlot();
-      const auto reach = reachability(reach_request);
-      nlohmann::json answers = nlohmann::json::array();
-      for (std::size_t i = 0; i < batch.size(); ++i) {
-        if ((soles || (i & 1023u) == 0) && budget.exceeded()) budget.check(path.c_str());
-        const auto& q = batch[i];
-        if (!soles) {
-          answers.push_back(toJson(answerPoint(map, {q[0], q[1], q[2]}, frame, snap, reach.get())));
-          continue;
-        }
-        try {
-          answers.push_back(toJson(answerFoot(map, {q[0], q[1], q[2], q[3], q[4], q[5]}, frame, snap, reach.get())));
-        } catch (const std::invalid_argument& e) {
-          throw Refusal(400, "soles[" + std::to_string(i) + "]: " + e.what());
-        }
-      }
-      return json({{"answers", std::move(answers)}, {"frames", served->frames}});
-    }
-    if (path == "/api/height_scan") {
-      // Heights and mobilities around many robot bases at once (mapping/height_scan.hpp).
-      expect("POST");
-      const nlohmann::json b = parseBody(body, limits_);
-      onlyKnownFields(b, {"poses", "size", "resolution", "frame"});
-      const InputFrame frame = frameOf(b);
-      const auto batch = rows(b, "poses", 4, limits_.max_batch);
-      mapping::HeightScanGrid grid;
-      if (b.contains("size") && !b["size"].is_null()) {
-        const nlohmann::json& size = b["size"];
-        if (!size.is_array() || size.size() != 2) throw Refusal(400, "\"size\" must be an array of 2 numbers (length, width)");
-        grid.length_m = finiteNumber(size[0], "size[0]");
-        grid.width_m = finiteNumber(size[1], "size[1]");
-      }
-      if (b.contains("resolution") && !b["resolution"].is_null()) grid.resolution_m = finiteNumber(b["resolution"], "\"resolution\"");
-      try {
-        mapping::checkHeightScanGrid(grid, batch.size());
-      } catch (const std::invalid_argument& e) {
-        throw Refusal(400, e.what());
-      }
-      // The answer's size: about 20 bytes of JSON a point.
-      const double points = static_cast<double>(batch.size()) * grid.nx() * grid.ny();
-      const double max_points = 10.0 * static_cast<double>(limits_.max_batch);
-      if (points > max_points) {
-        char message[300];
-        std::snprintf(message, sizeof message,
-                      "this request asks for %.0f points (%zu poses x %d x %d); at most %.0f per request: ask in smaller "
-                      "batches or a coarser grid",
-                      points, batch.size(), grid.nx(), grid.ny(), max_points);
-        throw Refusal(413, message);
-      }
-      if (points > limits_.heavy_work) takeHeavySlot();
-      std::vector<mapping::HeightScanPose> poses;
-      poses.reserve(batch.size());
-      for (const auto& q : batch) {
-        const Eigen::Vector3d c = frame == InputFrame::kWorld ? map.worldToMap({q[0], q[1], q[2]}) : Eigen::Vector3d(q[0], q[1], q[2]);
-        poses.push_back({c.x(), c.y(), c.z(), frame == InputFrame::kWorld ? map.worldYawToMap(q[3]) : q[3]});
-      }
-      const mapping::HeightScan scan = map.heightScan(poses, grid);
-      std::string out = "{\"nx\":" + std::to_string(scan.nx) + ",\"ny\":" + std::to_string(scan.ny) + ",\"height\":";
-      out.reserve(out.size() + 24 * scan.height.size());
-      appendScanValues(out, scan.height, scan);
-      out += ",\"mobility\":";
-      appendScanValues(out, scan.mobility, scan);
-      out += ",\"frames\":" + std::to_string(served->frames) + "}";
-      return {200, "application/json", std::move(out)};
-    }
-    if (path == "/api/plan") {
-      expect("POST");
-      const nlohmann::json b = parseBody(body, limits_);
-      // The robot and the search by the names of mobmap.plan's keyword arguments in Python.
-      mapping::PlanParams plan_params;
-      std::vector<std::string> known{"from", "to", "frame"};
-      const std::vector<std::string>& names = mapping::planParameterNames();
-      known.insert(known.end(), names.begin(), names.end());
-      onlyKnownFields(b, known);
-      for (const std::string& name : names) {
-        if (!b.contains(name)) continue;
-        try {
-          mapping::setPlanParameter(plan_params, name, finiteNumber(b[name], "\"" + name + "\""));
-        } catch (const std::invalid_argument& e) {
-          throw Refusal(400, e.what());
-        }
-      }
-      if (plan_params.time_limit_s > limits_.max_plan_time_s) {
-        char message[120];
-        std::snprintf(message, sizeof message, "\"time_limit_s\" may be at most %g s on this server", limits_.max_plan_time_s);
-        throw Refusal(400, message);
-      }
-      try {
-        mapping::validate(plan_params);
-      } catch (const std::invalid_argument& e) {
-        throw Refusal(400, e.what());
-      }
-      const InputFrame frame = frameOf(b);
-      const Eigen::Vector3d from_in = point(b, "from"), to_in = point(b, "to");
-      const bool world = frame == InputFrame::kWorld;
-      const Eigen::Vector3d from = world ? map.worldToMap(from_in) : from_in;
-      const Eigen::Vector3d to = world ? map.worldToMap(to_in) : to_in;
-      mapping::Plan plan;
-      takeHeavySlot();
-      try {
-        // The plan's own time limit (at most max_plan_time_s) bounds it; the budget stops it
-        // when the server stops.
-        mapping::Budget stop;
-        stop.stop = &state_->stop;
-        plan = mapping::planFootsteps(map.surfaceColumns(), from, to, plan_params, stop);
-      } catch (const mapping::PlanInputError& e) {
-        throw Refusal(400, e.what());
-      } catch (const std::invalid_argument& e) {
-        throw Refusal(400, e.what());
-      }
-      return json(planJson(map, plan, plan_params, frame));
-    }
-    if (path == "/api/layer") {
-      // A level's elevation and mobility on a grid (mapping/layers.hpp), for the viewer.
-      expect("GET");
-      const std::size_t max_cells = count(params, "max", 1000000).value_or(250000);
-      if (max_cells == 0) throw Refusal(400, "query parameter max must be at least 1");
-      const std::size_t k = count(params, "level", std::numeric_limits<std::uint32_t>::max()).value_or(0);
-      // Answers are kept per map and query (a few, kLayerCacheBytes together): a viewer
-      // asks the same level again and again.
-      const std::string key = std::to_string(k) + "/" + std::to_string(max_cells);
-      {
-        const std::lock_guard<std::mutex> lock(cache_->mutex);
-        cache_->follow(served);
-        if (const auto answer = cache_->layers.find(key)) return {200, "application/json", *answer};
-      }
-      takeHeavySlot();  // up to a million cells over every column of the map
-      const auto columns = map.surfaceColumns();
-      const std::vector<mapping::LayerLevel> levels = mapping::layerLevels(*columns, 1.0);
-      nlohmann::json listed = nlohmann::json::array();
-      for (std::size_t i = 0; i < levels.size(); ++i) {
-        listed.push_back({{"index", i}, {"z_m", levels[i].z_m}, {"share", levels[i].share}});
-      }
-      if (levels.empty()) {
-        return json({{"levels", listed}, {"level", nullptr}, {"frames", served->frames}});
-      }
-      if (k >= levels.size()) {
-        throw Refusal(400, "query parameter level must be below " + std::to_string(levels.size()) + " (the map's levels)");
-      }
-      budget.check("the level's layers");
-      // The finest cell, a power of two voxels, that keeps the map's whole extent (and so
-      // any level in it) within `max` cells, up to cells of 100 m.
-      const double res = columns->resolution();
-      const double extent = static_cast<double>(columns->columnsX() + 1) * static_cast<double>(columns->columnsY() + 1);
-      int voxels = 1;
-      while (extent / (static_cast<double>(voxels) * voxels) > static_cast<double>(max_cells) &&
-             2 * voxels * res <= mapping::kMaxLayerCellM) {
-        voxels *= 2;
-      }
-      const mapping::LevelLayers l = mapping::levelLayers(*columns, levels[k], voxels * res);
-      std::string out = "{\"frames\":" + std::to_string(served->frames) + ",\"levels\":" + text(listed) +
-                        ",\"level\":" + std::to_string(k);
-      char head[256];
-      std::snprintf(head, sizeof head, ",\"z_m\":%.6g,\"cell_m\":%.6g,\"x_min\":%.9g,\"y_min\":%.9g,\"cols\":%d,\"rows\":%d",
-                    l.level.z_m, l.cell_m, l.x_min, l.y_min, l.cols, l.rows);
-      out += head;
-      out += ",\"elevation\":";
-      appendGrid(out, l.elevation, 0, l.rows, l.cols);
-      out += ",\"mobility\":";
-      appendGrid(out, l.mobility, 0, l.rows, l.cols);
-      out += '}';
-      auto answer = std::make_shared<const std::string>(std::move(out));
-      {
-        const std::lock_guard<std::mutex> lock(cache_->mutex);
-        cache_->follow(served);
-        cache_->keepLayer(key, answer);
-      }
-      return {200, "application/json", *answer};
-    }
-    if (path == "/api/voxels") {
-      expect("GET");
-      const std::size_t most = limits_.max_voxels;
-      const std::size_t max = count(params, "max", most).value_or(std::min<std::size_t>(200000, most));
-      const std::optional<std::size_t> level_asked = count(params, "level", std::numeric_limits<std::uint32_t>::max());
-      if (level_asked && *level_asked > 15) throw Refusal(400, "query parameter level must be 0 to 15 (the octree's depth)");
-      const std::size_t offset = count(params, "offset", std::numeric_limits<std::uint32_t>::max()).value_or(0);
-      const std::size_t limit = count(params, "limit", most).value_or(most);
-      if (max == 0) throw Refusal(400, "query parameter max must be at least 1");
-      // The finest level whose cells number at most `max`, unless one is asked for. A
-      // level not worked out yet is worked out outside the cache's lock (light requests
-      // never wait for it) in a heavy request's place, within the request's time, and
-      // stops as soon as it has more cells than it may: `max` (a coarser level then
-      // follows), or for a level asked outright kMaxLevelCellsPerPage pages of voxels.
-      int level = level_asked ? static_cast<int>(*level_asked) : 0;
-      const std::size_t most_cells = level_asked ? kMaxLevelCellsPerPage * most : max;
-      std::shared_ptr<const std::vector<Cell>> cells;
-      for (;; ++level) {
-        bool over = false;
-        {
-          const std::lock_guard<std::mutex> lock(cache_->mutex);
-          cache_->follow(served);
-          const auto found = cache_->cells.find(level);
-          if (found != cache_->cells.end()) cells = found->second;
-          const auto passed = cache_->cells_over.find(level);
-          over = !cells && passed != cache_->cells_over.end() && passed->second >= most_cells;
-        }
-        if (!cells && !over) {
-          takeHeavySlot();
-          auto computed = surfaceCellsWithin(map.tree(), level, most_cells, budget);
-          const std::lock_guard<std::mutex> lock(cache_->mutex);
-          cache_->follow(served);
-          if (computed) {
-            auto& entry = cache_->cells[level];
-            if (!entry) entry = std::make_shared<const std::vector<Cell>>(std::move(*computed));
-            cells = entry;
-          } else {
-            auto& passed = cache_->cells_over[level];
-            passed = std::max(passed, most_cells);
-            over = true;
-          }
-        }
-        if (over && level_asked) {
-          throw Refusal(413, "level " + std::to_string(level) + " of this map has more than " + std::to_string(most_cells) +
-                                 " surface cells, more than one request works out; ask for a coarser level");
-        }
-        if (!over && (level_asked || cells->size() <= max || level >= 15)) break;
-        if (level >= 15) throw Refusal(413, "the map has more than " + std::to_string(max) + " surface cells at every level");
-        cells.reset();
-      }
-      const std::size_t first = std::min(offset, cells->size());
-      const std::size_t n = std::min(limit, cells->size() - first);
-      // Written by hand: a million voxels go out as fast as they are counted.
-      std::string v;
-      v.reserve(n * 40 + 2);
-      v += '[';
-      char number[128];
-      for (std::size_t i = first; i < first + n; ++i) {
-        const Cell& c = (*cells)[i];
-        int len = 0;
-        if (c.mobility == c.mobility) {
-          len = std::snprintf(number, sizeof number, "%s%.4f,%.4f,%.4f,%.3f", i == first ? "" : ",", c.centre.x(), c.centre.y(),
-                              c.centre.z(), static_cast<double>(c.mobility));
-        } else {
-          len = std::snprintf(number, sizeof number, "%s%.4f,%.4f,%.4f,null", i == first ? "" : ",", c.centre.x(), c.centre.y(),
-                              c.centre.z());
-        }
-        v.append(number, static_cast<std::size_t>(len));
-      }
-      v += ']';
-      nlohmann::json head{{"frame", "map"},
-                          {"frames", served->frames},
-                          {"building", served->building},
-                          {"level", level},
-                          {"cell_size_m", map.tree().getResolution() * std::ldexp(1.0, level)},
-                          {"total", cells->size()},
-                          {"offset", first},
-                          {"count", n}};
-      head["next"] = first + n < cells->size() ? nlohmann::json(first + n) : nlohmann::json(nullptr);
-      std::string out = text(head);
-      out.pop_back();  // the closing brace: the voxels follow
-      out += ",\"voxels\":";
-      out += v;
-      out += '}';
-      return {200, "application/json", std::move(out)};
-    }
-    if (path == "/api/camera_path") {
-      expect("GET");
-      nlohmann::json positions = nlohmann::json::array();
-      for (const Eigen::Vector3d& p : served->camera_path) positions.push_back({p.x(), p.y(), p.z()});
-      return json({{"frame", "map"}, {"frames", served->frames}, {"positions", std::move(positions)}});
+    for (const Route& route : kRoutes) {
+      if (path != route.path) continue;
+      expect(route.method);
+      Exchange exchange(*this, path, params, body);
+      return (exchange.*route.answer)();
     }
     if (const ViewerAsset* asset = findViewerAsset(path)) {
       expect("GET");
       return {200, asset->content_type, std::string(asset->bytes, asset->size)};
     }
-    throw Refusal(404, "no such path: " + path.substr(0, 200) +
-                           " (the API: GET /api/info, /api/voxels, /api/camera_path, /api/layer; POST /api/query, /api/foot, "
-                           "/api/plan, /api/height_scan; the viewer: GET /)");
+    std::string api_list;
+    for (const char* m : {"GET", "POST"}) {
+      api_list += std::string(api_list.empty() ? "" : "; ") + m;
+      const char* sep = " ";
+      for (const Route& route : kRoutes) {
+        if (std::string(route.method) != m) continue;
+        api_list += sep + std::string(route.path);
+        sep = ", ";
+      }
+    }
+    throw Refusal(404, "no such path: " + path.substr(0, 200) + " (the API: " + api_list + "; the viewer: GET /)");
   } catch (const Refusal& r) {
     return {r.status, "application/json", errorBody(r.what())};
   } catch (const mapping::BudgetExceeded& e) {

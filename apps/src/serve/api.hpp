@@ -103,6 +103,7 @@ class Api {
 
  private:
   struct Cache;
+  struct Exchange;  // one request being answered (api.cpp)
   struct State {
     std::atomic<bool> stop{false};
     std::atomic<std::size_t> heavy{0};  // heavy requests being answered
