@@ -28,3 +28,16 @@ function(mobmap_add_module name)
     LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
   install(DIRECTORY include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 endfunction()
+
+# mobmap_add_plugin(<name> SOURCES ... DEPS ...): the adapter libmobmap_<name>.so, a
+# module opened when first used (util/include/mobmap/util/plugin.hpp), built into
+# ${MOBMAP_PLUGIN_BUILD_DIR} and installed into <prefix>/lib/mobmap.
+set(MOBMAP_PLUGIN_BUILD_DIR ${CMAKE_BINARY_DIR}/lib/mobmap)
+function(mobmap_add_plugin name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS" ${ARGN})
+  add_library(mobmap_${name} MODULE ${ARG_SOURCES})
+  target_link_libraries(mobmap_${name} PRIVATE ${ARG_DEPS})
+  set_target_properties(mobmap_${name} PROPERTIES PREFIX "lib" LIBRARY_OUTPUT_DIRECTORY ${MOBMAP_PLUGIN_BUILD_DIR})
+  mobmap_configure_target(mobmap_${name})
+  install(TARGETS mobmap_${name} LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}/mobmap)
+endfunction()

@@ -1,11 +1,10 @@
 #include "io/layer_files.hpp"
 
+#include "io/geotiff_adapter.hpp"
 #include "io/io_error.hpp"
 #include "io/png_io.hpp"
 
-#include <cpl_error.h>
-#include <gdal_priv.h>
-#include <ogr_spatialref.h>
+#include "mobmap/util/plugin.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -16,20 +15,6 @@
 namespace mobmap::app {
 namespace {
 
-// GDAL's errors are read back and reported with the file's name, never printed.
-void quietGdal() {
-  static std::once_flag once;
-  std::call_once(once, [] {
-    GDALAllRegister();
-    CPLSetErrorHandler(CPLQuietErrorHandler);
-  });
-}
-
-std::string gdalProblem(const std::string& what) {
-  const std::string message = CPLGetLastErrorMsg();
-  return what + (message.empty() ? std::string() : ": " + message);
-}
-
 const char* unitOf(const std::string& layer) {
   if (layer == "elevation" || layer == "step") return "m";
   if (layer == "elevation_variance") return "m2";
@@ -37,47 +22,38 @@ const char* unitOf(const std::string& layer) {
   return "";
 }
 
+// GDAL, opened when the first GeoTIFF is written.
+const GeoTiffAdapter& geoTiff(const std::string& path) {
+  static const GeoTiffAdapter* const loaded = [&] {
+    try {
+      const auto entry = reinterpret_cast<const GeoTiffAdapter* (*)()>(util::pluginSymbol("geotiff", "mobmap_geotiff_adapter"));
+      const GeoTiffAdapter* a = entry();
+      if (a->version != kGeoTiffAdapterVersion) throw std::runtime_error("mobmap's geotiff adapter belongs to another version of mobmap");
+      return a;
+    } catch (const std::runtime_error& e) {
+      throw IoError(path, std::string("cannot be written: ") + e.what());
+    }
+  }();
+  return *loaded;
+}
+
 }  // namespace
 
 void writeLayersGeoTiff(const std::string& to, const mapping::LevelLayers& layers, const std::string& name) {
-  const std::string& path = name.empty() ? to : name;
-  quietGdal();
-  CPLErrorReset();
-  GDALDriver* driver = GetGDALDriverManager()->GetDriverByName("GTiff");
-  if (driver == nullptr) throw IoError(path, "GDAL has no GeoTIFF driver");
-  const auto& names = mapping::layerNames();
-  char** options = CSLSetNameValue(nullptr, "COMPRESS", "DEFLATE");
-  GDALDataset* raw = driver->Create(to.c_str(), layers.cols, layers.rows, static_cast<int>(names.size()), GDT_Float32, options);
-  CSLDestroy(options);
-  if (raw == nullptr) throw IoError(path, gdalProblem("cannot create the GeoTIFF"));
-  std::unique_ptr<GDALDataset, void (*)(GDALDataset*)> ds(raw, [](GDALDataset* d) { GDALClose(d); });
-  double transform[6] = {layers.x_min, layers.cell_m, 0.0, layers.y_min + layers.rows * layers.cell_m, 0.0, -layers.cell_m};
-  OGRSpatialReference frame;
-  frame.SetLocalCS("mobmap map frame (x right, y up, z up; gravity aligned)");
-  frame.SetLinearUnits(SRS_UL_METER, 1.0);
-  char* wkt = nullptr;
-  frame.exportToWkt(&wkt);
-  const bool placed = ds->SetGeoTransform(transform) == CE_None && ds->SetProjection(wkt) == CE_None;
-  CPLFree(wkt);
-  if (!placed) throw IoError(path, gdalProblem("cannot georeference the GeoTIFF"));
+  GeoTiffRaster raster;
+  raster.cols = layers.cols;
+  raster.rows = layers.rows;
+  raster.x_min = layers.x_min;
+  raster.y_max = layers.y_min + layers.rows * layers.cell_m;
+  raster.cell_m = layers.cell_m;
+  raster.frame = "mobmap map frame (x right, y up, z up; gravity aligned)";
   char level[64];
   std::snprintf(level, sizeof level, "%.4f", layers.level.z_m);
-  ds->SetMetadataItem("MOBMAP_LEVEL_Z_M", level);
-  for (std::size_t b = 0; b < names.size(); ++b) {
-    GDALRasterBand* band = ds->GetRasterBand(static_cast<int>(b) + 1);
-    band->SetDescription(names[b].c_str());
-    band->SetNoDataValue(std::numeric_limits<double>::quiet_NaN());
-    band->SetUnitType(unitOf(names[b]));
-    auto& values = const_cast<std::vector<float>&>(mapping::layerByName(layers, names[b]));
-    if (band->RasterIO(GF_Write, 0, 0, layers.cols, layers.rows, values.data(), layers.cols, layers.rows, GDT_Float32, 0, 0) !=
-        CE_None) {
-      throw IoError(path, gdalProblem("cannot write band " + names[b]));
-    }
+  raster.metadata.emplace_back("MOBMAP_LEVEL_Z_M", level);
+  for (const std::string& band : mapping::layerNames()) {
+    raster.bands.push_back({band, unitOf(band), mapping::layerByName(layers, band).data()});
   }
-  GDALClose(ds.release());
-  if (CPLGetLastErrorType() >= CE_Failure) {
-    throw IoError(path, gdalProblem("cannot finish the GeoTIFF (disk full?)"));
-  }
+  geoTiff(name.empty() ? to : name).write(to, raster, name);
 }
 
 void writeNav2Image(const std::string& path, const mapping::LevelLayers& layers) {
