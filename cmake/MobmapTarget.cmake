@@ -10,7 +10,8 @@ endfunction()
 
 # mobmap_add_module(<name> SOURCES ... DEPS ...): a library `mobmap_<name>` with
 # the alias `mobmap::<name>`, public headers under <name>/include, installed and
-# exported under the name `<name>` so consumers link `mobmap::<name>`.
+# exported under the name `<name>` so consumers link `mobmap::<name>`: the CMake
+# package's component <name>, in an export set of its own (mobmap-<name>-targets).
 function(mobmap_add_module name)
   cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
   add_library(mobmap_${name} ${ARG_SOURCES})
@@ -23,7 +24,7 @@ function(mobmap_add_module name)
   target_include_directories(mobmap_${name} PRIVATE ${CMAKE_CURRENT_SOURCE_DIR}/src)
   target_link_libraries(mobmap_${name} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
   mobmap_configure_target(mobmap_${name})
-  install(TARGETS mobmap_${name} EXPORT mobmapTargets
+  install(TARGETS mobmap_${name} EXPORT mobmap-${name}-targets
     ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
     LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
   install(DIRECTORY include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
