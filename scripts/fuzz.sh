@@ -14,7 +14,7 @@ mkdir -p build-fuzz/obj
 # -ffp-contract=off as perception/CMakeLists.txt sets it (its vector kernels match the
 # portable loops bit for bit only without fused multiply-adds).
 flags=(-std=c++17 -O1 -g -ffp-contract=off -fsanitize=address,undefined -fno-sanitize-recover=undefined
-       -Iutil/include -Igp/include -Iperception/include -Iperception/src -Imapping/include -Isources/include -Isources/src -Iapps/src -I/usr/include/eigen3 -I/usr/include/openni2 -Ibuild-fuzz)
+       -Iutil/include -Ibuilder/include -Igp/include -Iperception/include -Iperception/src -Imapping/include -Isources/include -Isources/src -Iapps/src -I/usr/include/eigen3 -I/usr/include/openni2 -Ibuild-fuzz)
 cmake -DIN=apps/default.yaml -DOUT=build-fuzz/default_yaml.inc -P apps/embed.cmake
 # The viewer's files (serve's API hands them out), as apps/CMakeLists.txt embeds them.
 for asset in apps/viewer/index.html:viewer_index_html apps/viewer/viewer.js:viewer_js \
@@ -25,7 +25,7 @@ done
 
 # Each source is compiled once, again when it or any first-party header is newer than
 # its object (a header change can change a struct's layout under an old object).
-newest_header=$(ls -t $(find util gp perception mapping sources apps sim tests/fuzz -name '*.hpp') | head -n 1)
+newest_header=$(ls -t $(find util builder gp perception mapping sources apps sim tests/fuzz -name '*.hpp') | head -n 1)
 # The stale ones are compiled on every core at once; a failed compile stops the script.
 compile_flags=$(printf '%q ' "${flags[@]}")
 export compile_flags
@@ -45,7 +45,7 @@ objects() {
 # A module's sources as its CMakeLists.txt lists them (SOURCES up to the *_DEPS line), so
 # a file added there is never missing here.
 module_sources() {
-  sed -n '/SOURCES/,/_DEPS/p' "$1/CMakeLists.txt" | grep -o 'src/[A-Za-z0-9_/]*\.cpp' | sed "s|^|$1/|"
+  sed -n '/mobmap_add_module/,/_DEPS/p' "$1/CMakeLists.txt" | grep -o 'src/[A-Za-z0-9_/]*\.cpp' | sed "s|^|$1/|"
 }
 mapfile -t util < <(module_sources util)
 mapfile -t gp < <(module_sources gp)
@@ -53,7 +53,7 @@ mapfile -t perception < <(module_sources perception)
 mapfile -t mapping < <(module_sources mapping)
 # The bag readers: the sources module without the folder, PCD and OpenNI2 readers.
 mapfile -t bag_sources < <(module_sources sources |
-  grep -v -E '^sources/src/(dataset|trajectory_files|pcd|openni|sequence|recording_sequence)\.cpp$')
+  grep -v -E '^sources/src/(dataset|trajectory_files|pcd|openni|sequence|recording_sequence|adjusted)\.cpp$')
 link() {  # link TARGET SOURCES... -- LIBS...
   local target=$1; shift
   local srcs=() libs=()
@@ -69,7 +69,7 @@ for target in "${targets[@]}"; do
   case $target in
     map_reader) link map_reader tests/fuzz/fuzz_map_reader.cpp "${mapping[@]}" "${perception[@]}" "${gp[@]}" "${util[@]}" \
                   -- -loctomap -loctomath -lgmp -lmpfr ;;
-    config) link config tests/fuzz/fuzz_config.cpp apps/src/io/config.cpp apps/src/io/files.cpp sources/src/text.cpp "${gp[@]}" "${perception[@]}" \
+    config) link config tests/fuzz/fuzz_config.cpp builder/src/config.cpp sources/src/text.cpp "${gp[@]}" "${perception[@]}" \
               "${mapping[@]}" "${util[@]}" \
               -- -lyaml-cpp -loctomap -loctomath -lgmp -lmpfr ;;
     poses) link poses tests/fuzz/fuzz_poses.cpp sources/src/trajectory_files.cpp sources/src/dataset.cpp sources/src/text.cpp \

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """The library speaks of fields, not command-line flags: no string literal in its code
-(mapping/, sources/, perception/, gp/, util/) holds a flag such as "--max-step". Each front
+(mapping/, sources/, perception/, gp/, util/, builder/) holds a flag such as "--max-step". Each front
 spells the fields its own way (apps/src/io/cli_text.cpp for the command line)."""
 import pathlib
 import re
@@ -49,7 +49,7 @@ def literals(code):
 
 
 found = []
-for module in ("mapping", "sources", "perception", "gp", "util"):
+for module in ("mapping", "sources", "perception", "gp", "util", "builder"):
     for path in sorted((root / module).rglob("*")):
         if path.suffix not in (".cpp", ".hpp", ".h"):
             continue

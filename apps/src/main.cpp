@@ -67,7 +67,7 @@ int main(int argc, char** argv) {
   } catch (const mobmap::app::UsageError& e) {
     std::cerr << "error: " << e.what() << "\n";
     return 2;
-  } catch (const mobmap::app::FieldError& e) {  // a value the library cannot take: a usage mistake
+  } catch (const mobmap::util::ValueError& e) {  // a value the library cannot take: a usage mistake
     std::cerr << "error: " << mobmap::app::cliText(e) << "\n";
     return 2;
   } catch (const std::exception& e) {

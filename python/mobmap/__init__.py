@@ -1,5 +1,6 @@
-"""Mobility maps for legged robots (Genesio et al.): open a map `mobmap build` wrote, ask it
-about points and soles in numpy, plan footsteps, or map while you query (LiveMapper)."""
+"""Mobility maps for legged robots (Genesio et al.): build a map as `mobmap build` does,
+open one, ask it about points and soles in numpy, plan footsteps, or map while you query
+(LiveMapper)."""
 
 from ._mobmap import (  # noqa: F401
     FREE,
@@ -12,12 +13,13 @@ from ._mobmap import (  # noqa: F401
     Recording,
     RecordingError,
     analyze,
+    build,
     open_map,
     open_recording,
     plan,
     reachable,
 )
 
-__all__ = ["open_map", "Map", "plan", "reachable", "LiveMapper", "analyze", "open_recording", "Recording",
+__all__ = ["build", "open_map", "Map", "plan", "reachable", "LiveMapper", "analyze", "open_recording", "Recording",
            "MapIoError", "PlanInputError", "RecordingError",
            "UNKNOWN", "FREE", "SURFACE"]

@@ -3,8 +3,12 @@
 #include "mobmap/mapping/gravity.hpp"
 #include "mobmap/util/field_error.hpp"
 
+#include <pybind11/stl.h>
+
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <vector>
 #include <limits>
 
 namespace mobmap::python {
@@ -14,6 +18,19 @@ std::string pythonText(const std::string& message) {
     if (field == "max_pose_gap_s") return std::string("`max_pose_gap`");  // open_recording's keyword
     return std::nullopt;
   });
+}
+
+std::string intrinsicsSpec(const py::handle& value) {
+  if (py::isinstance<py::str>(value)) return value.cast<std::string>();  // a camera file, or "fx,fy,cx,cy"
+  const auto k = value.cast<std::vector<double>>();
+  if (k.size() != 4) throw py::value_error("intrinsics must be (fx, fy, cx, cy) or a camera file's path");
+  std::string spec;
+  for (const double v : k) {
+    char cell[40];
+    std::snprintf(cell, sizeof cell, "%.17g", v);
+    spec += (spec.empty() ? "" : ",") + std::string(cell);
+  }
+  return spec;
 }
 
 Frame parseFrame(const std::string& frame) {

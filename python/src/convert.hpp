@@ -22,6 +22,10 @@ namespace py = pybind11;
 /// their own name keep it.
 std::string pythonText(const std::string& message);
 
+/// A camera as the library's intrinsics spec: a str (a camera file, "fx,fy,cx,cy") as it
+/// is, or (fx, fy, cx, cy). ValueError otherwise.
+std::string intrinsicsSpec(const py::handle& value);
+
 /// The frame points and soles are given in: the map's (z up, `mobmap build`'s map
 /// frame) or the world frame of the poses.
 enum class Frame { kMap, kWorld };

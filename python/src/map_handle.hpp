@@ -25,5 +25,6 @@ void bindMap(pybind11::module_& m);
 void bindPlanning(pybind11::module_& m);
 void bindLive(pybind11::module_& m);
 void bindRecording(pybind11::module_& m);
+void bindBuild(pybind11::module_& m);
 
 }  // namespace mobmap::python

@@ -29,7 +29,7 @@ PYBIND11_MODULE(_mobmap, m) {
       PyErr_SetString(plan_input_error.ptr(), pythonText(e.what()).c_str());
     } catch (const mobmap::sources::IoError& e) {
       PyErr_SetString(recording_error.ptr(), pythonText(e.what()).c_str());
-    } catch (const mobmap::util::FieldError& e) {
+    } catch (const mobmap::util::ValueError& e) {
       PyErr_SetString(PyExc_ValueError, pythonText(e.what()).c_str());
     }
   });
@@ -37,4 +37,5 @@ PYBIND11_MODULE(_mobmap, m) {
   mobmap::python::bindPlanning(m);
   mobmap::python::bindLive(m);
   mobmap::python::bindRecording(m);
+  mobmap::python::bindBuild(m);
 }

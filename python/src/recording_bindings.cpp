@@ -75,19 +75,6 @@ class FrameIterator {
   std::size_t i_ = 0;
 };
 
-std::string intrinsicsSpec(const py::handle& value) {
-  if (py::isinstance<py::str>(value)) return value.cast<std::string>();  // a camera file, or "fx,fy,cx,cy"
-  const auto k = value.cast<std::vector<double>>();
-  if (k.size() != 4) throw py::value_error("intrinsics must be (fx, fy, cx, cy) or a camera file's path");
-  std::string spec;
-  for (const double v : k) {
-    char cell[40];
-    std::snprintf(cell, sizeof cell, "%.17g", v);
-    spec += (spec.empty() ? "" : ",") + std::string(cell);
-  }
-  return spec;
-}
-
 SequencePtr openRecording(const std::string& path, const py::kwargs& kwargs) {
   sources::SequenceOptions o;
   for (const auto& [key_handle, value] : kwargs) {

@@ -6,6 +6,7 @@
 
 #include "mobmap/mapping/trajectory.hpp"
 
+#include <functional>
 #include <OpenNI.h>
 
 #include <algorithm>
@@ -29,7 +30,7 @@ enum class Wait { kReady, kTimedOut, kInterrupted };
 
 // Waits up to timeout_s for a frame of `stream`, in slices of 100 ms so that
 // `interrupted` (if given) is noticed promptly.
-Wait waitForFrame(openni::VideoStream& stream, double timeout_s, bool (*interrupted)()) {
+Wait waitForFrame(openni::VideoStream& stream, double timeout_s, const std::function<bool()>& interrupted) {
   openni::VideoStream* streams[] = {&stream};
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
   for (;;) {
@@ -311,7 +312,7 @@ class OpenNiSequence : public Sequence {
 std::unique_ptr<Sequence> openOpenNi(const OpenNiOptions& options) { return std::make_unique<OpenNiSequence>(options); }
 
 int recordOni(const std::string& device_uri, const std::string& out_path, int frames, double frame_timeout_s,
-              bool (*interrupted)()) {
+              const std::function<bool()>& interrupted) {
   const std::string name = device_uri.empty() ? std::string("the first OpenNI2 device") : device_uri;
   OpenNiHandles handles;  // parks the stream when done, whatever happens
   openni::Device& device = *handles.device;

@@ -266,7 +266,7 @@ TEST(GravityFile, HugeAndOrdinaryDirectionsAreNormalisedAndZeroIsAnError) {
   // --gravity: the same, with components beyond a float's range.
   EXPECT_LT((parseVector3("0,1e39,0", "--gravity") - Eigen::Vector3f(0, 1, 0)).norm(), 1e-7f);
   EXPECT_LT((parseVector3("3,0,-4", "--gravity") - Eigen::Vector3f(0.6f, 0, -0.8f)).norm(), 1e-7f);
-  EXPECT_THROW(parseVector3("0,0,0", "--gravity"), UsageError);
+  EXPECT_THROW(parseVector3("0,0,0", "--gravity"), util::ValueError);
 }
 
 TEST(IntrinsicsFile, RoundTripAndValidation) {

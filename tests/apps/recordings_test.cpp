@@ -111,7 +111,7 @@ TEST(RangeChecks, AFloorBeyondTheRangeIsFoundAndTheSuggestedRangeKeepsIt) {
   ASSERT_TRUE(problem.has_value());
   EXPECT_NE(problem->find("1.35 m below the camera (along gravity)"), std::string::npos) << *problem;
   const double suggested = rangeToSuggest(r.range.lowest->range_p95_m);
-  EXPECT_NE(problem->find("--max-range " + std::to_string(static_cast<int>(suggested)) +
+  EXPECT_NE(problem->find("`max_range_m` " + std::to_string(static_cast<int>(suggested)) +
                           (suggested == std::floor(suggested) ? " " : ".5 ")),
             std::string::npos)
       << *problem;
@@ -135,7 +135,7 @@ TEST(RangeChecks, AFloorBeyondTheRangeIsFoundAndTheSuggestedRangeKeepsIt) {
   ASSERT_GT(cut.range.shareBeyond(), 0.5);
   const auto most = rangeCutProblem(cut.range);
   ASSERT_TRUE(most.has_value());
-  EXPECT_NE(most->find("beyond --max-range 1.5 m"), std::string::npos) << *most;
+  EXPECT_NE(most->find("beyond `max_range_m` 1.5 m"), std::string::npos) << *most;
 }
 
 struct TempDir {
@@ -175,7 +175,7 @@ TEST(DepthUnit, DepthInAnotherUnitIsCaughtAndTheSuggestedScaleReadsIt) {
   const auto problem = depthUnitProblem(wrong.range, frame.depth_unit);
   ASSERT_TRUE(problem.has_value());
   // 10000 puts the median at 1.65 m, 5000 at 3.3 m: both are named, the nearer to 2 m first.
-  EXPECT_NE(problem->find("; --depth-scale 10000 (tenths of a millimetre) puts the median at 1.6"), std::string::npos) << *problem;
+  EXPECT_NE(problem->find("; `depth_scale` 10000 (tenths of a millimetre) puts the median at 1.6"), std::string::npos) << *problem;
   EXPECT_NE(problem->find(", 5000 (TUM's unit) puts the median at 3.29 m"), std::string::npos) << *problem;
   EXPECT_FALSE(wrong.ground_plane.has_value());
   rescaleDepth(frame, 10000.0);
@@ -190,8 +190,8 @@ TEST(DepthUnit, DepthInAnotherUnitIsCaughtAndTheSuggestedScaleReadsIt) {
   EXPECT_LT(too_near.range.median_range_m, kPlausibleMedianMin);
   const auto other = depthUnitProblem(too_near.range, near.depth_unit);
   ASSERT_TRUE(other.has_value());
-  EXPECT_NE(other->find("--depth-scale 1000 (millimetres)"), std::string::npos) << *other;
-  EXPECT_THROW(rescaleDepth(near, 0.0), UsageError);
+  EXPECT_NE(other->find("`depth_scale` 1000 (millimetres)"), std::string::npos) << *other;
+  EXPECT_THROW(rescaleDepth(near, 0.0), util::FieldError);
 }
 
 // A single depth PNG is a sequence of one frame without a pose: the same interface as a

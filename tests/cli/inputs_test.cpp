@@ -88,7 +88,7 @@ TEST(Cli, BuildFindsGravityFromTheFloorWhenTheSequenceDoesNotGiveIt) {
   std::ifstream given_meta(dir + "/g.json");
   const nlohmann::json gm = nlohmann::json::parse(given_meta);
   // Checked against the floor, which agrees within a degree: kept exactly.
-  EXPECT_EQ(gm["gravity_source"].get<std::string>().rfind("--gravity (the floor in 6 of 6 sampled frames agrees within", 0), 0u)
+  EXPECT_EQ(gm["gravity_source"].get<std::string>().rfind("`gravity` (the floor in 6 of 6 sampled frames agrees within", 0), 0u)
       << gm.dump();
   EXPECT_EQ(gm["gravity_down_world"], nlohmann::json({0.0, 1.0, 0.0}));
   EXPECT_LT(gm["gravity_floor_angle_deg"].get<double>(), 1.0);
@@ -445,7 +445,7 @@ TEST(Cli, AGravityFileOffTheFloorIsRefinedToIt) {
   // --gravity X,Y,Z is refined the same way.
   const auto [given_run, given] = build("given", "--gravity 0," + std::to_string(std::sin(tilt)) + "," + std::to_string(-std::cos(tilt)));
   EXPECT_LT(angleToTruth(given["gravity_down_world"]), 0.3) << given.dump();
-  EXPECT_NE(given["gravity_source"].get<std::string>().find("--gravity, refined"), std::string::npos) << given.dump();
+  EXPECT_NE(given["gravity_source"].get<std::string>().find("`gravity`, refined"), std::string::npos) << given.dump();
   EXPECT_EQ(run("build " + dir + "/seq --out " + dir + "/x.ot --gravity-refine maybe").code, 2);
   fs::remove_all(dir);
 }

@@ -291,13 +291,13 @@ TEST(Cli, SkipBadFramesLeavesOutUnreadableFramesAndMapsTheRest) {
   const Result pose = run("build " + dir + "/bad --out " + dir + "/m.ot");  // not a terminal: a log line per frame
   EXPECT_EQ(pose.code, 1);
   EXPECT_NE(pose.out.find("frame-000004.pose.txt: not a rigid transform"), std::string::npos) << pose.out;
-  EXPECT_NE(pose.out.find("(build --skip-bad-frames leaves such frames out)"), std::string::npos) << pose.out;
+  EXPECT_NE(pose.out.find("(--skip-bad-frames leaves such frames out)"), std::string::npos) << pose.out;
   EXPECT_EQ(pose.out.find("build 1/"), std::string::npos) << pose.out;
   EXPECT_FALSE(fs::exists(dir + "/m.ot"));
   // The depth image's checksum is found when the frame is decoded.
   const Result crc = run("build " + dir + "/bad --frames 0:3 --out " + dir + "/m.ot --quiet");
   EXPECT_EQ(crc.code, 1);
-  EXPECT_NE(crc.out.find("frame-000002.depth.png: corrupt or truncated PNG (IDAT: CRC error) (build --skip-bad-frames"),
+  EXPECT_NE(crc.out.find("frame-000002.depth.png: corrupt or truncated PNG (IDAT: CRC error) (--skip-bad-frames"),
             std::string::npos)
       << crc.out;
   EXPECT_FALSE(fs::exists(dir + "/m.ot"));

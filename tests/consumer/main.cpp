@@ -1,7 +1,7 @@
 // A downstream project, as a footstep planner would use mobmap: links mobmap::mapping
-// (and through it gp and perception) and mobmap::sources, opens a map `mobmap build`
-// wrote and asks it about a foot placement, then reads the frames it was built from and
-// maps them itself.
+// (and through it gp and perception), mobmap::sources and mobmap::builder, opens a map
+// `mobmap build` wrote and asks it about a foot placement, then reads the frames it was
+// built from and maps them itself, and builds the map again through the builder.
 #include <mobmap/gp/mobility_model.hpp>
 #include <mobmap/mapping/gravity.hpp>
 #include <mobmap/mapping/mobility_map.hpp>
@@ -9,10 +9,14 @@
 #include <mobmap/mapping/live_mapper.hpp>
 #include <mobmap/mapping/reachability.hpp>
 #include <mobmap/sources/sequence.hpp>
+#include <mobmap/builder/map_builder.hpp>
 
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <fstream>
+#include <iterator>
+#include <string>
 
 int main(int argc, char** argv) {
   // 7-Scenes redkitchen gravity: the map's z axis must come out pointing up.
@@ -57,10 +61,23 @@ int main(int argc, char** argv) {
     const auto live_foot = live->footprint({c.x(), c.y(), c.z(), 0.0, 0.25, 0.12});
     std::printf("%s (%s): %zu frames mapped here; sole at 2 m: min mobility %.3f over %.0f %% known\n",
                 argv[2], seq->format().c_str(), seq->frames().size(), live_foot.min_mobility, 100 * live_foot.known_fraction);
-    return seq->frames().size() == 2 && live->framesIntegrated() == 2 && live_foot.known_fraction > 0.9 &&
-                   live_foot.min_mobility > 0.9
-               ? 0
-               : 1;
+    if (!(seq->frames().size() == 2 && live->framesIntegrated() == 2 && live_foot.known_fraction > 0.9 &&
+          live_foot.min_mobility > 0.9)) {
+      return 1;
+    }
+    // The same frames through the builder: the map `mobmap build` wrote, byte for byte.
+    mobmap::builder::BuildOptions options;
+    options.input = argv[2];
+    options.out = std::string(argv[1]) + ".library.ot";
+    options.force = true;
+    const mobmap::builder::BuildReport report = mobmap::builder::buildMap(options);
+    const auto bytes = [](const std::string& path) {
+      std::ifstream in(path, std::ios::binary);
+      return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    };
+    const bool same = bytes(options.out) == bytes(argv[1]);
+    std::printf("buildMap: %d frames fused, %s the CLI's map\n", report.frames_fused, same ? "the same bytes as" : "NOT");
+    return report.frames_fused == 2 && same ? 0 : 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "%s\n", e.what());
     return 1;

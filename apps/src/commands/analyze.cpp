@@ -198,16 +198,16 @@ Command addAnalyzeCommand(CLI::App& app) {
     // a corridor seen end-on is the far wall: say how the ground was chosen.
     if (!f.gravity_camera) {
       const std::string note = groundChoiceNote(r, config.perception.ground_upright_prior_deg);
-      if (!note.empty()) std::fprintf(stderr, "%s\n", note.c_str());
+      if (!note.empty()) std::fprintf(stderr, "%s\n", cliText(note).c_str());
     }
     // Depth in another unit, or a range that cuts away most of the frame or its floor.
     const std::optional<LowZeroBits> bits = f.depth ? lowZeroBits(*f.depth, f.depth_unit) : std::nullopt;
     if (const auto unit = depthUnitProblem(r.range, f.depth_unit, bits)) {
-      std::fprintf(stderr, "warning: %s: %s\n", o->input.c_str(), unit->c_str());
+      std::fprintf(stderr, "warning: %s: %s\n", o->input.c_str(), cliText(*unit).c_str());
     } else {
       const std::optional<double> ground = r.ground_plane ? std::optional<double>((*r.ground_plane)(3)) : std::nullopt;
       for (const auto& problem : {rangeCutProblem(r.range), floorCutProblem(r.range, ground)}) {
-        if (problem) std::fprintf(stderr, "warning: %s: %s\n", o->input.c_str(), problem->c_str());
+        if (problem) std::fprintf(stderr, "warning: %s: %s\n", o->input.c_str(), cliText(*problem).c_str());
       }
     }
     // The ground's distance from the camera, before the results go to the input's frame.

@@ -1,4 +1,4 @@
-#include "commands/build_steps.hpp"
+#include "commands/build_command.hpp"
 
 #include "commands/commands.hpp"
 

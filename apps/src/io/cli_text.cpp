@@ -9,7 +9,7 @@ namespace mobmap::app {
 
 std::optional<std::string> flagOf(std::string_view field) {
   // Library field -> the flag that sets it (every command spells a field the same way).
-  static constexpr std::array<std::pair<std::string_view, std::string_view>, 36> kFlags{{
+  static constexpr std::array<std::pair<std::string_view, std::string_view>, 48> kFlags{{
       // inputs (sources::SequenceOptions, RecordingChoice)
       {"intrinsics", "--intrinsics"},
       {"depth_format", "--depth-format"},
@@ -25,6 +25,18 @@ std::optional<std::string> flagOf(std::string_view field) {
       {"frames", "--frames"},
       {"keyframes", "--keyframes"},
       {"origin", "--origin"},
+      {"frame", "--frame"},
+      {"device", "--device"},
+      // a build's run and its map (builder::BuildOptions)
+      {"out", "--out"},
+      {"force", "--force"},
+      {"extend", "--extend"},
+      {"config", "--config"},
+      {"checkpoint_frames", "--checkpoint"},
+      {"free_space", "--no-free-space"},
+      {"skip_bad_frames", "--skip-bad-frames"},
+      {"refine_gravity", "--gravity-refine"},
+      {"gravity_from_floor", "--gravity floor"},
       // a build's perception and fusion
       {"gravity", "--gravity"},
       {"voxel_size_m", "--voxel"},
@@ -60,7 +72,7 @@ std::string cliText(std::string_view message) { return util::respellFields(messa
 
 std::string cliText(const std::exception& e) {
   if (const auto* field = dynamic_cast<const util::FieldError*>(&e)) {
-    return cliText(util::fieldName(field->field()) + " " + field->problem());
+    return cliText(util::FieldError::named(field->field(), field->problem()));
   }
   return cliText(std::string_view(e.what()));
 }

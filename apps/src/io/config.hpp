@@ -1,32 +1,20 @@
 #pragma once
-// YAML configuration of every library parameter (apps only: the library never reads files).
+// The YAML configuration (the library's: mobmap/builder/config.hpp) and the shipped
+// apps/default.yaml that `mobmap config --print-default` prints.
 
-#include "mobmap/gp/mobility_model.hpp"
-#include "mobmap/mapping/mobility_map.hpp"
-#include "mobmap/perception/pipeline.hpp"
+#include "mobmap/builder/config.hpp"
 
 #include <string>
 
 namespace mobmap::app {
 
-struct Config {
-  perception::PerceptionParams perception;
-  mapping::MapParams mapping;
-  gp::MobilityModelParams model;
-  std::string table_path;  ///< model.table: rule table CSV, "" for the paper's
-  bool mapping_max_range_set = false;
-};
+using builder::Config;
+using builder::loadConfig;
+using builder::loadRuleTable;
+using builder::makeModel;
+using builder::parseConfig;
 
-/// Reads a YAML file; IoError "<path>: <key>: <problem>" for unknown keys, wrong types,
-/// bad YAML, or values the parameter validators reject.
-Config loadConfig(const std::string& path);
-/// Parses YAML text (`origin` names it in errors).
-Config parseConfig(const std::string& text, const std::string& origin);
 /// The shipped apps/default.yaml, embedded at build time.
 const std::string& defaultConfigYaml();
-/// Reads a rule table CSV; "" gives the paper's table. IoError names the file and line.
-gp::RuleTable loadRuleTable(const std::string& path);
-/// Builds the scorer the configuration describes (reads model.table if set).
-gp::MobilityModel makeModel(const Config& c);
 
 }  // namespace mobmap::app

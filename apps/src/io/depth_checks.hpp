@@ -1,108 +1,26 @@
 #pragma once
-// Checks of what a depth input says against what depth cameras see: depth in the wrong
-// unit, a range limit that cuts away most of a frame or its floor. For `analyze` and
-// `build`, which print what these return.
+// Checks of depth against what depth cameras see (the library's:
+// mobmap/builder/depth_checks.hpp) and `--depth-scale` (mobmap/sources/adjusted.hpp).
 
-#include "mobmap/perception/frame_result.hpp"
-#include "mobmap/sources/frame.hpp"
-#include "mobmap/sources/sequence.hpp"
-
-#include <Eigen/Core>
-
-#include <memory>
-#include <optional>
-#include <string>
-#include <vector>
+#include "mobmap/builder/depth_checks.hpp"
+#include "mobmap/sources/adjusted.hpp"
 
 namespace mobmap::app {
 
-/// The depth a command read a frame with (the library's, sources/frame.hpp).
+using builder::DepthCheckTally;
+using builder::depthUnitProblem;
+using builder::floorCutProblem;
+using builder::kPlausibleMedianMax;
+using builder::kPlausibleMedianMin;
+using builder::LowZeroBits;
+using builder::lowZeroBits;
+using builder::rangeCutProblem;
+using builder::rangeToSuggest;
 using sources::DepthUnit;
-
-/// `--depth-scale`: the factor that takes depth (or cloud coordinates) read at
-/// `from.units_per_m` to a reading at `units_per_m`. UsageError unless `units_per_m` is
-/// positive and finite.
-float depthRescaleFactor(const DepthUnit& from, double units_per_m);
-
-/// Multiplies depth values and cloud points by `factor` (depthRescaleFactor).
-void scaleDepth(std::vector<float>& depth_m, std::vector<Eigen::Vector3f>& points, float factor);
-
-/// `f`'s depth (or cloud coordinates, and the camera offset of a cloud in another frame)
-/// multiplied by `factor`: read at `units_per_m` instead (depthRescaleFactor gives the
-/// factor).
-void scaleFrame(sources::Frame& f, float factor, double units_per_m);
-
-/// `seq` with its depth read at `units_per_m` instead of its own unit (depth and cloud
-/// coordinates multiplied by own / units_per_m; poses unchanged). `seq` itself when the
-/// two agree. UsageError unless `units_per_m` is positive and finite.
-std::unique_ptr<sources::Sequence> withDepthScale(std::unique_ptr<sources::Sequence> seq, double units_per_m);
-
-/// Depth cameras see about this far: a frame whose median valid depth lies outside is
-/// taken to be in another unit.
-constexpr double kPlausibleMedianMin = 0.3, kPlausibleMedianMax = 12.0;
-
-/// Low bits that most of a depth image's stored values have zero: depth in a unit 2^bits
-/// times finer than it was read in, or an encoding such as SUN RGB-D's (millimetres
-/// rotated left by 3 bits, so nearly every value is a multiple of 8).
-struct LowZeroBits {
-  int bits = 0;
-  double share = 0.0;  ///< of the valid values
-};
-/// The most low bits (2 to 4) that at least 90 % of the image's valid values, as stored
-/// (depth times unit.units_per_m; every 7th pixel), have zero; nullopt for clouds, float
-/// depth, fewer than 1000 valid values in the sample, or no such bits (plain depth has each low bit zero in about half
-/// its values).
-std::optional<LowZeroBits> lowZeroBits(const perception::DepthImage& depth, const DepthUnit& unit);
-
-/// When the frame's median valid depth is implausible for a depth camera: what it reads
-/// as, and each `--depth-scale` (units per metre) among the common ones (1000, 5000,
-/// 10000, 100, 1) that puts the median between 0.4 and 8 m, the one nearest 2 m first;
-/// when the stored values share low zero bits (`bits`), the scale and the depth format
-/// those bits point to instead. Else nullopt.
-std::optional<std::string> depthUnitProblem(const perception::RangeReport& r, const DepthUnit& unit,
-                                            const std::optional<LowZeroBits>& bits = std::nullopt);
-
-/// The `--max-range` (metres, rounded up to half a metre) that keeps points out to
-/// `range_m`.
-double rangeToSuggest(double range_m);
-
-/// When most of the frame's valid points (over half) lie beyond max_range_m: how many,
-/// and the `--max-range` that keeps 95 % of them. Else nullopt.
-std::optional<std::string> rangeCutProblem(const perception::RangeReport& r);
-
-/// When the lowest surface in view (likely the floor) lies mostly beyond max_range_m and
-/// the ground found, if any, is well above it (15 cm): where it is and the `--max-range`
-/// that keeps it. Else nullopt. `ground_distance_m`: the ground plane's distance below the
-/// camera, when one was found.
-std::optional<std::string> floorCutProblem(const perception::RangeReport& r, std::optional<double> ground_distance_m);
-
-/// The checks over a run's frames (`build`): each kind of problem is told once, in the
-/// first frame that shows it, then counted for the summary.
-class DepthCheckTally {
- public:
-  /// Checks one frame (`label`: "frame 12"); returns what to print now, each line
-  /// starting "warning: " (depth in another unit) or "note: " (what the range cut).
-  std::vector<std::string> add(const std::string& label, const perception::RangeReport& r,
-                               std::optional<double> ground_distance_m, const DepthUnit& unit,
-                               const std::optional<LowZeroBits>& bits = std::nullopt);
-  /// Whether every frame checked read as depth in another unit (a map of them is not
-  /// the scene's).
-  [[nodiscard]] bool everyFrameInAnotherUnit() const { return frames_ > 0 && unit_frames_ == static_cast<int>(frames_); }
-  /// For the run's summary: what the range took over all frames, and how many frames
-  /// showed each problem, with the largest `--max-range` suggested ("warning: " when a
-  /// quarter of the frames or more did, else "note: ").
-  [[nodiscard]] std::vector<std::string> summary() const;
-  [[nodiscard]] std::size_t validPoints() const { return valid_; }
-  /// The depth-unit problem of the first frame that showed one.
-  [[nodiscard]] const std::optional<std::string>& unitProblem() const { return unit_problem_; }
-  [[nodiscard]] std::size_t beyondMaxRange() const { return beyond_; }
-
- private:
-  std::size_t frames_ = 0, valid_ = 0, beyond_ = 0;
-  double max_range_m_ = 0;
-  int unit_frames_ = 0, cut_frames_ = 0, floor_frames_ = 0;
-  double cut_suggest_m_ = 0, floor_suggest_m_ = 0;
-  std::optional<std::string> unit_problem_;
-};
+using sources::depthRescaleFactor;
+using sources::rescaleDepth;
+using sources::scaleDepth;
+using sources::scaleFrame;
+using sources::withDepthScale;
 
 }  // namespace mobmap::app

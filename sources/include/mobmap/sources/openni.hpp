@@ -4,6 +4,7 @@
 
 #include "mobmap/sources/sequence.hpp"
 
+#include <functional>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -27,7 +28,7 @@ struct OpenNiOptions {
   double frame_timeout_s = 5.0;  ///< a live sensor that sends nothing this long is an error
   /// Live sensors: asked every 100 ms while waiting for a frame; once it returns true,
   /// load() throws StreamInterrupted instead of waiting on (Ctrl-C on a silent sensor).
-  bool (*interrupted)() = nullptr;
+  std::function<bool()> interrupted;
 };
 
 /// Thrown by a live sensor's load() when OpenNiOptions::interrupted said stop.
@@ -46,6 +47,6 @@ std::unique_ptr<Sequence> openOpenNi(const OpenNiOptions& options);
 /// Records `frames` depth frames of a sensor into an .oni file (written to a temporary
 /// name, then renamed). Returns the number of frames in the file.
 int recordOni(const std::string& device_uri, const std::string& out_path, int frames, double frame_timeout_s,
-              bool (*interrupted)());
+              const std::function<bool()>& interrupted);
 
 }  // namespace mobmap::sources

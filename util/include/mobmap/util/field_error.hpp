@@ -18,19 +18,30 @@ namespace mobmap::util {
 /// "`name`": a field as library messages name it.
 [[nodiscard]] std::string fieldName(std::string_view name);
 
+/// Values the caller gave that the library cannot take, its message naming the fields
+/// involved in backquotes ("`out` m.ot is `poses` m.ot, which ...").
+class ValueError : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
+
 /// A value the caller gave that the library cannot take: "`field` problem", for example
 /// "`max_pose_gap_s` must be a finite number of seconds >= 0, got -1"; with `where` (the
 /// struct that holds the field), "where: `field` problem".
-class FieldError : public std::invalid_argument {
+class FieldError : public ValueError {
  public:
   FieldError(const std::string& field, const std::string& problem, const std::string& where = {})
-      : std::invalid_argument((where.empty() ? std::string() : where + ": ") + fieldName(field) + " " + problem),
+      : ValueError((where.empty() ? std::string() : where + ": ") + named(field, problem)),
         field_(field),
         problem_(problem) {}
   /// The field, without backquotes.
   [[nodiscard]] const std::string& field() const { return field_; }
   /// What is wrong with its value, without the field's name.
   [[nodiscard]] const std::string& problem() const { return problem_; }
+  /// "`field` problem" ("`field`: problem" when the problem starts with a colon).
+  [[nodiscard]] static std::string named(const std::string& field, const std::string& problem) {
+    return fieldName(field) + (problem.rfind(':', 0) == 0 ? "" : " ") + problem;
+  }
 
  private:
   std::string field_;

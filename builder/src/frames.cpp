@@ -1,11 +1,9 @@
-#include "io/frame_source.hpp"
+#include "mobmap/builder/frames.hpp"
 
-#include "io/dataset.hpp"
-#include "io/files.hpp"
-#include "io/io_error.hpp"
-#include "mobmap/sources/pcd.hpp"
-#include "io/png_io.hpp"
-#include "io/sequence.hpp"
+#include "mobmap/sources/dataset.hpp"
+#include "mobmap/sources/io_error.hpp"
+#include "mobmap/sources/text.hpp"
+#include "mobmap/util/field_error.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -15,23 +13,28 @@
 #include <fstream>
 #include <sstream>
 
-namespace mobmap::app {
+namespace mobmap::builder {
+
+using sources::IoError;
+using sources::openSequence;
+using sources::SevenScenesDirectory;
+using sources::splitNumbers;
 
 Eigen::Vector3f parseVector3(const std::string& spec, const std::string& what) {
   const auto v = splitNumbers(spec);
-  if (v.size() != 3) throw UsageError(what + " must be three numbers X,Y,Z, got '" + spec + "'");
+  if (v.size() != 3) throw util::ValueError(what + " must be three numbers X,Y,Z, got '" + spec + "'");
   // Normalised in double (stableNorm does not overflow): 1e39 is finite as a double
   // but not as a float, and squaring 1e20 overflows a float.
   const Eigen::Vector3d d(v[0], v[1], v[2]);
   const double length = d.stableNorm();
-  if (length < 1e-6) throw UsageError(what + " must not be the zero vector");
+  if (length < 1e-6) throw util::ValueError(what + " must not be the zero vector");
   return (d / length).cast<float>();
 }
 
 Frame loadSequenceFrame(const Sequence& seq, const std::string& input, int frame) {
   const auto& numbers = seq.frames();
   if (!seq.posed() && frame != numbers.front()) {
-    throw IoError(input, "is a single frame (number 0); --frame " + std::to_string(frame) + " is for directories");
+    throw IoError(input, "is a single frame (number 0); `frame` " + std::to_string(frame) + " is for directories");
   }
   if (std::find(numbers.begin(), numbers.end(), frame) == numbers.end()) {
     throw IoError(input, "has no posed frame " + std::to_string(frame) + " (frames " + std::to_string(numbers.front()) + ".." +
@@ -39,7 +42,7 @@ Frame loadSequenceFrame(const Sequence& seq, const std::string& input, int frame
   }
   Frame f = seq.load(frame);
   if (!f.T_world_camera && seq.posed()) {
-    throw IoError(input, "frame " + std::to_string(frame) + ": no pose within --max-pose-gap of its time stamp");
+    throw IoError(input, "frame " + std::to_string(frame) + ": no pose within `max_pose_gap_s` of its time stamp");
   }
   if (f.description.empty()) f.description = "frame " + std::to_string(frame) + " of " + input;
   f.intrinsics = seq.intrinsics();
@@ -116,15 +119,9 @@ void toInputFrame(perception::FrameResult& r, const Frame& f) {
   }
 }
 
-void rescaleDepth(Frame& f, double units_per_m) {
-  const float factor = depthRescaleFactor(f.depth_unit, units_per_m);
-  if (units_per_m == f.depth_unit.units_per_m) return;
-  scaleFrame(f, factor, units_per_m);
-}
-
 void decodeDepthFormat(Frame& f, const std::string& format, const std::string& input) {
   if (!f.depth || f.depth_unit.cloud || f.depth_unit.units_per_m < 2.0) {
-    throw UsageError("--depth-format " + format + " is for 16-bit depth images; " + input + " gives " +
+    throw util::FieldError("depth_format", format + " is for 16-bit depth images; " + input + " gives " +
                      (f.depth ? "depth in metres as floats" : "a point cloud"));
   }
   sources::undoDepthFormat(*f.depth, f.depth_unit.units_per_m, format);
@@ -173,7 +170,7 @@ std::string groundChoiceNote(const perception::FrameResult& r, double upright_pr
     std::snprintf(buf, sizeof buf,
                   "note: no gravity given; the largest plane found leans away from the image's up axis (a wall?), so the "
                   "ground is the largest plane below the camera within %.0f degrees of that axis (this one: %.0f degrees; "
-                  "the camera taken as held upright). --gravity X,Y,Z sets it.",
+                  "the camera taken as held upright). `gravity` X,Y,Z sets it.",
                   upright_prior_deg, tilt);
     return buf;
   }
@@ -203,7 +200,7 @@ std::string groundChoiceNote(const perception::FrameResult& r, double upright_pr
   if (!upright_floor) {
     std::snprintf(buf, sizeof buf,
                   "note: no gravity given, so the ground is the largest plane, %.0f degrees from the image's up axis: a "
-                  "floor seen from above, or a wall if the camera was held level (then pass --gravity 0,1,0).",
+                  "floor seen from above, or a wall if the camera was held level (then pass `gravity` 0,1,0).",
                   tilt);
     return buf;
   }
@@ -211,16 +208,16 @@ std::string groundChoiceNote(const perception::FrameResult& r, double upright_pr
     std::snprintf(buf, sizeof buf,
                   "note: no gravity given and no floor within %.0f degrees of the image's up axis, so the ground is the "
                   "largest plane; this one is %.0f degrees from that axis and may be a wall. If the camera was held "
-                  "level, pass --gravity 0,1,0.",
+                  "level, pass `gravity` 0,1,0.",
                   upright_prior_deg, tilt);
   } else {
     std::snprintf(buf, sizeof buf,
                   "note: no gravity given, so the ground is the largest plane (ground_upright_prior_deg is 0); this one "
                   "is %.0f degrees from the image's up axis and may be a wall. If the camera was held level, pass "
-                  "--gravity 0,1,0.",
+                  "`gravity` 0,1,0.",
                   tilt);
   }
   return buf;
 }
 
-}  // namespace mobmap::app
+}  // namespace mobmap::builder

@@ -1,6 +1,4 @@
-#include "io/depth_checks.hpp"
-
-#include "io/io_error.hpp"
+#include "mobmap/builder/depth_checks.hpp"
 
 #include <algorithm>
 #include <array>
@@ -9,51 +7,7 @@
 #include <utility>
 #include <vector>
 
-namespace mobmap::app {
-
-float depthRescaleFactor(const DepthUnit& from, double units_per_m) {
-  if (!(units_per_m > 0) || !std::isfinite(units_per_m)) throw UsageError("--depth-scale must be a positive number of units per metre");
-  return static_cast<float>(from.units_per_m / units_per_m);
-}
-
-void scaleDepth(std::vector<float>& depth_m, std::vector<Eigen::Vector3f>& points, float factor) {
-  for (float& z : depth_m) z *= factor;
-  for (Eigen::Vector3f& p : points) p *= factor;
-}
-
-namespace {
-
-// A sequence read in another depth unit (`--depth-scale`).
-class ScaledSequence : public sources::ForwardingSequence {
- public:
-  ScaledSequence(std::unique_ptr<sources::Sequence> inner, double units_per_m, float factor)
-      : ForwardingSequence(std::move(inner)), unit_{units_per_m, this->inner().depthUnit().cloud}, factor_(factor) {}
-  [[nodiscard]] sources::Frame load(int n) const override {
-    sources::Frame f = inner().load(n);
-    scaleFrame(f, factor_, unit_.units_per_m);
-    return f;
-  }
-  [[nodiscard]] DepthUnit depthUnit() const override { return unit_; }
-
- private:
-  DepthUnit unit_;
-  float factor_;
-};
-
-}  // namespace
-
-void scaleFrame(sources::Frame& f, float factor, double units_per_m) {
-  std::vector<float> no_depth;
-  scaleDepth(f.depth ? f.depth->depth_m : no_depth, f.points, factor);
-  if (f.T_cloud_camera) f.T_cloud_camera->translation() *= static_cast<double>(factor);
-  f.depth_unit.units_per_m = units_per_m;
-}
-
-std::unique_ptr<sources::Sequence> withDepthScale(std::unique_ptr<sources::Sequence> seq, double units_per_m) {
-  const float factor = depthRescaleFactor(seq->depthUnit(), units_per_m);
-  if (seq->depthUnit().units_per_m == units_per_m) return seq;
-  return std::make_unique<ScaledSequence>(std::move(seq), units_per_m, factor);
-}
+namespace mobmap::builder {
 
 std::optional<LowZeroBits> lowZeroBits(const perception::DepthImage& depth, const DepthUnit& unit) {
   if (unit.cloud || unit.units_per_m < 2.0) return std::nullopt;
@@ -94,12 +48,12 @@ std::optional<std::string> depthUnitProblem(const perception::RangeReport& r, co
     // The stored values say more than their median: 2^bits times the unit reads them.
     const double scale = unit.units_per_m * static_cast<double>(1 << bits->bits);
     std::snprintf(text, sizeof text,
-                  "; %.1f %% of its values are multiples of %d (their %d low bits are zero): --depth-scale %g puts the "
+                  "; %.1f %% of its values are multiples of %d (their %d low bits are zero): `depth_scale` %g puts the "
                   "median at %.2f m",
                   100.0 * bits->share, 1 << bits->bits, bits->bits, scale, raw_median / scale);
     out += text;
     if (bits->bits == 3 && unit.units_per_m == 1000.0) {
-      out += ", and --depth-format sunrgbd decodes SUN RGB-D's depth PNGs, which store millimetres rotated left by 3 "
+      out += ", and `depth_format` sunrgbd decodes SUN RGB-D's depth PNGs, which store millimetres rotated left by 3 "
              "bits (the same reading for depth under 8.19 m)";
     }
     return out;
@@ -113,10 +67,10 @@ std::optional<std::string> depthUnitProblem(const perception::RangeReport& r, co
     fits.emplace_back(std::abs(std::log(m / 2.0)), candidate);
   }
   std::sort(fits.begin(), fits.end());
-  if (fits.empty()) return out + "; no common unit (--depth-scale 1000, 5000, 10000, 100 or 1) puts it between 0.4 and 8 m";
+  if (fits.empty()) return out + "; no common unit (`depth_scale` 1000, 5000, 10000, 100 or 1) puts it between 0.4 and 8 m";
   for (std::size_t i = 0; i < fits.size(); ++i) {
     const double candidate = fits[i].second;
-    std::snprintf(text, sizeof text, "%s%g (%s) puts the median at %.2f m", i == 0 ? "; --depth-scale " : ", ", candidate,
+    std::snprintf(text, sizeof text, "%s%g (%s) puts the median at %.2f m", i == 0 ? "; `depth_scale` " : ", ", candidate,
                   candidate == 1000.0   ? "millimetres"
                   : candidate == 5000.0 ? "TUM's unit"
                   : candidate == 10000.0 ? "tenths of a millimetre"
@@ -134,8 +88,8 @@ std::optional<std::string> rangeCutProblem(const perception::RangeReport& r) {
   if (r.valid_points == 0 || r.shareBeyond() <= 0.5) return std::nullopt;
   char text[300];
   std::snprintf(text, sizeof text,
-                "%.0f %% of the frame's points lie beyond --max-range %g m and were left out (median range %.2f m); "
-                "--max-range %g keeps 95 %% of them",
+                "%.0f %% of the frame's points lie beyond `max_range_m` %g m and were left out (median range %.2f m); "
+                "`max_range_m` %g keeps 95 %% of them",
                 100.0 * r.shareBeyond(), r.max_range_m, r.median_range_m, rangeToSuggest(r.range_p95_m));
   return std::string(text);
 }
@@ -148,7 +102,7 @@ std::optional<std::string> floorCutProblem(const perception::RangeReport& r, std
   char text[400];
   std::snprintf(text, sizeof text,
                 "the lowest surface in view, likely the floor, lies %.2f m below the camera (along %s) and %.0f %% of it "
-                "beyond --max-range %g m, so it was left out; --max-range %g keeps it",
+                "beyond `max_range_m` %g m, so it was left out; `max_range_m` %g keeps it",
                 low.below_camera_m,
                 r.down_from_gravity ? "gravity" : r.down_from_ground ? "the ground's normal" : "the camera's +y axis", 100.0 * low.share_beyond,
                 r.max_range_m, rangeToSuggest(low.range_p95_m));
@@ -191,11 +145,11 @@ std::vector<std::string> DepthCheckTally::summary() const {
   std::vector<std::string> out;
   if (frames_ == 0) return out;
   char text[300];
-  std::snprintf(text, sizeof text, "range: %.1f %% of the %zu valid points lay beyond --max-range %g m",
+  std::snprintf(text, sizeof text, "range: %.1f %% of the %zu valid points lay beyond `max_range_m` %g m",
                 valid_ ? 100.0 * static_cast<double>(beyond_) / static_cast<double>(valid_) : 0.0, valid_, max_range_m_);
   out.emplace_back(text);
   if (unit_frames_ > 0) {
-    std::snprintf(text, sizeof text, "warning: in %d of %zu frames the depth read implausibly for a depth camera (--depth-scale)",
+    std::snprintf(text, sizeof text, "warning: in %d of %zu frames the depth read implausibly for a depth camera (`depth_scale`)",
                   unit_frames_, frames_);
     out.emplace_back(text);
   }
@@ -204,19 +158,19 @@ std::vector<std::string> DepthCheckTally::summary() const {
   const auto level = [&](int n) { return 4 * static_cast<std::size_t>(n) >= frames_ ? "warning" : "note"; };
   if (cut_frames_ > 0) {
     std::snprintf(text, sizeof text,
-                  "%s: in %d of %zu frames most points lay beyond --max-range %g m; --max-range %g keeps 95 %% of "
+                  "%s: in %d of %zu frames most points lay beyond `max_range_m` %g m; `max_range_m` %g keeps 95 %% of "
                   "them in every such frame",
                   level(cut_frames_), cut_frames_, frames_, max_range_m_, cut_suggest_m_);
     out.emplace_back(text);
   }
   if (floor_frames_ > 0) {
     std::snprintf(text, sizeof text,
-                  "%s: in %d of %zu frames the lowest surface in view (likely the floor) lay beyond --max-range %g m; "
-                  "--max-range %g keeps it",
+                  "%s: in %d of %zu frames the lowest surface in view (likely the floor) lay beyond `max_range_m` %g m; "
+                  "`max_range_m` %g keeps it",
                   level(floor_frames_), floor_frames_, frames_, max_range_m_, floor_suggest_m_);
     out.emplace_back(text);
   }
   return out;
 }
 
-}  // namespace mobmap::app
+}  // namespace mobmap::builder

@@ -1,6 +1,7 @@
-#include "commands/build_steps.hpp"
+#include "build_steps.hpp"
 
-#include "io/frame_source.hpp"
+#include "mobmap/builder/frames.hpp"
+#include "mobmap/util/field_error.hpp"
 
 #include "mobmap/mapping/mobility_map.hpp"
 
@@ -12,13 +13,13 @@
 #include <sstream>
 #include <thread>
 
-namespace mobmap::app::build {
+namespace mobmap::builder {
 
 IoError withSkipHint(const IoError& e) {
-  return IoError(e.path(), e.reason() + " (build --skip-bad-frames leaves such frames out)");
+  return IoError(e.path(), e.reason() + " (`skip_bad_frames` leaves such frames out)");
 }
 
-FrameRange parseRange(const std::string& spec) {
+FrameRange parseFrameRange(const std::string& spec) {
   FrameRange r;
   if (spec.empty()) return r;
   std::vector<std::string> parts;
@@ -30,10 +31,10 @@ FrameRange parseRange(const std::string& spec) {
     if (parts.size() >= 2 && !parts[1].empty()) r.last = std::stoi(parts[1]);
     if (parts.size() >= 3 && !parts[2].empty()) r.step = std::stoi(parts[2]);
   } catch (const std::exception&) {
-    throw UsageError("--frames must be FIRST:LAST:STEP, got '" + spec + "'");
+    throw util::FieldError("frames", "must be FIRST:LAST:STEP, got '" + spec + "'");
   }
   if (parts.empty() || parts.size() > 3 || r.first < 0 || r.step < 1 || (r.last >= 0 && r.last < r.first)) {
-    throw UsageError("--frames must be FIRST:LAST:STEP with 0 <= FIRST <= LAST and STEP >= 1, got '" + spec + "'");
+    throw util::FieldError("frames", "must be FIRST:LAST:STEP with 0 <= FIRST <= LAST and STEP >= 1, got '" + spec + "'");
   }
   return r;
 }
@@ -170,7 +171,7 @@ ExistingMap openForExtension(const std::string& ot_path) {
   m.meta = mapping::readMapMetadata(ot_path);  // the earlier runs' records, for the new MAP.json
   m.origin_world = m.meta.originWorld();  // zero for a map from before origins were recorded
   if (!m.meta.hasFrame()) {
-    throw IoError(m.meta.path, "missing, or without \"R_map_world\": --extend needs the metadata written beside the map "
+    throw IoError(m.meta.path, "missing, or without \"R_map_world\": `extend` needs the metadata written beside the map "
                                "(the rotation from the input's world frame to the map frame)");
   }
   m.R_map_world = m.meta.R_map_world();
@@ -209,4 +210,4 @@ std::vector<RunRange> overlappingRuns(const mapping::MapMetadata& earlier, const
   return out;
 }
 
-}  // namespace mobmap::app::build
+}  // namespace mobmap::builder

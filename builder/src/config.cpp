@@ -1,14 +1,18 @@
-#include "io/config.hpp"
+#include "mobmap/builder/config.hpp"
 
-#include "io/files.hpp"
-#include "io/io_error.hpp"
+#include "mobmap/sources/io_error.hpp"
+#include "mobmap/sources/text.hpp"
+#include "mobmap/util/field_error.hpp"
 
 #include <yaml-cpp/yaml.h>
 
 #include <functional>
 #include <map>
 
-namespace mobmap::app {
+namespace mobmap::builder {
+
+using sources::IoError;
+using sources::readTextFile;
 
 namespace {
 
@@ -130,13 +134,6 @@ Config parseConfig(const std::string& text, const std::string& origin) {
 
 Config loadConfig(const std::string& path) { return parseConfig(readTextFile(path, 1 << 20), path); }
 
-const std::string& defaultConfigYaml() {
-  static const std::string text =
-#include "default_yaml.inc"
-      ;
-  return text;
-}
-
 gp::RuleTable loadRuleTable(const std::string& path) {
   if (path.empty()) return gp::RuleTable::paper();
   const std::string text = readTextFile(path, 1 << 20);
@@ -149,4 +146,4 @@ gp::RuleTable loadRuleTable(const std::string& path) {
 
 gp::MobilityModel makeModel(const Config& c) { return gp::MobilityModel(loadRuleTable(c.table_path), c.model); }
 
-}  // namespace mobmap::app
+}  // namespace mobmap::builder

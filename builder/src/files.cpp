@@ -1,6 +1,7 @@
-#include "io/files.hpp"
+#include "mobmap/builder/files.hpp"
 
-#include "io/io_error.hpp"
+#include "mobmap/sources/io_error.hpp"
+#include "mobmap/util/field_error.hpp"
 
 #include <signal.h>
 #include <unistd.h>
@@ -13,7 +14,9 @@
 #include <fstream>
 #include <sstream>
 
-namespace mobmap::app {
+namespace mobmap::builder {
+
+using sources::IoError;
 
 namespace {
 
@@ -52,13 +55,13 @@ void refuseToOverwriteInputs(const std::vector<NamedPath>& outputs, const std::v
     for (const NamedPath& in : inputs) {
       if (in.path.empty()) continue;
       if (sameFile(out.path, in.path)) {
-        throw UsageError(out.name + " " + out.path + " is " + in.name + " " + in.path +
+        throw util::ValueError(out.name + " " + out.path + " is " + in.name + " " + in.path +
                          ", which this command reads; choose another path");
       }
     }
     for (std::size_t k = 0; k < i; ++k) {
       if (!outputs[k].path.empty() && sameFile(out.path, outputs[k].path)) {
-        throw UsageError(out.name + " " + out.path + " and " + outputs[k].name + " " + outputs[k].path +
+        throw util::ValueError(out.name + " " + out.path + " and " + outputs[k].name + " " + outputs[k].path +
                          " are the same file; give each output its own path");
       }
     }
@@ -186,4 +189,4 @@ void writeTextFileAtomically(const std::string& path, const std::string& text) {
   });
 }
 
-}  // namespace mobmap::app
+}  // namespace mobmap::builder

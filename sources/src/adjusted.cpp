@@ -1,17 +1,71 @@
-#include "io/extrinsics.hpp"
-
-#include "io/files.hpp"
-#include "io/io_error.hpp"
+// Sequences read with a correction: depth in another unit than the input's own
+// (withDepthScale) and the camera mounted on the body whose poses are given
+// (withExtrinsics), siblings of the depth formats (DepthFormatSequence, sequence.cpp).
+#include "mobmap/sources/adjusted.hpp"
 
 #include "mobmap/mapping/gravity.hpp"
+#include "mobmap/sources/io_error.hpp"
+#include "mobmap/sources/text.hpp"
 
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <sstream>
 
-namespace mobmap::app {
+namespace mobmap::sources {
+
+float depthRescaleFactor(const DepthUnit& from, double units_per_m) {
+  if (!(units_per_m > 0) || !std::isfinite(units_per_m)) throw util::FieldError("depth_scale", "must be a positive number of units per metre");
+  return static_cast<float>(from.units_per_m / units_per_m);
+}
+
+void scaleDepth(std::vector<float>& depth_m, std::vector<Eigen::Vector3f>& points, float factor) {
+  for (float& z : depth_m) z *= factor;
+  for (Eigen::Vector3f& p : points) p *= factor;
+}
+
+namespace {
+
+// A sequence read in another depth unit.
+class ScaledSequence : public ForwardingSequence {
+ public:
+  ScaledSequence(std::unique_ptr<Sequence> inner, double units_per_m, float factor)
+      : ForwardingSequence(std::move(inner)), unit_{units_per_m, this->inner().depthUnit().cloud}, factor_(factor) {}
+  [[nodiscard]] Frame load(int n) const override {
+    Frame f = inner().load(n);
+    scaleFrame(f, factor_, unit_.units_per_m);
+    return f;
+  }
+  [[nodiscard]] DepthUnit depthUnit() const override { return unit_; }
+
+ private:
+  DepthUnit unit_;
+  float factor_;
+};
+
+}  // namespace
+
+void scaleFrame(Frame& f, float factor, double units_per_m) {
+  std::vector<float> no_depth;
+  scaleDepth(f.depth ? f.depth->depth_m : no_depth, f.points, factor);
+  if (f.T_cloud_camera) f.T_cloud_camera->translation() *= static_cast<double>(factor);
+  f.depth_unit.units_per_m = units_per_m;
+}
+
+std::unique_ptr<Sequence> withDepthScale(std::unique_ptr<Sequence> seq, double units_per_m) {
+  const float factor = depthRescaleFactor(seq->depthUnit(), units_per_m);
+  if (seq->depthUnit().units_per_m == units_per_m) return seq;
+  return std::make_unique<ScaledSequence>(std::move(seq), units_per_m, factor);
+}
+
+void rescaleDepth(Frame& f, double units_per_m) {
+  const float factor = depthRescaleFactor(f.depth_unit, units_per_m);
+  if (units_per_m == f.depth_unit.units_per_m) return;
+  scaleFrame(f, factor, units_per_m);
+}
+
 namespace {
 
 Eigen::Isometry3d fromQuaternion(const std::vector<double>& v, const std::string& what) {
@@ -74,10 +128,10 @@ Eigen::Isometry3d fromYaml(const std::string& path) {
   throw IoError(path, "holds no transform: expected local_transform, translation + rotation, or data (12 or 16 values)");
 }
 
-class ExtrinsicSequence : public sources::ForwardingSequence {
+class ExtrinsicSequence : public ForwardingSequence {
  public:
   ExtrinsicSequence(std::unique_ptr<Sequence> inner, const Eigen::Isometry3d& T) : ForwardingSequence(std::move(inner)), T_(T) {}
-  std::string describe() const override { return inner().describe() + ", the camera at --extrinsics on the posed frame"; }
+  std::string describe() const override { return inner().describe() + ", the camera at `extrinsics` on the posed frame"; }
   Frame load(int n) const override {
     Frame f = inner().load(n);
     if (f.T_world_camera) f.T_world_camera = *f.T_world_camera * T_;
@@ -103,17 +157,17 @@ Eigen::Isometry3d parseExtrinsics(const std::string& spec) {
   std::string token;
   while (std::getline(in, token, ',')) {
     const auto x = parseFiniteNumber(token);
-    if (!x) throw UsageError("--extrinsics: '" + token + "' is not a number (expected x,y,z,qx,qy,qz,qw or a YAML file)");
+    if (!x) throw util::FieldError("extrinsics", "'" + token + "' is not a number (expected x,y,z,qx,qy,qz,qw or a YAML file)");
     v.push_back(*x);
   }
   if (v.size() != 7) {
-    throw UsageError("--extrinsics takes 7 numbers x,y,z,qx,qy,qz,qw (the camera's pose in the posed frame) or a YAML file; got " +
-                     std::to_string(v.size()) + (std::filesystem::exists(spec, ec) ? "" : " (and no file " + spec + ")"));
+    throw util::FieldError("extrinsics", "takes 7 numbers x,y,z,qx,qy,qz,qw (the camera's pose in the posed frame) or a YAML file; got " +
+                                             std::to_string(v.size()) + (std::filesystem::exists(spec, ec) ? "" : " (and no file " + spec + ")"));
   }
   try {
-    return fromQuaternion(v, "--extrinsics");
+    return fromQuaternion(v, "extrinsics");
   } catch (const IoError& e) {
-    throw UsageError("--extrinsics: " + e.reason());
+    throw util::FieldError("extrinsics", e.reason());
   }
 }
 
@@ -129,4 +183,4 @@ std::unique_ptr<Sequence> withExtrinsics(std::unique_ptr<Sequence> seq, const Ei
   return std::make_unique<ExtrinsicSequence>(std::move(seq), T_base_camera);
 }
 
-}  // namespace mobmap::app
+}  // namespace mobmap::sources

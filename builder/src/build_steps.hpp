@@ -1,17 +1,15 @@
 #pragma once
-// The parts of `mobmap build` that are not the run itself (internal to the commands):
-// frame selection, "down" from the floor, and opening a map to extend.
+// The steps of a build that are not the run itself (internal to the builder): frame
+// selection, "down" from the floor, and opening a map to extend.
 
-#include "io/sequence.hpp"
-#include "io/io_error.hpp"
-#include "io/sequence.hpp"
-
+#include "mobmap/builder/map_builder.hpp"
 #include "mobmap/gp/mobility_model.hpp"
 #include "mobmap/mapping/gravity.hpp"
-#include "mobmap/mapping/live_mapper.hpp"
 #include "mobmap/mapping/map_metadata.hpp"
 #include "mobmap/mapping/mobility_octree.hpp"
 #include "mobmap/perception/pipeline.hpp"
+#include "mobmap/sources/io_error.hpp"
+#include "mobmap/sources/sequence.hpp"
 
 #include <Eigen/Core>
 
@@ -22,100 +20,14 @@
 #include <string>
 #include <vector>
 
-namespace CLI {
-class App;
-class Option;
-}  // namespace CLI
+namespace mobmap::builder {
 
-namespace mobmap::app::build {
-
-/// The options of `mobmap build` (build --help describes them).
-struct BuildOptions {
-  std::string input;
-  std::string out;
-  std::string frames;
-  double max_range = 3.0;
-  double depth_scale = 0;
-  std::string depth_format;
-  double resolution = 0.02;
-  double voxel = 0;
-  std::string gravity;
-  std::string gravity_refine = "on";
-  std::vector<double> origin;
-  bool force = false;
-  bool extend = false;
-  int checkpoint = 0;
-  std::vector<double> keyframes;  // metres, degrees
-  bool quiet = false;
-  bool no_free_space = false;
-  bool skip_bad_frames = false;
-  std::string config;
-  std::string intrinsics;
-  double fov = 0;
-  double max_pose_gap = 0.05;
-  std::string poses;
-  std::string device;
-  RecordingChoice recording;  // a robot recording's topics and world frame
-  std::string extrinsics;     // the camera's pose in the posed frame
-  /// The options whose presence (not only value) matters, as CLI11 registered them.
-  struct Given {
-    CLI::Option* max_range = nullptr;
-    CLI::Option* resolution = nullptr;
-    CLI::Option* device = nullptr;
-    CLI::Option* voxel = nullptr;
-    CLI::Option* keyframes = nullptr;
-    CLI::Option* origin = nullptr;
-    CLI::Option* depth_scale = nullptr;
-    CLI::Option* fov = nullptr;
-    CLI::Option* out = nullptr;
-  } given;
-};
-
-/// The help of build's INPUT (serve --live takes the same inputs).
-inline constexpr const char* kBuildInputHelp =
-    "A 7-Scenes / 3DMatch layout directory (frame-NNNNNN.depth.png + .pose.txt), a TUM RGB-D directory "
-    "(depth.txt + groundtruth.txt), a directory of .pcd frames with --poses, one .pcd frame, one 16-bit "
-    "depth .png in millimetres (with --intrinsics or a camera-intrinsics.txt beside it), an OpenNI2 .oni recording, "
-    "a ROS 2 bag (its folder, a .db3 or an .mcap file) or a ROS 1 .bag, posed through its TF tree (a crashed "
-    "recorder's folder without metadata.yaml, .db3 with its -wal, or .bag.active is read as far as it goes)";
-
-/// Registers `build` and its options on `app`; the options are filled when it parses.
-std::shared_ptr<BuildOptions> addBuildOptions(CLI::App& app);
-/// Registers the options of a build run other than INPUT on `cmd` (which registers INPUT
-/// its own way): `serve --live` builds with them.
-void addBuildRunOptions(CLI::App& cmd, BuildOptions& o);
-
-/// What a caller of runBuild() adds to the run (`mobmap serve --live`). The callbacks
-/// run on the thread named; none may throw.
-struct LiveHooks {
-  /// The mapper exists and serves snapshots (LiveMapper::Config::serve_snapshots), before
-  /// the first frame is read; `frames_in_map` counts those of a map being extended. The
-  /// reading thread.
-  std::function<void(const mapping::LiveMapper& mapper, int frames_in_map)> started;
-  /// After each frame fused: the map with it, the frames in it and the camera's position
-  /// (map frame). The fusion thread.
-  std::function<void(std::shared_ptr<const mapping::MobilityMap> map, int frames_in_map, const Eigen::Vector3d& camera_map)>
-      fused;
-  /// Before each frame is read. The reading thread.
-  std::function<void()> before_frame;
-  /// The map as saved (finalized) and what its MAP.json says, once its files are written.
-  /// The reading thread.
-  std::function<void(std::shared_ptr<const mapping::MobilityMap> map, const mapping::MapMetadata& meta)> saved;
-};
-
-/// Runs `mobmap build` with the options parsed into `o`; returns its exit code (130
-/// after Ctrl-C, 143 after SIGTERM, 129 after SIGHUP, with the map saved). `hooks` may be null.
-int runBuild(BuildOptions& o, const LiveHooks* hooks);
-
+using sources::Frame;
+using sources::IoError;
+using sources::Sequence;
 
 // The error of a frame that cannot be read, when the run stops for it: it says how not to.
 IoError withSkipHint(const IoError& e);
-
-struct FrameRange {
-  int first = 0, last = -1, step = 1;
-};
-
-FrameRange parseRange(const std::string& spec);
 
 perception::FrameResult perceive(const perception::FramePipeline& pipeline, const Sequence& dir, const Frame& f,
                                  const std::optional<Eigen::Vector3f>& gravity_down_camera);
@@ -127,7 +39,7 @@ std::optional<mapping::DownObservation> floorVote(const perception::FrameResult&
 // Up to 8 posed frames spread over the selection, each perceived by `finder` with the
 // camera-frame gravity `down_in_camera(r_wc)` gives: their floors' votes, and the
 // rotations of the posed frames sampled. An unreadable frame is skipped with
-// --skip-bad-frames (the run skips it too, and says so), else its error stops the run.
+// `skip_bad_frames` (the run skips it too, and says so), else its error stops the run.
 struct FloorSample {
   std::vector<mapping::DownObservation> floors;
   std::vector<Eigen::Matrix3d> rotations;
@@ -154,7 +66,7 @@ struct GravityGuess {
 };
 
 // "Down" for a posed sequence that does not give it (no gravity-direction.txt, no
-// --gravity). World frames differ: 7-Scenes and 3DMatch keep the first camera's axes
+// `gravity`). World frames differ: 7-Scenes and 3DMatch keep the first camera's axes
 // (y down), a motion-capture frame has z up. The floor says which: up to 8 frames
 // spread over the selection look for a ground plane within 45 degrees of the image's
 // up axis (a camera held upright, tilted at most that much), and the floor normals,
@@ -186,7 +98,7 @@ std::optional<FloorCheck> floorNear(const Eigen::Vector3d& given_down, const Seq
                                     const gp::MobilityModel& model, bool skip_unreadable,
                                     PerceivedForRun* for_run = nullptr);
 
-// The map that --extend adds frames to: its tree, its metadata, and the frame it was
+// The map that `extend` adds frames to: its tree, its metadata, and the frame it was
 // built in (gravity in the input's world frame and the rotation to the map frame).
 struct ExistingMap {
   std::unique_ptr<mapping::MobilityOcTree> tree;
@@ -211,4 +123,4 @@ struct RunRange {
 };
 std::vector<RunRange> overlappingRuns(const mapping::MapMetadata& earlier, const std::string& input, int first, int last);
 
-}  // namespace mobmap::app::build
+}  // namespace mobmap::builder
