@@ -22,18 +22,6 @@ constexpr const char* kKnown =
     "intrinsics, max_pose_gap, poses, depth_topic, camera_info_topic, world_frame, imu_topic, extrinsics, "
     "perception_threads, progress, on_message";
 
-std::string numbersText(const py::handle& value, std::size_t n, const char* what) {
-  const auto v = value.cast<std::vector<double>>();
-  if (v.size() != n) throw py::value_error(std::string(what) + " must hold " + std::to_string(n) + " numbers");
-  std::string text;
-  for (const double x : v) {
-    char cell[40];
-    std::snprintf(cell, sizeof cell, "%.17g", x);
-    text += (text.empty() ? "" : ",") + std::string(cell);
-  }
-  return text;
-}
-
 // The callbacks run on mobmap's threads: each takes the GIL, and the first Python error
 // stops the run (it is raised when buildMap returns).
 struct Callbacks {
@@ -90,7 +78,7 @@ py::dict build(const py::object& input, const std::string& out, const py::kwargs
     else if (key == "camera_info_topic") o.recording.camera_info_topic = value.cast<std::string>();
     else if (key == "world_frame") o.recording.world_frame = value.cast<std::string>();
     else if (key == "imu_topic") o.recording.imu_topic = value.cast<std::string>();
-    else if (key == "extrinsics") o.extrinsics = py::isinstance<py::str>(value) ? value.cast<std::string>() : numbersText(value, 7, "extrinsics");
+    else if (key == "extrinsics") o.extrinsics = py::isinstance<py::str>(value) ? value.cast<std::string>() : numberList(value, 7, "extrinsics");
     else if (key == "perception_threads") o.perception_threads = value.cast<int>();
     else if (key == "progress") calls->progress = py::reinterpret_borrow<py::object>(value);
     else if (key == "on_message") calls->on_message = py::reinterpret_borrow<py::object>(value);

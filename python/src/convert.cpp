@@ -20,18 +20,26 @@ std::string pythonText(const std::string& message) {
   });
 }
 
+std::string numberList(const py::handle& value, std::size_t n, const char* what) {
+  const auto v = value.cast<std::vector<double>>();
+  if (v.size() != n) throw py::value_error(std::string(what) + " must hold " + std::to_string(n) + " numbers");
+  std::string text;
+  for (const double x : v) {
+    char cell[40];
+    std::snprintf(cell, sizeof cell, "%.17g", x);
+    text += (text.empty() ? "" : ",") + std::string(cell);
+  }
+  return text;
+}
+
 std::string intrinsicsSpec(const py::handle& value) {
   if (py::isinstance<py::str>(value)) return value.cast<std::string>();  // a camera file, or "fx,fy,cx,cy"
-  const auto k = value.cast<std::vector<double>>();
-  if (k.size() != 4) throw py::value_error("intrinsics must be (fx, fy, cx, cy) or a camera file's path");
-  std::string spec;
-  for (const double v : k) {
-    char cell[40];
-    std::snprintf(cell, sizeof cell, "%.17g", v);
-    spec += (spec.empty() ? "" : ",") + std::string(cell);
+  if (value.cast<std::vector<double>>().size() != 4) {
+    throw py::value_error("intrinsics must be (fx, fy, cx, cy) or a camera file's path");
   }
-  return spec;
+  return numberList(value, 4, "intrinsics");
 }
+
 
 Frame parseFrame(const std::string& frame) {
   if (frame == "map") return Frame::kMap;

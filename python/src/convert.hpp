@@ -22,6 +22,10 @@ namespace py = pybind11;
 /// their own name keep it.
 std::string pythonText(const std::string& message);
 
+/// `n` numbers as "a,b,c" (each to 17 significant digits); ValueError naming `what` unless
+/// `value` holds `n` numbers.
+std::string numberList(const py::handle& value, std::size_t n, const char* what);
+
 /// A camera as the library's intrinsics spec: a str (a camera file, "fx,fy,cx,cy") as it
 /// is, or (fx, fy, cx, cy). ValueError otherwise.
 std::string intrinsicsSpec(const py::handle& value);

@@ -24,10 +24,7 @@ namespace {
 const PcdAdapter& adapter(const std::string& path) {
   static const PcdAdapter* const loaded = [&] {
     try {
-      const auto entry = reinterpret_cast<const PcdAdapter* (*)()>(util::pluginSymbol("pcd", "mobmap_pcd_adapter"));
-      const PcdAdapter* a = entry();
-      if (a->version != kPcdAdapterVersion) throw std::runtime_error("mobmap's pcd adapter belongs to another version of mobmap");
-      return a;
+      return &util::pluginTable<PcdAdapter>("pcd", "mobmap_pcd_adapter", kPcdAdapterVersion);
     } catch (const std::runtime_error& e) {
       throw IoError(path, std::string("cannot be read: ") + e.what());
     }

@@ -26,10 +26,7 @@ const char* unitOf(const std::string& layer) {
 const GeoTiffAdapter& geoTiff(const std::string& path) {
   static const GeoTiffAdapter* const loaded = [&] {
     try {
-      const auto entry = reinterpret_cast<const GeoTiffAdapter* (*)()>(util::pluginSymbol("geotiff", "mobmap_geotiff_adapter"));
-      const GeoTiffAdapter* a = entry();
-      if (a->version != kGeoTiffAdapterVersion) throw std::runtime_error("mobmap's geotiff adapter belongs to another version of mobmap");
-      return a;
+      return &util::pluginTable<GeoTiffAdapter>("geotiff", "mobmap_geotiff_adapter", kGeoTiffAdapterVersion);
     } catch (const std::runtime_error& e) {
       throw IoError(path, std::string("cannot be written: ") + e.what());
     }

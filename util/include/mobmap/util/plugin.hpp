@@ -10,6 +10,7 @@
 /// finds lib/mobmap/, as `cmake --install` lays them out, and build/apps/mobmap finds
 /// build/lib/mobmap/); the install and build folders compiled in.
 
+#include <stdexcept>
 #include <string>
 
 namespace mobmap::util {
@@ -18,5 +19,18 @@ namespace mobmap::util {
 /// std::runtime_error saying where it was looked for when it cannot be found or opened,
 /// or has no such symbol.
 [[nodiscard]] void* pluginSymbol(const std::string& name, const char* symbol);
+
+/// An adapter's table of functions: what its entry point `symbol` (a function taking
+/// nothing and returning `const Table*`) returns, its `version` checked against the
+/// caller's. std::runtime_error as pluginSymbol, or for another version.
+template <typename Table>
+[[nodiscard]] const Table& pluginTable(const std::string& name, const char* symbol, int version) {
+  const auto entry = reinterpret_cast<const Table* (*)()>(pluginSymbol(name, symbol));
+  const Table* table = entry();
+  if (table->version != version) {
+    throw std::runtime_error("mobmap's " + name + " adapter (libmobmap_" + name + ".so) belongs to another version of mobmap");
+  }
+  return *table;
+}
 
 }  // namespace mobmap::util
