@@ -1,11 +1,11 @@
-#include "io/cli_text.hpp"
-#include "pictures/canvas.hpp"
 #include "commands/commands.hpp"
+#include "io/cli_text.hpp"
 #include "io/config.hpp"
 #include "io/depth_checks.hpp"
 #include "io/files.hpp"
 #include "io/frame_source.hpp"
 #include "io/io_error.hpp"
+#include "pictures/canvas.hpp"
 
 #include "mobmap/perception/pipeline.hpp"
 

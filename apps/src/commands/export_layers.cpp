@@ -1,6 +1,6 @@
-#include "io/cli_text.hpp"
 #include "commands/export_layers.hpp"
 
+#include "io/cli_text.hpp"
 #include "io/files.hpp"
 #include "io/io_error.hpp"
 #include "io/layer_files.hpp"

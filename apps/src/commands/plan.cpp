@@ -1,11 +1,11 @@
 // `mobmap plan`: footsteps from a start to a goal over a map (mapping::planFootsteps).
-#include "io/cli_text.hpp"
 #include "answers/answers.hpp"
 #include "commands/commands.hpp"
+#include "commands/reach_options.hpp"
+#include "io/cli_text.hpp"
 #include "io/files.hpp"
 #include "io/io_error.hpp"
 #include "io/map_files.hpp"
-#include "commands/reach_options.hpp"
 #include "pictures/top_view.hpp"
 
 #include "mobmap/mapping/footstep_planner.hpp"

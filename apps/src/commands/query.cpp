@@ -1,11 +1,11 @@
-#include "io/cli_text.hpp"
 #include "answers/answers.hpp"
 #include "commands/commands.hpp"
-#include "io/io_error.hpp"
-#include "mobmap/mapping/levels.hpp"
-#include "io/map_files.hpp"
 #include "commands/reach_options.hpp"
 #include "commands/recording_info.hpp"
+#include "io/cli_text.hpp"
+#include "io/io_error.hpp"
+#include "io/map_files.hpp"
+#include "mobmap/mapping/levels.hpp"
 
 #include <nlohmann/json.hpp>
 

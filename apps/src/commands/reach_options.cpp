@@ -1,6 +1,6 @@
-#include "io/cli_text.hpp"
 #include "commands/reach_options.hpp"
 
+#include "io/cli_text.hpp"
 #include "io/io_error.hpp"
 
 #include <cmath>

@@ -1,6 +1,6 @@
-#include "io/cli_text.hpp"
 #include "commands/recording_info.hpp"
 
+#include "io/cli_text.hpp"
 #include "mobmap/sources/sequence.hpp"
 
 #include "mobmap/sources/recording.hpp"

@@ -1,8 +1,8 @@
 // `mobmap serve`: a map over HTTP for planners in other processes, with a 3D viewer in
 // the browser; with --live, a map being built, served as it grows (serve/api.hpp).
-#include "io/cli_text.hpp"
 #include "commands/build_command.hpp"
 #include "commands/commands.hpp"
+#include "io/cli_text.hpp"
 #include "io/io_error.hpp"
 #include "io/map_files.hpp"
 #include "serve/api.hpp"

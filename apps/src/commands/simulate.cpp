@@ -1,7 +1,7 @@
-#include "io/cli_text.hpp"
 #include "commands/commands.hpp"
-#include "io/io_error.hpp"
 #include "commands/progress.hpp"
+#include "io/cli_text.hpp"
+#include "io/io_error.hpp"
 #include "io/simulation_writer.hpp"
 
 #include <filesystem>
