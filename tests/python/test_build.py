@@ -50,6 +50,17 @@ def test_a_seven_scenes_folder_gives_the_clis_bytes(sequence):
     assert report["gravity_source"].startswith("gravity-direction.txt")
 
 
+def test_extrinsics_and_a_depth_scale_give_the_clis_bytes(sequence):
+    # The camera 5 cm ahead of and turned 2 degrees about x on the posed body, depth read
+    # 1 % further than stored.
+    extrinsics = "0.05,0,0.02,0.0174524064372835,0,0,0.999847695156391"
+    run("build", sequence / "seq", "--out", sequence / "cli-x.ot", "--frames", "0:5", "--extrinsics", extrinsics,
+        "--depth-scale", 990, "-q")
+    mobmap.build(str(sequence / "seq"), out=str(sequence / "py-x.ot"), frames="0:5",
+                 extrinsics=[float(v) for v in extrinsics.split(",")], depth_scale=990)
+    same_map(sequence / "cli-x.ot", sequence / "py-x.ot")
+
+
 def test_a_given_gravity_refined_to_the_floor_gives_the_clis_bytes(sequence):
     # Two degrees off the corridor's floor: refined to it (MAP.json records both).
     run("build", sequence / "seq", "--out", sequence / "cli-g.ot", "--gravity", "0.035,0,-1", "-q")
