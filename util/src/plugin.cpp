@@ -2,6 +2,7 @@
 
 #include <dlfcn.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
@@ -33,10 +34,11 @@ std::vector<std::string> folders() {
   std::vector<std::string> out;
   if (const char* env = std::getenv("MOBMAP_PLUGIN_DIR"); env != nullptr && *env != '\0') out.emplace_back(env);
   if (const std::string own = ownFolder(); !own.empty()) {
-    out.push_back(std::filesystem::path(own + "/../lib/mobmap").lexically_normal().string());
+    std::error_code ec;
+    out.push_back(std::filesystem::absolute(own + "/../lib/mobmap", ec).lexically_normal().string());
   }
   for (const char* dir : {MOBMAP_PLUGIN_INSTALL_DIR, MOBMAP_PLUGIN_BUILD_DIR}) {
-    if (*dir != '\0') out.emplace_back(dir);
+    if (*dir != '\0' && std::find(out.begin(), out.end(), dir) == out.end()) out.emplace_back(dir);
   }
   return out;
 }
