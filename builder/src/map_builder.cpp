@@ -135,7 +135,6 @@ struct Input {
   bool live = false, oni = false;
   std::vector<int> frames;
   int keyframes_considered = 0;  // frames selected before keyframes (0: not used)
-  std::string keyframe_rule;
   std::optional<Eigen::Vector3d> gravity_world;  // the input's own
   std::optional<Eigen::Isometry3d> T_base_camera;
   std::string device_label;
@@ -154,18 +153,6 @@ void noteUnreadable(std::vector<std::string>& unreadable, const std::string& wha
   } else if (unreadable.size() == kListed + 1) {
     say(Message::kWarning, "warning: more unreadable frames skipped; the summary counts them");
   }
-}
-
-std::string keyframeRule(double min_translation_m, double min_rotation_deg) {
-  char text[160];
-  if (min_translation_m > 0 && min_rotation_deg > 0) {
-    std::snprintf(text, sizeof text, "moved %g m or turned %g degrees since the last", min_translation_m, min_rotation_deg);
-  } else if (min_translation_m > 0) {
-    std::snprintf(text, sizeof text, "moved %g m since the last", min_translation_m);
-  } else {
-    std::snprintf(text, sizeof text, "turned %g degrees since the last", min_rotation_deg);
-  }
-  return text;
 }
 
 Input openInput(const BuildOptions& o, const Say& say) {
@@ -261,7 +248,6 @@ Input openInput(const BuildOptions& o, const Say& say) {
       throw util::FieldError("keyframes", ":" + what.substr(what.find(':') + 1));
     }
     in.keyframes_considered = static_cast<int>(in.frames.size());
-    in.keyframe_rule = keyframeRule(o.keyframes->first, o.keyframes->second);
     std::vector<int> kept;
     kept.reserve(keep.size());
     for (std::size_t i : keep) kept.push_back(in.frames[i]);
@@ -277,7 +263,8 @@ Input openInput(const BuildOptions& o, const Say& say) {
   }
   if (in.keyframes_considered > 0) {
     say(Message::kDetail, "keyframes: " + std::to_string(in.frames.size()) + " of the " +
-                              std::to_string(in.keyframes_considered) + " selected frames (" + in.keyframe_rule + ")");
+                              std::to_string(in.keyframes_considered) + " selected frames (" +
+                              describeKeyframeRule(o.keyframes->first, o.keyframes->second) + ")");
   }
   return in;
 }
@@ -811,7 +798,6 @@ BuildReport finish(const BuildOptions& o, const Prepared& p, const Input& in, co
   report.frames_fused = f.used;
   report.frames_selected = static_cast<int>(in.frames.size() + in.unreadable_before_run);
   report.keyframes_considered = in.keyframes_considered;
-  report.keyframe_rule = in.keyframe_rule;
   report.frames_without_ground = f.no_ground;
   report.frames_without_pose = f.no_pose;
   report.frames_outside_map = f.outside_frames;
@@ -828,8 +814,6 @@ BuildReport finish(const BuildOptions& o, const Prepared& p, const Input& in, co
   report.gravity_given = g.given;
   report.gravity_used = g.down_world;
   report.gravity_source = g.source;
-  report.max_pose_gap_s = o.max_pose_gap_s;
-  report.poses = o.poses;
   if (in.live) report.live_skipped = in.sequence->skipped();
   report.unreadable = in.unreadable;
   const int per = std::max(1, f.used);
@@ -840,6 +824,14 @@ BuildReport finish(const BuildOptions& o, const Prepared& p, const Input& in, co
 }
 
 }  // namespace
+
+std::string describeKeyframeRule(double min_translation_m, double min_rotation_deg) {
+  std::ostringstream out;
+  if (min_translation_m > 0) out << "camera moved >= " << min_translation_m << " m";
+  if (min_translation_m > 0 && min_rotation_deg > 0) out << " or ";
+  if (min_rotation_deg > 0) out << (min_translation_m > 0 ? "" : "camera ") << "turned >= " << min_rotation_deg << " degrees";
+  return out.str();
+}
 
 BuildReport buildMap(const BuildOptions& options, const BuildHooks& hooks) {
   const Say say{hooks};

@@ -78,8 +78,8 @@ void printSummary(const builder::BuildReport& r, const BuildOptions& o) {
                 used.x(), used.y(), used.z(), cliText(r.gravity_source).c_str());
   }
   if (r.frames_without_pose > 0) {
-    std::printf("%d frames skipped: no pose within %g s of their time stamp in %s\n", r.frames_without_pose, r.max_pose_gap_s,
-                r.poses.c_str());
+    std::printf("%d frames skipped: no pose within %g s of their time stamp in %s\n", r.frames_without_pose, o.max_pose_gap,
+                o.poses.c_str());
   }
   if (!r.live_skipped.empty()) std::printf("%s\n", cliText(r.live_skipped).c_str());
   if (!r.unreadable.empty()) {

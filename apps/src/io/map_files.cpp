@@ -1,6 +1,5 @@
 #include "io/map_files.hpp"
 
-#include <sstream>
 #include <string>
 
 namespace mobmap::app {
@@ -18,14 +17,6 @@ std::vector<NamedPath> mapFilesAsInputs(const std::string& ot_path) {
           {"the map's occupancy export", stem + ".bt"},
           {"the map's octovis export", stem + ".octovis.ot"},
           {"the map's metadata", stem + ".json"}};
-}
-
-std::string describeKeyframeRule(double min_translation_m, double min_rotation_deg) {
-  std::ostringstream out;
-  if (min_translation_m > 0) out << "camera moved >= " << min_translation_m << " m";
-  if (min_translation_m > 0 && min_rotation_deg > 0) out << " or ";
-  if (min_rotation_deg > 0) out << (min_translation_m > 0 ? "" : "camera ") << "turned >= " << min_rotation_deg << " degrees";
-  return out.str();
 }
 
 std::vector<Eigen::Vector2d> CameraPath::xy() const {

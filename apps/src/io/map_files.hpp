@@ -3,6 +3,7 @@
 
 #include "io/files.hpp"
 
+#include "mobmap/builder/map_builder.hpp"
 #include "mobmap/mapping/mobility_map.hpp"
 
 #include <Eigen/Core>
@@ -25,9 +26,8 @@ OpenedMap openMapFiles(const std::string& ot_path);
 /// MAP.octovis.ot and MAP.json.
 std::vector<NamedPath> mapFilesAsInputs(const std::string& ot_path);
 
-/// The rule of `build --keyframes` in words, naming only the tests in use (a limit of
-/// 0 is off): "camera moved >= 0.05 m or turned >= 5 degrees".
-std::string describeKeyframeRule(double min_translation_m, double min_rotation_deg);
+/// The rule of `build --keyframes` in words (the builder's).
+using builder::describeKeyframeRule;
 
 /// The camera path MAP.json records (map frame), and where each run of a map extended
 /// with `build --extend` begins in it (0 first).

@@ -144,7 +144,6 @@ struct BuildReport {
   int frames_fused = 0;
   int frames_selected = 0;  ///< the frames the run tried (after keyframes)
   int keyframes_considered = 0;  ///< frames selected before keyframes (0: none chosen)
-  std::string keyframe_rule;     ///< how they were chosen
   int frames_without_ground = 0;
   int frames_without_pose = 0;
   int frames_outside_map = 0;        ///< frames with no point inside the map's extent
@@ -160,8 +159,6 @@ struct BuildReport {
   std::optional<Eigen::Vector3d> gravity_given;  ///< the gravity given, when the floor checked it
   Eigen::Vector3d gravity_used = Eigen::Vector3d(0, 0, -1);
   std::string gravity_source;
-  double max_pose_gap_s = 0;
-  std::string poses;
   std::string live_skipped;                 ///< a live sensor's dropped frames, when any
   std::vector<std::string> unreadable;      ///< "FILE: problem", frames left out
   double read_ms = 0, fusion_ms = 0;        ///< per frame
@@ -173,6 +170,10 @@ struct BuildReport {
 /// the file for bad input, util::ValueError (a FieldError naming the field) for options
 /// it cannot take, mapping::MapLockError when another writer holds the map.
 BuildReport buildMap(const BuildOptions& options, const BuildHooks& hooks = {});
+
+/// "camera moved >= 0.05 m or turned >= 5 degrees": the keyframe rule `keyframes` sets,
+/// as the run's note and `mobmap info` word it.
+std::string describeKeyframeRule(double min_translation_m, double min_rotation_deg);
 
 /// The frames FIRST:LAST:STEP selects (`frames`); util::FieldError unless well formed.
 struct FrameRange {
