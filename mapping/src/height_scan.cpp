@@ -34,6 +34,9 @@ void checkHeightScanGrid(const HeightScanGrid& grid, std::size_t poses) {
     fail("size must be two finite lengths of at least 0, got " + std::to_string(grid.length_m) + " x " +
          std::to_string(grid.width_m));
   }
+  if (!std::isfinite(grid.clearance_m) || grid.clearance_m < 0 || grid.clearance_m > kFar) {
+    fail("clearance must be a finite height of at least 0, got " + std::to_string(grid.clearance_m));
+  }
   const double nx = grid.length_m / grid.resolution_m + 1, ny = grid.width_m / grid.resolution_m + 1;
   if (nx > kMaxHeightScanSide || ny > kMaxHeightScanSide) {
     std::ostringstream m;
@@ -72,7 +75,8 @@ HeightScan heightScan(const SurfaceColumns& columns, const std::vector<HeightSca
     const HeightScanPose& q = poses[p];
     if (std::abs(q.z) > kFar) continue;  // nothing there: unknown
     const double c = std::cos(q.yaw), s = std::sin(q.yaw);
-    const long kz = columns.keyOf(q.z);
+    const double top_z = q.z + grid.clearance_m;
+    const long kz = columns.keyOf(top_z);
     std::size_t at = p * per_pose;
     for (int j = 0; j < out.ny; ++j) {
       const double gy = (j - y_mid) * grid.resolution_m;
@@ -81,11 +85,11 @@ HeightScan heightScan(const SurfaceColumns& columns, const std::vector<HeightSca
         const double x = q.x + c * gx - s * gy, y = q.y + s * gx + c * gy;
         if (std::abs(x) > kFar || std::abs(y) > kFar) continue;
         const long col = columns.columnIndex(columns.keyOf(x), columns.keyOf(y));
-        // Runs lie lowest first: the last one starting at or below the pose's voxel.
+        // Runs lie lowest first: the last one starting at or below the clearance's voxel.
         for (std::size_t r = columns.runEnd(col); r > columns.runBegin(col); --r) {
           const SurfaceColumns::Run& run = runs[r - 1];
           if (run.bottom > kz) continue;
-          out.height[at] = static_cast<float>(std::min(columns.topFace(run), q.z) - q.z);
+          out.height[at] = static_cast<float>(std::min(columns.topFace(run), top_z) - q.z);
           out.mobility[at] = run.mobility;
           break;
         }

@@ -78,40 +78,15 @@ void checkLayerCell(double cell_m, double resolution_m) {
   }
 }
 
-LevelLayers levelLayers(const SurfaceColumns& c, const LayerLevel& level, double cell_m, const Reachability* reach) {
+namespace {
+
+// Fills `out` (its grid placed: x_min, y_min, cols, rows) from the map columns i0..i1,
+// j0..j1 (exclusive ends); `cellOf(i, j)` is a column's index in out or out's size.
+template <typename CellOf>
+void fillLayers(const SurfaceColumns& c, const LayerLevel& level, const Reachability* reach, LevelLayers& out, long i0,
+                long i1, long j0, long j1, const CellOf& cellIndex) {
   const double res = c.resolution();
-  checkLayerCell(cell_m, res);
-  if (reach != nullptr && reach->columns().runs().size() != c.runs().size()) {
-    throw std::invalid_argument("layers: the reachability was computed on another map");
-  }
-  LevelLayers out;
-  out.level = level;
-  out.cell_m = cell_m;
-  const double x0 = c.centreOf(c.keyX0()) - res / 2, y0 = c.centreOf(c.keyY0()) - res / 2;
-  const auto cellOf = [&](long k, long k0) {
-    return static_cast<long>(std::floor(((static_cast<double>(k - k0) + 0.5) * res) / cell_m));
-  };
-  // The cells holding the level's surface.
-  long ci0 = std::numeric_limits<long>::max(), ci1 = -1, cj0 = std::numeric_limits<long>::max(), cj1 = -1;
-  for (long j = 0; j < c.columnsY(); ++j) {
-    for (long i = 0; i < c.columnsX(); ++i) {
-      if (runOnLevel(c, i * c.columnsY() + j, level) < 0) continue;
-      const long ci = cellOf(i, 0), cj = cellOf(j, 0);
-      ci0 = std::min(ci0, ci), ci1 = std::max(ci1, ci), cj0 = std::min(cj0, cj), cj1 = std::max(cj1, cj);
-    }
-  }
-  if (ci1 < 0) return out;  // nothing on this level
-  const double cells = static_cast<double>(ci1 - ci0 + 1) * static_cast<double>(cj1 - cj0 + 1);
-  if (cells > static_cast<double>(kMaxLayerCells)) {
-    std::ostringstream m;
-    m << "layers: " << cells << " cells of " << cell_m << " m for one level; at most " << kMaxLayerCells
-      << ": choose a larger cell";
-    throw std::length_error(m.str());
-  }
-  out.cols = static_cast<int>(ci1 - ci0 + 1);
-  out.rows = static_cast<int>(cj1 - cj0 + 1);
-  out.x_min = x0 + static_cast<double>(ci0) * cell_m;
-  out.y_min = y0 + static_cast<double>(cj0) * cell_m;
+  const double cell_m = out.cell_m;
   const std::size_t n = static_cast<std::size_t>(out.cols) * static_cast<std::size_t>(out.rows);
   out.elevation.assign(n, kNaN);
   out.elevation_variance.assign(n, kNaN);
@@ -122,13 +97,8 @@ LevelLayers levelLayers(const SurfaceColumns& c, const LayerLevel& level, double
   out.known.assign(n, 0.0f);
   std::vector<std::uint32_t> columns(n, 0), known(n, 0), standable(n, 0);
   std::vector<double> sum(n, 0.0), sum2(n, 0.0);
-  const auto cellIndex = [&](long i, long j) {
-    const long ci = cellOf(i, 0) - ci0, cj = cellOf(j, 0) - cj0;
-    if (ci < 0 || cj < 0 || ci >= out.cols || cj >= out.rows) return n;
-    return out.index(static_cast<int>(out.rows - 1 - cj), static_cast<int>(ci));
-  };
-  for (long j = 0; j < c.columnsY(); ++j) {
-    for (long i = 0; i < c.columnsX(); ++i) {
+  for (long j = j0; j < j1; ++j) {
+    for (long i = i0; i < i1; ++i) {
       const std::size_t at = cellIndex(i, j);
       if (at == n) continue;
       ++columns[at];
@@ -188,6 +158,88 @@ LevelLayers levelLayers(const SurfaceColumns& c, const LayerLevel& level, double
       out.slope_deg[at] = static_cast<float>(std::atan(std::hypot(g.x(), g.y())) * 180.0 / M_PI);
     }
   }
+}
+
+}  // namespace
+
+LevelLayers levelLayers(const SurfaceColumns& c, const LayerLevel& level, double cell_m, const Reachability* reach) {
+  const double res = c.resolution();
+  checkLayerCell(cell_m, res);
+  if (reach != nullptr && reach->columns().runs().size() != c.runs().size()) {
+    throw std::invalid_argument("layers: the reachability was computed on another map");
+  }
+  LevelLayers out;
+  out.level = level;
+  out.cell_m = cell_m;
+  const double x0 = c.centreOf(c.keyX0()) - res / 2, y0 = c.centreOf(c.keyY0()) - res / 2;
+  const auto cellOf = [&](long k, long k0) {
+    return static_cast<long>(std::floor(((static_cast<double>(k - k0) + 0.5) * res) / cell_m));
+  };
+  // The cells holding the level's surface.
+  long ci0 = std::numeric_limits<long>::max(), ci1 = -1, cj0 = std::numeric_limits<long>::max(), cj1 = -1;
+  for (long j = 0; j < c.columnsY(); ++j) {
+    for (long i = 0; i < c.columnsX(); ++i) {
+      if (runOnLevel(c, i * c.columnsY() + j, level) < 0) continue;
+      const long ci = cellOf(i, 0), cj = cellOf(j, 0);
+      ci0 = std::min(ci0, ci), ci1 = std::max(ci1, ci), cj0 = std::min(cj0, cj), cj1 = std::max(cj1, cj);
+    }
+  }
+  if (ci1 < 0) return out;  // nothing on this level
+  const double cells = static_cast<double>(ci1 - ci0 + 1) * static_cast<double>(cj1 - cj0 + 1);
+  if (cells > static_cast<double>(kMaxLayerCells)) {
+    std::ostringstream m;
+    m << "layers: " << cells << " cells of " << cell_m << " m for one level; at most " << kMaxLayerCells
+      << ": choose a larger cell";
+    throw std::length_error(m.str());
+  }
+  out.cols = static_cast<int>(ci1 - ci0 + 1);
+  out.rows = static_cast<int>(cj1 - cj0 + 1);
+  out.x_min = x0 + static_cast<double>(ci0) * cell_m;
+  out.y_min = y0 + static_cast<double>(cj0) * cell_m;
+  const std::size_t n = static_cast<std::size_t>(out.cols) * static_cast<std::size_t>(out.rows);
+  fillLayers(c, level, reach, out, 0, c.columnsX(), 0, c.columnsY(), [&](long i, long j) {
+    const long ci = cellOf(i, 0) - ci0, cj = cellOf(j, 0) - cj0;
+    if (ci < 0 || cj < 0 || ci >= out.cols || cj >= out.rows) return n;
+    return out.index(static_cast<int>(out.rows - 1 - cj), static_cast<int>(ci));
+  });
+  return out;
+}
+
+LevelLayers levelLayers(const SurfaceColumns& c, const LayerLevel& level, double cell_m, const LayerWindow& window,
+                        const Reachability* reach) {
+  const double res = c.resolution();
+  checkLayerCell(cell_m, res);
+  if (!std::isfinite(window.x_min) || !std::isfinite(window.y_min) || window.cols < 0 || window.rows < 0 ||
+      static_cast<double>(window.cols) * static_cast<double>(window.rows) > static_cast<double>(kMaxLayerCells)) {
+    std::ostringstream m;
+    m << "layers: a window needs a finite corner and at most " << kMaxLayerCells << " cells, got " << window.cols << " x "
+      << window.rows << " at (" << window.x_min << ", " << window.y_min << ")";
+    throw std::invalid_argument(m.str());
+  }
+  if (reach != nullptr && reach->columns().runs().size() != c.runs().size()) {
+    throw std::invalid_argument("layers: the reachability was computed on another map");
+  }
+  LevelLayers out;
+  out.level = level;
+  out.cell_m = cell_m;
+  out.x_min = window.x_min;
+  out.y_min = window.y_min;
+  out.cols = window.cols;
+  out.rows = window.rows;
+  const std::size_t n = static_cast<std::size_t>(out.cols) * static_cast<std::size_t>(out.rows);
+  // The map columns whose centres may fall in the window.
+  const double x0 = c.centreOf(c.keyX0()), y0 = c.centreOf(c.keyY0());
+  const auto clampTo = [](double v, long hi) { return static_cast<long>(std::clamp(v, 0.0, static_cast<double>(hi))); };
+  const long i0 = clampTo(std::floor((window.x_min - x0) / res), c.columnsX());
+  const long i1 = clampTo(std::ceil((window.x_min + window.cols * cell_m - x0) / res) + 1, c.columnsX());
+  const long j0 = clampTo(std::floor((window.y_min - y0) / res), c.columnsY());
+  const long j1 = clampTo(std::ceil((window.y_min + window.rows * cell_m - y0) / res) + 1, c.columnsY());
+  fillLayers(c, level, reach, out, i0, i1, j0, j1, [&](long i, long j) {
+    const double cx = x0 + static_cast<double>(i) * res, cy = y0 + static_cast<double>(j) * res;
+    const double fx = std::floor((cx - window.x_min) / cell_m), fy = std::floor((cy - window.y_min) / cell_m);
+    if (fx < 0 || fy < 0 || fx >= out.cols || fy >= out.rows) return n;
+    return out.index(out.rows - 1 - static_cast<int>(fy), static_cast<int>(fx));
+  });
   return out;
 }
 

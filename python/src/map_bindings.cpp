@@ -145,7 +145,7 @@ py::dict footprint(const MapHandle& h, const py::object& soles, const std::strin
 // Poses (N, 4) x y z yaw -> float32 arrays (N, ny, nx); the pose taken to the map frame
 // first when it is in the world frame (heights are along the map's z, gravity's up).
 py::dict heightScan(const MapHandle& h, const py::object& poses, const std::pair<double, double>& size, double resolution,
-                    const std::string& frame_name) {
+                    const std::string& frame_name, double clearance) {
   const Frame frame = parseFrame(frame_name);
   const auto p = rows(poses, 4, "poses");
   const mapping::MobilityMap& map = *h.map;
@@ -156,7 +156,7 @@ py::dict heightScan(const MapHandle& h, const py::object& poses, const std::pair
     const Eigen::Vector3d c = toMap(map, Eigen::Vector3d(a(i, 0), a(i, 1), a(i, 2)), frame);
     in[static_cast<std::size_t>(i)] = {c.x(), c.y(), c.z(), frame == Frame::kWorld ? map.worldYawToMap(a(i, 3)) : a(i, 3)};
   }
-  const mapping::HeightScanGrid grid{size.first, size.second, resolution};
+  const mapping::HeightScanGrid grid{size.first, size.second, resolution, clearance};
   mapping::HeightScan scan;
   try {
     py::gil_scoped_release unlocked;
@@ -274,12 +274,13 @@ void bindMap(py::module_& m) {
            "max_height_difference, support_height and support_tilt_deg (NaN without a support plane; "
            "heights in the map frame, z up).")
       .def("height_scan", &heightScan, py::arg("poses"), py::arg("size") = std::make_pair(1.6, 1.0),
-           py::arg("resolution") = 0.1, py::arg("frame") = "map",
+           py::arg("resolution") = 0.1, py::arg("frame") = "map", py::arg("clearance") = mapping::kDefaultScanClearanceM,
            "Poses (N, 4): x y z yaw of robot bases -> dict of float32 arrays height and mobility, shape "
-           "(N, ny, nx): the surface a foot lowered from each pose's height meets at each point of a grid "
-           "of size (length, width) metres centred on the pose, its x along the yaw, nx = length / "
-           "resolution + 1, x varying fastest. height is relative to the pose's z (map frame, z up); NaN "
-           "where unknown. The map's surface columns are built on the first call and kept.")
+           "(N, ny, nx): the terrain at each point of a grid of size (length, width) metres centred on the "
+           "pose, its x along the yaw, nx = length / resolution + 1, x varying fastest: the highest surface "
+           "at or below `clearance` metres above the pose, read no higher than that (what lies wholly above "
+           "is overhead and left out). height is relative to the pose's z (map frame, z up); NaN where "
+           "unknown. The map's surface columns are built on the first call and kept.")
       .def("layers", &layers, py::arg("level") = 0, py::arg("cell") = py::none(), py::arg("clearance") = 1.0,
            "2.5D layers of one level (index into levels, lowest first) for a robot `clearance` metres tall, "
            "in square cells of `cell` metres (default: the map's resolution) -> dict: levels (index, z_m, share), "

@@ -24,12 +24,14 @@ MobilityMap sceneMap() {
   return MobilityMap(std::move(copy), mp, Eigen::Matrix3d::Identity());
 }
 
-// One grid point the slow way: voxel by voxel down the column from the pose's height to
-// the bottom of the map, then up the run to its top, and down the run for a mobility.
-std::pair<float, float> bruteForce(const MobilityOcTree& tree, int bottom, double x, double y, double z) {
+// One grid point the slow way: voxel by voxel down the column from the clearance above
+// the pose to the bottom of the map, then up the run to its top, and down the run for a
+// mobility.
+std::pair<float, float> bruteForce(const MobilityOcTree& tree, int bottom, double x, double y, double z, double clearance) {
   constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+  const double top_z = z + clearance;
   octomap::OcTreeKey k;
-  if (!tree.coordToKeyChecked(octomap::point3d(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z)), k)) {
+  if (!tree.coordToKeyChecked(octomap::point3d(static_cast<float>(x), static_cast<float>(y), static_cast<float>(top_z)), k)) {
     return {kNaN, kNaN};
   }
   const auto occupied = [&](int kz) {
@@ -49,7 +51,7 @@ std::pair<float, float> bruteForce(const MobilityOcTree& tree, int bottom, doubl
         break;
       }
     }
-    return {static_cast<float>(std::min(top_face, z) - z), mobility};
+    return {static_cast<float>(std::min(top_face, top_z) - z), mobility};
   }
   return {kNaN, kNaN};
 }
@@ -69,7 +71,7 @@ void expectSameAsBruteForce(const MobilityMap& map, const std::vector<HeightScan
         const double gx = (i - 0.5 * (scan.nx - 1)) * grid.resolution_m, gy = (j - 0.5 * (scan.ny - 1)) * grid.resolution_m;
         const double x = p.x + std::cos(p.yaw) * gx - std::sin(p.yaw) * gy;
         const double y = p.y + std::sin(p.yaw) * gx + std::cos(p.yaw) * gy;
-        const auto [h, m] = bruteForce(map.tree(), bottom, x, y, p.z);
+        const auto [h, m] = bruteForce(map.tree(), bottom, x, y, p.z, grid.clearance_m);
         SCOPED_TRACE("pose (" + std::to_string(p.x) + ", " + std::to_string(p.y) + ", " + std::to_string(p.z) + ", " +
                      std::to_string(p.yaw) + ") point " + std::to_string(i) + ", " + std::to_string(j));
         if (std::isnan(h)) {
@@ -101,11 +103,33 @@ TEST(HeightScan, EqualsAColumnSearchInTheOctreeOnRandomPoses) {
   poses.push_back({2.2, 1.6, 0.5, 0.7});
   expectSameAsBruteForce(map, poses, {});
   expectSameAsBruteForce(map, poses, {0.5, 0.3, 0.02});  // one point per voxel
+  expectSameAsBruteForce(map, poses, {1.6, 1.0, 0.1, 0.0});  // nothing above the pose
+  expectSameAsBruteForce(map, poses, {1.6, 1.0, 0.1, 0.25});
+}
+
+TEST(HeightScan, SeesTerrainUpToTheClearanceAndNothingOverhead) {
+  const MobilityMap map = sceneMap();
+  const auto at = [&](double x, double y, double z, double clearance) {
+    return map.heightScan({{x, y, z, 0.0}}, {0, 0, 0.1, clearance}).height.at(0);
+  };
+  // A low base at the foot of the stairs (z 0.12): the treads above it read their
+  // heights (tops 0.22 and 0.32) up to the clearance; with none they read the base's.
+  EXPECT_FLOAT_EQ(at(1.5, 0.3, 0.12, 0.3), 0.10f);
+  EXPECT_FLOAT_EQ(at(1.7, 0.3, 0.12, 0.3), 0.20f);
+  EXPECT_FLOAT_EQ(at(1.7, 0.3, 0.12, 0.15), 0.15f);
+  EXPECT_FLOAT_EQ(at(1.7, 0.3, 0.12, 0.0), 0.0f);
+  // Under the table (top 0.72 m): within the default clearance it is the terrain there;
+  // with 0.2 m it is overhead and the floor is read.
+  EXPECT_FLOAT_EQ(at(0.5, 1.5, 0.45, kDefaultScanClearanceM), 0.27f);
+  EXPECT_FLOAT_EQ(at(0.5, 1.5, 0.45, 0.2), -0.43f);
+  // The room's wall (1 m) reads the clearance, or its top when that is lower.
+  EXPECT_FLOAT_EQ(at(2.21, 1.5, 0.5, 0.3), 0.3f);
+  EXPECT_FLOAT_EQ(at(2.21, 1.5, 0.5, 1.0), 0.5f);
 }
 
 TEST(HeightScan, FindsTheSurfaceAFootMeetsFromThePosesHeight) {
   const MobilityMap map = sceneMap();
-  const HeightScanGrid one{0, 0, 0.1};  // a single point under the pose
+  const HeightScanGrid one{0, 0, 0.1, 0.0};  // a single point under the pose, nothing above it
   const auto at = [&](double x, double y, double z) {
     const HeightScan s = map.heightScan({{x, y, z, 0.0}}, one);
     return std::make_pair(s.height.at(0), s.mobility.at(0));
@@ -135,7 +159,7 @@ TEST(HeightScan, TheGridTurnsWithTheYawAndXVariesFastest) {
   const MobilityMap map = sceneMap();
   // Facing +y from the floor beside the stairs: the grid's x runs along map +y, onto
   // the floor; facing -y its x runs down over the stairs (y < 0.6) at x = 1.5.
-  const HeightScanGrid line{0.8, 0, 0.1};
+  const HeightScanGrid line{0.8, 0, 0.1, 0.0};
   const HeightScan s = map.heightScan({{1.5, 0.95, 0.62, M_PI / 2}, {1.5, 0.95, 0.62, -M_PI / 2}}, line);
   ASSERT_EQ(s.nx, 9);
   ASSERT_EQ(s.ny, 1);
@@ -163,6 +187,8 @@ TEST(HeightScan, BadInputIsRefusedWithAReason) {
   refused({{1, 1, 0.5, 0}}, {1.6, 1.0, nan}, "resolution");
   refused({{1, 1, 0.5, 0}}, {-1.0, 1.0, 0.1}, "size");
   refused({{1, 1, 0.5, 0}}, {1e9, 1.0, 0.1}, "a side");
+  refused({{1, 1, 0.5, 0}}, {1.6, 1.0, 0.1, -0.1}, "clearance");
+  refused({{1, 1, 0.5, 0}}, {1.6, 1.0, 0.1, nan}, "clearance");
   refused(std::vector<HeightScanPose>(1'000'000, {1, 1, 0.5, 0}), {10, 10, 0.1}, "per call");
   const HeightScan empty = map.heightScan({}, {});
   EXPECT_EQ(empty.poses, 0u);
@@ -181,7 +207,7 @@ TEST(HeightScan, TheColumnsAreKeptUntilTheMapChanges) {
   EXPECT_NE(second, first);  // built again after a change
   // A new floor voxel at (5.01, 5.01): scans see it once the map changed.
   map.tree().updateNode(octomap::point3d(5.01f, 5.01f, 0.01f), true);
-  EXPECT_FLOAT_EQ(reader.heightScan({{5.01, 5.01, 0.42, 0}}, {0, 0, 0.1}).height.at(0), -0.40f);
+  EXPECT_FLOAT_EQ(reader.heightScan({{5.01, 5.01, 0.42, 0}}, {0, 0, 0.1, 0.0}).height.at(0), -0.40f);
 }
 
 }  // namespace

@@ -192,6 +192,53 @@ TEST(Layers, CoarseCellsTakeTheHighestSurfaceAndCountWhatIsKnown) {
   }
 }
 
+TEST(Layers, AWindowAroundARobotHoldsTheSameCellsAsTheWholeMap) {
+  const Scene s;
+  const SurfaceColumns columns(s.tree);
+  const LayerLevel level = layerLevels(columns, 1.0)[0];
+  for (const double cell : {kRes, 0.1}) {
+    const LevelLayers whole = levelLayers(columns, level, cell);
+    // A 1.2 x 0.8 m window on the whole map's grid, reaching 0.4 m past its west edge.
+    LayerWindow w;
+    w.x_min = whole.x_min - 0.4;
+    w.y_min = whole.y_min + 0.5;
+    w.cols = static_cast<int>(std::lround(1.2 / cell));
+    w.rows = static_cast<int>(std::lround(0.8 / cell));
+    const LevelLayers part = levelLayers(columns, level, cell, w);
+    ASSERT_EQ(part.cols, w.cols);
+    ASSERT_EQ(part.rows, w.rows);
+    int compared = 0;
+    for (int row = 0; row < part.rows; ++row) {
+      for (int col = 0; col < part.cols; ++col) {
+        const double x = part.cellX(col), y = part.cellY(row);
+        const std::size_t at = part.index(row, col);
+        if (x < whole.x_min) {  // beyond the map: unknown
+          EXPECT_TRUE(std::isnan(part.elevation[at]));
+          EXPECT_EQ(part.known[at], 0.0f);
+          continue;
+        }
+        const std::size_t w_at = cellAt(whole, x, y);
+        for (const std::string& name : layerNames()) {
+          const float a = layerByName(part, name)[at], b = layerByName(whole, name)[w_at];
+          // Step and slope look at neighbours: the window's edge cells see fewer.
+          if ((name == "step" || name == "slope_deg") && (row == 0 || col == 0 || row == part.rows - 1 || col == part.cols - 1)) continue;
+          if (std::isnan(b)) {
+            EXPECT_TRUE(std::isnan(a)) << name << " at " << x << ", " << y;
+          } else {
+            EXPECT_NEAR(a, b, 1e-5) << name << " at " << x << ", " << y;
+          }
+        }
+        ++compared;
+      }
+    }
+    EXPECT_GT(compared, part.cols * part.rows / 2);
+  }
+  LayerWindow bad;
+  bad.x_min = std::nan("");
+  bad.cols = bad.rows = 10;
+  EXPECT_THROW((void)levelLayers(columns, level, kRes, bad), std::invalid_argument);
+}
+
 TEST(Layers, TraversableIsFreeWhereASoleStandsAndOccupiedWhereNot) {
   const Scene s;
   auto columns = std::make_shared<const SurfaceColumns>(s.tree);

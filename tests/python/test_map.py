@@ -151,10 +151,10 @@ def test_a_map_json_nested_past_the_limit_is_an_os_error_naming_it(corridor, tmp
         mobmap.open_map(str(tmp_path / "deep.ot"))
 
 
-def column_scan(m, poses, size, resolution):
+def column_scan(m, poses, size, resolution, clearance):
     """Height scans the slow way, from Map.query: each grid point's column of voxels from
-    30 above the pose's voxel down to the bottom of the map, the first occupied voxel at
-    or below the pose, the top of its run (no higher than the pose) and the run's highest
+    30 above the clearance's voxel down to the bottom of the map, the first occupied voxel
+    at or below the clearance above the pose, the top of its run (no higher than that) and the run's highest
     mobility going down from that top."""
     res = m.resolution
     nx, ny = round(size[0] / resolution) + 1, round(size[1] / resolution) + 1
@@ -162,7 +162,7 @@ def column_scan(m, poses, size, resolution):
     height = np.full((len(poses), ny, nx), np.nan)
     mobility = np.full((len(poses), ny, nx), np.nan)
     for p, (x, y, z, yaw) in enumerate(poses):
-        kz = int(np.floor(z / res))
+        kz = int(np.floor((z + clearance) / res))
         levels = np.arange(kz + 30, int(np.floor(bottom / res)) - 1, -1)  # highest first
         gx, gy = np.meshgrid((np.arange(nx) - (nx - 1) / 2) * resolution, (np.arange(ny) - (ny - 1) / 2) * resolution)
         px, py = x + np.cos(yaw) * gx - np.sin(yaw) * gy, y + np.sin(yaw) * gx + np.cos(yaw) * gy
@@ -178,7 +178,7 @@ def column_scan(m, poses, size, resolution):
             top = below[0]
             while top > 0 and occupied[g, top - 1]:
                 top -= 1
-            height.flat[p * px.size + g] = min((levels[top] + 1) * res, z) - z
+            height.flat[p * px.size + g] = min((levels[top] + 1) * res, z + clearance) - z
             for k in range(top, len(levels)):
                 if not occupied[g, k]:
                     break
@@ -196,9 +196,12 @@ def test_height_scans_equal_a_column_search_through_point_queries(corridor):
     # stairs), facing anywhere.
     poses = np.column_stack([rng.uniform(0.5, 4.5, n), rng.uniform(-1.6, 1.6, n), rng.uniform(0.3, 0.6, n),
                              rng.uniform(-np.pi, np.pi, n)])
-    for size, resolution in (((1.6, 1.0), 0.1), ((0.3, 0.2), 0.02)):
-        got = m.height_scan(poses, size=size, resolution=resolution)
-        want_h, want_m = column_scan(m, poses, size, resolution)
+    for size, resolution, clearance in (((1.6, 1.0), 0.1, None), ((0.3, 0.2), 0.02, 0.0), ((1.6, 1.0), 0.1, 0.25)):
+        if clearance is None:  # the default: the layers' robot height
+            got, clearance = m.height_scan(poses, size=size, resolution=resolution), 1.0
+        else:
+            got = m.height_scan(poses, size=size, resolution=resolution, clearance=clearance)
+        want_h, want_m = column_scan(m, poses, size, resolution, clearance)
         assert got["height"].dtype == np.float32 and got["height"].shape == want_h.shape
         assert np.isfinite(want_h).sum() > want_h.size // 3  # the poses see ground
         np.testing.assert_allclose(got["height"], want_h, atol=1e-6)  # float32 of the same double

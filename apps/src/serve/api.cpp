@@ -572,7 +572,7 @@ Response Api::Exchange::batch() {
 Response Api::Exchange::heightScan() {
   // Heights and mobilities around many robot bases at once (mapping/height_scan.hpp).
   const nlohmann::json b = parseBody(body, api.limits_);
-  onlyKnownFields(b, {"poses", "size", "resolution", "frame"});
+  onlyKnownFields(b, {"poses", "size", "resolution", "clearance", "frame"});
   const InputFrame frame = frameOf(b);
   const auto batch = rows(b, "poses", 4, api.limits_.max_batch);
   mapping::HeightScanGrid grid;
@@ -583,6 +583,7 @@ Response Api::Exchange::heightScan() {
     grid.width_m = finiteNumber(size[1], "size[1]");
   }
   if (b.contains("resolution") && !b["resolution"].is_null()) grid.resolution_m = finiteNumber(b["resolution"], "\"resolution\"");
+  if (b.contains("clearance") && !b["clearance"].is_null()) grid.clearance_m = finiteNumber(b["clearance"], "\"clearance\"");
   try {
     mapping::checkHeightScanGrid(grid, batch.size());
   } catch (const std::invalid_argument& e) {

@@ -99,4 +99,17 @@ void checkLayerCell(double cell_m, double resolution_m);
 [[nodiscard]] LevelLayers levelLayers(const SurfaceColumns& columns, const LayerLevel& level, double cell_m,
                                       const Reachability* reach = nullptr);
 
+/// A grid its caller places: the lower-left corner (map frame) and the cells along x and y.
+struct LayerWindow {
+  double x_min = 0, y_min = 0;
+  int cols = 0, rows = 0;
+};
+
+/// The layers of `level` on the window's grid (a map around a robot), whatever the map's
+/// extent: a map column belongs to the cell its centre lies in; cells outside the map are
+/// unknown. std::invalid_argument for a bad cell (checkLayerCell), a corner not finite or
+/// more than kMaxLayerCells cells.
+[[nodiscard]] LevelLayers levelLayers(const SurfaceColumns& columns, const LayerLevel& level, double cell_m,
+                                      const LayerWindow& window, const Reachability* reach = nullptr);
+
 }  // namespace mobmap::mapping
