@@ -134,7 +134,10 @@ int main(int argc, char** argv) {
     writeTf("/tf_static", t0, statics);
   }
   for (std::size_t i = 0; i < depths.size(); ++i) {
-    const ros::Time t = t0 + ros::Duration(0, static_cast<std::int32_t>(std::llround(static_cast<double>(i) * 1e9 / 30.0)));
+    // Nanoseconds past a second carried into seconds (Duration(0, ns) takes an int32).
+    ros::Duration since_start;
+    since_start.fromNSec(std::llround(static_cast<double>(i) * 1e9 / 30.0));
+    const ros::Time t = t0 + since_start;
     const std::string stem = depths[i].substr(0, depths[i].size() - std::string(".depth.png").size());
     const Eigen::Isometry3d T_world_camera = readPose(stem + ".pose.txt");
     if (!base) {
