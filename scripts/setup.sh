@@ -20,6 +20,11 @@ packages=(
   # The tests' ROS 1 bag writer: Debian's rosbag_storage (catkin: its CMake configuration
   # needs it) and the message types
   librosbag-storage-dev catkin libsensor-msgs-dev libtf2-msgs-dev
+  # mobmap_node (ROS 1 Noetic from Debian) and its test: roscore, roslaunch, rosbag play,
+  # and rospy with the message types the test listens with
+  ros-core libroscpp-dev libtf2-ros-dev libimage-transport-dev libnav-msgs-dev libstd-srvs-dev
+  libgeometry-msgs-dev python3-rospy python3-nav-msgs python3-std-srvs python3-geometry-msgs
+  python3-actionlib-msgs
   # the viewer's test draws the page in headless Chromium
   chromium
 )
