@@ -24,7 +24,7 @@ packages=(
   # and rospy with the message types the test listens with
   ros-core libroscpp-dev libtf2-ros-dev libimage-transport-dev libnav-msgs-dev libstd-srvs-dev
   libgeometry-msgs-dev python3-rospy python3-nav-msgs python3-std-srvs python3-geometry-msgs
-  python3-actionlib-msgs
+  python3-actionlib-msgs python3-sensor-msgs
   # the viewer's test draws the page in headless Chromium
   chromium
 )

@@ -135,11 +135,11 @@ Node::Node(::ros::NodeHandle nh, ::ros::NodeHandle pnh, NodeParams params)
                                          : depth_resolved.substr(0, depth_resolved.rfind('/')) + "/camera_info";
   info_sub_ = nh_.subscribe(info, 2, &Node::onInfo, this);
   if (p_.compressed) {
-    compressed_sub_ = nh_.subscribe(depth_resolved + "/compressedDepth", 2, &Node::onCompressed, this);
+    compressed_sub_ = nh_.subscribe(depth_resolved + "/compressedDepth", 5, &Node::onCompressed, this);
   } else {
-    image_sub_ = it_.subscribe(depth, 2, &Node::onImage, this);
+    image_sub_ = it_.subscribe(depth, 5, &Node::onImage, this);
   }
-  if (p_.use_points) points_sub_ = nh_.subscribe("points", 2, &Node::onPoints, this);
+  if (p_.use_points) points_sub_ = nh_.subscribe("points", 5, &Node::onPoints, this);
   if (p_.use_imu) imu_sub_ = nh_.subscribe("imu", 50, &Node::onImu, this);
   ROS_INFO("mobmap: depth from %s%s, camera_info from %s", depth_resolved.c_str(), p_.compressed ? "/compressedDepth" : "",
            ::ros::names::resolve(info).c_str());
@@ -198,6 +198,10 @@ void Node::onInfo(const sensor_msgs::CameraInfoConstPtr& m) {
 }
 
 void Node::onImage(const sensor_msgs::ImageConstPtr& m) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++received_;
+  }
   sources::ros::Image img;
   img.header.stamp_ns = nanoseconds(m->header.stamp);
   img.header.frame_id = m->header.frame_id;
@@ -226,6 +230,10 @@ void Node::onImage(const sensor_msgs::ImageConstPtr& m) {
 }
 
 void Node::onCompressed(const sensor_msgs::CompressedImageConstPtr& m) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++received_;
+  }
   sources::ros::CompressedImage img;
   img.header.stamp_ns = nanoseconds(m->header.stamp);
   img.header.frame_id = m->header.frame_id;
@@ -250,6 +258,10 @@ void Node::onCompressed(const sensor_msgs::CompressedImageConstPtr& m) {
 }
 
 void Node::onPoints(const sensor_msgs::PointCloud2ConstPtr& m) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++received_;
+  }
   int offsets[3] = {-1, -1, -1};
   for (const auto& f : m->fields) {
     const int axis = f.name == "x" ? 0 : f.name == "y" ? 1 : f.name == "z" ? 2 : -1;
@@ -307,7 +319,6 @@ void Node::offer(Pending&& p) {
   p.arrived = ::ros::WallTime::now();
   std::lock_guard<std::mutex> lock(mutex_);
   if (stopping_) return;
-  ++received_;
   if (pending_) ++replaced_;  // the feeder is busy: the newest is kept
   pending_ = std::move(p);
   wake_.notify_one();
@@ -474,9 +485,13 @@ void Node::feed() {
         mapping::DepthFrame f;
         f.intrinsics = {static_cast<int>(info->width), static_cast<int>(info->height), info->K[0], info->K[4], info->K[2], info->K[5]};
         const bool distorted = std::any_of(info->D.begin(), info->D.end(), [](double d) { return d != 0.0; });
-        if (distorted && info->D.size() >= 4 && (info->distortion_model == "plumb_bob" || info->distortion_model == "rational_polynomial")) {
+        if (distorted && info->D.size() >= 4 && info->distortion_model == "plumb_bob") {
           f.depth = sources::Undistorter(f.intrinsics, std::vector<double>(info->D.begin(), info->D.end())).apply(p.depth);
         } else {
+          if (distorted) {
+            warn("distortion", "the camera_info's " + info->distortion_model +
+                                   " distortion is not undone (plumb_bob is): the images are mapped as they are");
+          }
           f.depth = std::move(p.depth);
         }
         f.T_world_camera = *T;
@@ -603,8 +618,12 @@ void Node::publishGridMap() {
     around.z_m = base->z();
     around.min_top_m = -std::numeric_limits<double>::infinity();
     around.max_bottom_m = base->z() + p_.clearance;  // what lies wholly above is overhead
+    const ::ros::WallTime start = ::ros::WallTime::now();
     const mapping::LevelLayers layers = mapping::levelLayers(*map->surfaceColumns(), around, cell, w);
     grid_map_pub_.publish(gridMap(*map, layers, world_frame_, stamp));
+    const double ms = (::ros::WallTime::now() - start).toSec() * 1e3;
+    std::lock_guard<std::mutex> lock(mutex_);
+    grid_map_.add(ms);
   } catch (const std::exception& e) {
     warn("grid_map", std::string("no elevation map: ") + e.what());
   }
@@ -655,6 +674,7 @@ void Node::publishStatus() {
     s["wait_ms"] = {{"median", ms(arrival_.quantile(0.5))}, {"p95", ms(arrival_.quantile(0.95))}};
     s["perception_ms"] = {{"median", ms(perception_.quantile(0.5))}, {"p95", ms(perception_.quantile(0.95))}};
     s["fusion_ms"] = {{"median", ms(fusion_.quantile(0.5))}, {"p95", ms(fusion_.quantile(0.95))}};
+    s["grid_map_ms"] = {{"median", ms(grid_map_.quantile(0.5))}, {"p95", ms(grid_map_.quantile(0.95))}};
   }
   std_msgs::String m;
   m.data = s.dump();

@@ -148,7 +148,7 @@ class Node {
   std::vector<Eigen::Vector3d> trajectory_world_;  // camera positions of the frames taken
   std::uint64_t received_ = 0, replaced_ = 0, late_ = 0, unreadable_ = 0, dropped_before_ = 0, fused_before_ = 0;
   std::uint64_t no_ground_ = 0;
-  Gauge latency_, arrival_, perception_, fusion_;
+  Gauge latency_, arrival_, perception_, fusion_, grid_map_;
   builder::DepthCheckTally checks_;
   sources::DepthUnit unit_;
   std::map<std::string, ::ros::WallTime> warned_;
