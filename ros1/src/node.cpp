@@ -197,11 +197,30 @@ void Node::onInfo(const sensor_msgs::CameraInfoConstPtr& m) {
   info_ = *m;
 }
 
-void Node::onImage(const sensor_msgs::ImageConstPtr& m) {
+void Node::takeDepth(const std_msgs::Header& header, double units_per_m,
+                     const std::function<perception::DepthImage()>& decode) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     ++received_;
   }
+  Pending p;
+  try {
+    p.depth = decode();
+  } catch (const std::exception& e) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      ++unreadable_;
+    }
+    warn("unreadable", e.what());
+    return;
+  }
+  p.units_per_m = units_per_m;
+  p.frame_id = header.frame_id;
+  p.stamp = header.stamp;
+  offer(std::move(p));
+}
+
+void Node::onImage(const sensor_msgs::ImageConstPtr& m) {
   sources::ros::Image img;
   img.header.stamp_ns = nanoseconds(m->header.stamp);
   img.header.frame_id = m->header.frame_id;
@@ -212,49 +231,19 @@ void Node::onImage(const sensor_msgs::ImageConstPtr& m) {
   img.step = m->step;
   img.data = m->data.data();
   img.data_size = m->data.size();
-  Pending p;
-  try {
-    p.depth = sources::depthFromImage(img, "image on " + image_sub_.getTopic());
-  } catch (const std::exception& e) {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      ++unreadable_;
-    }
-    warn("unreadable", e.what());
-    return;
-  }
-  p.units_per_m = m->encoding == "32FC1" ? 1.0 : 1000.0;
-  p.frame_id = m->header.frame_id;
-  p.stamp = m->header.stamp;
-  offer(std::move(p));
+  takeDepth(m->header, m->encoding == "32FC1" ? 1.0 : 1000.0,
+            [&] { return sources::depthFromImage(img, "image on " + image_sub_.getTopic()); });
 }
 
 void Node::onCompressed(const sensor_msgs::CompressedImageConstPtr& m) {
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    ++received_;
-  }
   sources::ros::CompressedImage img;
   img.header.stamp_ns = nanoseconds(m->header.stamp);
   img.header.frame_id = m->header.frame_id;
   img.format = m->format;
   img.data = m->data.data();
   img.data_size = m->data.size();
-  Pending p;
-  try {
-    p.depth = sources::depthFromCompressed(img, "image on " + compressed_sub_.getTopic());
-  } catch (const std::exception& e) {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      ++unreadable_;
-    }
-    warn("unreadable", e.what());
-    return;
-  }
-  p.units_per_m = sources::compressedDepthEncoding(m->format) == "32FC1" ? 1.0 : 1000.0;
-  p.frame_id = m->header.frame_id;
-  p.stamp = m->header.stamp;
-  offer(std::move(p));
+  takeDepth(m->header, sources::compressedDepthEncoding(m->format) == "32FC1" ? 1.0 : 1000.0,
+            [&] { return sources::depthFromCompressed(img, "image on " + compressed_sub_.getTopic()); });
 }
 
 void Node::onPoints(const sensor_msgs::PointCloud2ConstPtr& m) {

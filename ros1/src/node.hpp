@@ -13,6 +13,7 @@
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/PointCloud2.h>
+#include <std_msgs/Header.h>
 #include <std_srvs/Empty.h>
 #include <std_srvs/Trigger.h>
 #include <tf2_ros/buffer.h>
@@ -22,6 +23,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <deque>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -102,6 +104,9 @@ class Node {
   void onCompressed(const sensor_msgs::CompressedImageConstPtr& m);
   void onPoints(const sensor_msgs::PointCloud2ConstPtr& m);
   void onImu(const sensor_msgs::ImuConstPtr& m);
+  /// Counts an image, decodes it (an exception: counted unreadable, warned) and offers it.
+  void takeDepth(const std_msgs::Header& header, double units_per_m,
+                 const std::function<perception::DepthImage()>& decode);
   void offer(Pending&& p);
   void feed();  // the feeder thread: pose, then LiveMapper
   bool chooseWorldFrame(const std::string& camera_frame);
