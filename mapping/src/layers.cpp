@@ -52,6 +52,20 @@ std::vector<LayerLevel> layerLevels(const SurfaceColumns& columns, double cleara
   return out;
 }
 
+std::optional<double> startHeight(const Reachability& reach) {
+  if (reach.start()) return reach.footPlaces()[*reach.start()].z;
+  if (reach.startLevel()) return reach.startLevel()->z_m;
+  return std::nullopt;
+}
+
+std::size_t nearestLevel(const std::vector<LayerLevel>& levels, double z_m) {
+  std::size_t best = 0;
+  for (std::size_t k = 1; k < levels.size(); ++k) {
+    if (std::abs(levels[k].z_m - z_m) < std::abs(levels[best].z_m - z_m)) best = k;
+  }
+  return best;
+}
+
 const std::vector<std::string>& layerNames() {
   static const std::vector<std::string> names{"elevation", "elevation_variance", "mobility", "mobility_variance",
                                               "step",      "slope_deg",          "known"};

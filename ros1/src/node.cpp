@@ -122,8 +122,8 @@ NodeParams readParams(const ::ros::NodeHandle& pnh) {
 }
 
 Node::Node(::ros::NodeHandle nh, ::ros::NodeHandle pnh, NodeParams params)
-    : nh_(std::move(nh)), pnh_(std::move(pnh)), p_(std::move(params)), tf_(::ros::Duration(30.0)), tf_listener_(tf_, nh_),
-      it_(nh_) {
+    : nh_(std::move(nh)), pnh_(std::move(pnh)), p_(std::move(params)), mapper_config_(mapperConfig(p_)),
+      tf_(::ros::Duration(30.0)), tf_listener_(tf_, nh_), it_(nh_) {
   world_frame_ = p_.world_frame;
   // Depth as the usual camera drivers name it unless remapped (depth:=...).
   const bool depth_remapped = ::ros::names::resolve("depth") != ::ros::names::resolve("depth", false);
@@ -368,28 +368,34 @@ std::optional<Eigen::Vector3d> Node::gravityDown() {
   return std::nullopt;
 }
 
-void Node::startMapper(const Eigen::Vector3d& down) {
+mapping::LiveMapper::Config Node::mapperConfig(const NodeParams& p) {
   mapping::LiveMapper::Config c;
-  builder::Config config = p_.config.empty() ? builder::Config{} : builder::loadConfig(p_.config);
-  if (p_.config.empty() || !config.mapping_max_range_set) config.perception.max_range_m = p_.max_range;
-  config.mapping.resolution_m = p_.resolution;
+  builder::Config config = p.config.empty() ? builder::Config{} : builder::loadConfig(p.config);
+  if (p.config.empty() || !config.mapping_max_range_set) config.perception.max_range_m = p.max_range;
+  config.mapping.resolution_m = p.resolution;
   config.mapping.max_range_m = config.perception.max_range_m;
+  mapping::validate(config.mapping);
   c.map = config.mapping;
   c.perception = config.perception;
   c.model = builder::makeModel(config);
-  c.gravity_down_world = down;
   const unsigned cores = std::max(2u, std::thread::hardware_concurrency());
-  c.perception_threads = p_.threads > 0 ? p_.threads : static_cast<int>(cores - 1);
+  c.perception_threads = p.threads > 0 ? p.threads : static_cast<int>(cores - 1);
   c.queue_capacity = 1;
   c.when_busy = mapping::LiveMapper::WhenBusy::kKeepNewest;
   c.serve_snapshots = true;
+  return c;
+}
+
+void Node::startMapper(const Eigen::Vector3d& down) {
+  mapping::LiveMapper::Config c = mapper_config_;
+  c.gravity_down_world = down;
   const std::uint64_t generation = ++mapper_generation_;
   c.on_frame = [this, generation](const mapping::FrameReport& r) {
     if (generation == mapper_generation_.load()) onFrame(r);
   };
   mapper_ = std::make_unique<mapping::LiveMapper>(std::move(c));
   ROS_INFO("mobmap: mapping in %s at %.3f m, gravity (%.3f, %.3f, %.3f), %d perception threads", world_frame_.c_str(),
-           p_.resolution, down.x(), down.y(), down.z(), p_.threads > 0 ? p_.threads : static_cast<int>(cores - 1));
+           mapper_config_.map.resolution_m, down.x(), down.y(), down.z(), mapper_config_.perception_threads);
 }
 
 void Node::feed() {
@@ -569,16 +575,7 @@ void Node::publishOccupancy() {
     const std::vector<mapping::LayerLevel> levels = mapping::layerLevels(*columns, p_.clearance);
     if (levels.empty()) return;
     // The level the walk starts on: the robot's.
-    double z = base->z();
-    if (reach.start()) {
-      z = reach.footPlaces()[*reach.start()].z;
-    } else if (reach.startLevel()) {
-      z = reach.startLevel()->z_m;
-    }
-    std::size_t chosen = 0;
-    for (std::size_t k = 0; k < levels.size(); ++k) {
-      if (std::abs(levels[k].z_m - z) < std::abs(levels[chosen].z_m - z)) chosen = k;
-    }
+    const std::size_t chosen = mapping::nearestLevel(levels, mapping::startHeight(reach).value_or(base->z()));
     const double cell = std::max(p_.occupancy_cell, map->tree().getResolution());
     const mapping::LevelLayers layers = mapping::levelLayers(*columns, levels[chosen], cell, &reach);
     occupancy_pub_.publish(occupancyGrid(*map, layers, world_frame_, stamp));

@@ -111,6 +111,9 @@ class Node {
   void feed();  // the feeder thread: pose, then LiveMapper
   bool chooseWorldFrame(const std::string& camera_frame);
   std::optional<Eigen::Vector3d> gravityDown();
+  /// Perception, fusion and the model as `~config` and the parameters set them, read once
+  /// at start (a bad configuration stops the node there, naming the file and the key).
+  static mapping::LiveMapper::Config mapperConfig(const NodeParams& p);
   void startMapper(const Eigen::Vector3d& down);
   void onFrame(const mapping::FrameReport& r);
   std::optional<Eigen::Isometry3d> lookup(const std::string& target, const std::string& source, const ::ros::Time& t,
@@ -132,6 +135,7 @@ class Node {
 
   ::ros::NodeHandle nh_, pnh_;
   NodeParams p_;
+  mapping::LiveMapper::Config mapper_config_;  // all but gravity and the callback
   tf2_ros::Buffer tf_;
   tf2_ros::TransformListener tf_listener_;
   tf2_ros::StaticTransformBroadcaster static_tf_;

@@ -39,14 +39,12 @@ std::vector<std::size_t> chosenLevels(const std::string& choice, const std::vect
   double z = 0;
   double within = 0.25;
   if (choice == "floor") {
-    if (reach.start()) {
-      z = reach.footPlaces()[*reach.start()].z;
-    } else if (reach.startLevel()) {
-      z = reach.startLevel()->z_m;
-    } else {
+    const std::optional<double> start = mapping::startHeight(reach);
+    if (!start) {
       throw std::runtime_error(map_path + ": no level for the robot to start on (give --level all or a height; levels at z = " +
                                listed + " m)");
     }
+    z = *start;
     within = std::numeric_limits<double>::infinity();
   } else {
     char* end = nullptr;
@@ -55,10 +53,7 @@ std::vector<std::size_t> chosenLevels(const std::string& choice, const std::vect
       throw UsageError("--level must be floor, all or a height in metres, got '" + choice + "'");
     }
   }
-  std::size_t best = 0;
-  for (std::size_t k = 1; k < levels.size(); ++k) {
-    if (std::abs(levels[k].z_m - z) < std::abs(levels[best].z_m - z)) best = k;
-  }
+  const std::size_t best = mapping::nearestLevel(levels, z);
   if (std::abs(levels[best].z_m - z) > within) {
     char msg[160];
     std::snprintf(msg, sizeof msg, ": no level at z = %.2f m (within 0.25 m); the levels are at z = ", z);

@@ -20,6 +20,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -83,6 +84,13 @@ struct LevelLayers {
   [[nodiscard]] double cellX(int col) const { return x_min + (col + 0.5) * cell_m; }
   [[nodiscard]] double cellY(int row) const { return y_min + (rows - row - 0.5) * cell_m; }
 };
+
+/// The height the walk of `reach` starts at: its start sole's support, else the start
+/// level's height; nullopt when it found nowhere to start.
+[[nodiscard]] std::optional<double> startHeight(const Reachability& reach);
+/// The index of the level nearest `z_m` (the lowest of equally near ones); `levels` must
+/// not be empty.
+[[nodiscard]] std::size_t nearestLevel(const std::vector<LayerLevel>& levels, double z_m);
 
 /// The names of the float layers, in the order a GeoTIFF's bands take them.
 [[nodiscard]] const std::vector<std::string>& layerNames();
