@@ -72,6 +72,18 @@ class Reader {
     return v;
   }
 
+  std::int64_t time() {
+    std::int64_t sec = 0;
+    if (wire_ == Wire::kRos1) {
+      sec = get<std::uint32_t>();
+    } else {
+      sec = get<std::int32_t>();
+    }
+    const auto nsec = get<std::uint32_t>();
+    if (nsec >= 1000000000u) throw MessageError("a stamp's nanoseconds are " + std::to_string(nsec) + ", not below 1e9");
+    return sec * 1000000000LL + nsec;
+  }
+
   Header header() {
     if (wire_ == Wire::kRos1) (void)get<std::uint32_t>();  // seq
     Header h;
@@ -116,6 +128,11 @@ class Reader {
 Header decodeHeader(const std::uint8_t* data, std::size_t size, Wire wire) {
   Reader r(data, size, wire);
   return r.header();
+}
+
+std::int64_t decodeClock(const std::uint8_t* data, std::size_t size, Wire wire) {
+  Reader r(data, size, wire);
+  return r.time();
 }
 
 Image decodeImage(const std::uint8_t* data, std::size_t size, Wire wire) {
@@ -184,6 +201,57 @@ Imu decodeImu(const std::uint8_t* data, std::size_t size, Wire wire) {
   (void)r.doubles<9>();
   m.linear_acceleration = r.doubles<3>();
   return m;
+}
+
+PointCloud2 decodePointCloud2(const std::uint8_t* data, std::size_t size, Wire wire, std::size_t max_fields) {
+  Reader r(data, size, wire);
+  PointCloud2 m;
+  m.header = r.header();
+  m.height = r.get<std::uint32_t>();
+  m.width = r.get<std::uint32_t>();
+  // A field takes at least its name's length, an offset, a type and a count.
+  const std::uint32_t n = r.count(13, "fields");
+  if (n > max_fields) throw MessageError("fields: " + std::to_string(n) + ", more than " + std::to_string(max_fields));
+  m.fields.resize(n);
+  for (PointField& f : m.fields) {
+    f.name = r.string("field name");
+    f.offset = r.get<std::uint32_t>();
+    f.datatype = r.get<std::uint8_t>();
+    f.count = r.get<std::uint32_t>();
+  }
+  m.big_endian = r.get<std::uint8_t>() != 0;
+  m.point_step = r.get<std::uint32_t>();
+  m.row_step = r.get<std::uint32_t>();
+  m.data = r.bytes(&m.data_size, "data");
+  m.dense = r.get<std::uint8_t>() != 0;
+  return m;
+}
+
+std::vector<std::array<float, 3>> cloudXyz(const PointCloud2& m) {
+  std::uint64_t offsets[3] = {~0ull, ~0ull, ~0ull};
+  for (const PointField& f : m.fields) {
+    const int axis = f.name == "x" ? 0 : f.name == "y" ? 1 : f.name == "z" ? 2 : -1;
+    if (axis >= 0 && f.datatype == 7 && f.count == 1) offsets[axis] = f.offset;
+  }
+  for (const std::uint64_t o : offsets) {
+    if (o == ~0ull) throw MessageError("the cloud has no float32 x, y and z fields");
+    if (o + 4 > m.point_step) throw MessageError("a field lies past the cloud's point_step");
+  }
+  if (m.big_endian) throw MessageError("the cloud is big-endian");
+  const std::uint64_t w = m.width, h = m.height;
+  if (m.row_step < m.point_step * w) throw MessageError("the cloud's row_step is shorter than its points");
+  if (m.data_size < static_cast<std::uint64_t>(m.row_step) * h) throw MessageError("the cloud's data is shorter than its rows");
+  std::vector<std::array<float, 3>> points;
+  points.reserve(static_cast<std::size_t>(w * h));
+  for (std::uint64_t r = 0; r < h; ++r) {
+    for (std::uint64_t c = 0; c < w; ++c) {
+      const std::uint8_t* at = m.data + r * m.row_step + c * m.point_step;
+      std::array<float, 3> p{};
+      for (int k = 0; k < 3; ++k) std::memcpy(&p[static_cast<std::size_t>(k)], at + offsets[k], 4);
+      points.push_back(p);
+    }
+  }
+  return points;
 }
 
 }  // namespace mobmap::sources::ros

@@ -69,14 +69,41 @@ struct Imu {
   std::array<double, 3> linear_acceleration{};
 };
 
+/// sensor_msgs/PointField.
+struct PointField {
+  std::string name;
+  std::uint32_t offset = 0;
+  std::uint8_t datatype = 0;  ///< 7: FLOAT32
+  std::uint32_t count = 0;
+};
+
+/// sensor_msgs/PointCloud2; `data` points into the message's bytes.
+struct PointCloud2 {
+  Header header;
+  std::uint32_t height = 0, width = 0;
+  std::vector<PointField> fields;
+  bool big_endian = false;
+  std::uint32_t point_step = 0, row_step = 0;
+  const std::uint8_t* data = nullptr;
+  std::size_t data_size = 0;
+  bool dense = false;
+};
+
 /// Only the header: what indexing a depth image needs, without its pixels.
 Header decodeHeader(const std::uint8_t* data, std::size_t size, Wire wire);
 Image decodeImage(const std::uint8_t* data, std::size_t size, Wire wire);
+/// rosgraph_msgs/Clock: the time in ns.
+std::int64_t decodeClock(const std::uint8_t* data, std::size_t size, Wire wire);
 CompressedImage decodeCompressedImage(const std::uint8_t* data, std::size_t size, Wire wire);
 CameraInfo decodeCameraInfo(const std::uint8_t* data, std::size_t size, Wire wire);
 /// tf2_msgs/TFMessage: at most `max_transforms` (MessageError past that).
 std::vector<Transform> decodeTfMessage(const std::uint8_t* data, std::size_t size, Wire wire,
                                        std::size_t max_transforms = 100000);
 Imu decodeImu(const std::uint8_t* data, std::size_t size, Wire wire);
+/// At most `max_fields` fields (MessageError past that).
+PointCloud2 decodePointCloud2(const std::uint8_t* data, std::size_t size, Wire wire, std::size_t max_fields = 64);
+/// The cloud's x, y, z, row by row: MessageError unless they are little-endian FLOAT32
+/// fields within each point and the points and rows within the data.
+std::vector<std::array<float, 3>> cloudXyz(const PointCloud2& cloud);
 
 }  // namespace mobmap::sources::ros

@@ -43,6 +43,17 @@ void TfTree::add(const std::string& parent, const std::string& child, std::int64
   v.push_back(s);
 }
 
+void TfTree::forgetBefore(std::int64_t stamp_ns) {
+  if (unsorted_links_ != 0) throw std::logic_error("TfTree::forgetBefore needs sorted samples");
+  for (auto& [child, link] : links_) {
+    if (link.is_static) continue;
+    auto& v = link.samples;
+    const auto first_kept = std::lower_bound(v.begin(), v.end(), stamp_ns,
+                                             [](const Sample& s, std::int64_t t) { return s.stamp_ns < t; });
+    if (first_kept - v.begin() > 1) v.erase(v.begin(), first_kept - 1);
+  }
+}
+
 void TfTree::sortSamples() {
   if (unsorted_links_ == 0) return;
   for (auto& [child, link] : links_) {

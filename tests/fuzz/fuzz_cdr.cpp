@@ -56,6 +56,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       (void)ros::decodeImu(data, size, wire);
     } catch (const ros::MessageError&) {
     }
+    try {
+      const ros::PointCloud2 m = ros::decodePointCloud2(data, size, wire);
+      inside(m.data, m.data_size, data, size);
+      if (ros::cloudXyz(m).size() > size) std::abort();
+    } catch (const ros::MessageError&) {
+    }
   }
   return 0;
 }

@@ -195,3 +195,30 @@ TEST(TfTree, RefusesBrokenTrees) {
 
 }  // namespace
 }  // namespace mobmap::sources
+
+TEST(TfTree, ForgettingOldSamplesKeepsEveryLookupFromTheCutOn) {
+  // A live buffer's bound: lookups at and after the cut are those of the full tree.
+  mobmap::sources::TfTree full, pruned;
+  for (int i = 0; i < 100; ++i) {
+    const std::int64_t t = i * 10'000'000LL;
+    const Eigen::Vector3d p(0.01 * i, std::sin(0.1 * i), 0.0);
+    const Eigen::Quaterniond q(Eigen::AngleAxisd(0.02 * i, Eigen::Vector3d::UnitZ()));
+    for (auto* tree : {&full, &pruned}) {
+      tree->add("odom", "base", t, p, q, false);
+      tree->add("base", "camera", 0, Eigen::Vector3d(0.1, 0, 0.5), Eigen::Quaterniond::Identity(), true);
+    }
+  }
+  const std::int64_t cut = 503'000'000LL;  // between two samples
+  pruned.forgetBefore(cut);
+  for (const auto& e : pruned.edges()) {
+    if (e.child == "base") {
+      EXPECT_EQ(e.samples, 50u);  // the one before the cut and the 49 after it
+    }
+  }
+  for (std::int64_t t = cut; t <= 990'000'000LL; t += 7'000'000LL) {
+    const auto a = full.lookup("odom", "camera", t, 20'000'000LL), b = pruned.lookup("odom", "camera", t, 20'000'000LL);
+    ASSERT_TRUE(a && b) << t;
+    EXPECT_TRUE(a->isApprox(*b, 1e-12)) << t;
+  }
+  EXPECT_FALSE(pruned.lookup("odom", "camera", cut - 20'000'000LL, 20'000'000LL));
+}

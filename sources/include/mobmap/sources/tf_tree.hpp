@@ -48,6 +48,11 @@ class TfTree {
   /// True when every link's samples are in stamp order (no sortSamples() pending).
   [[nodiscard]] bool sorted() const { return unsorted_links_ == 0; }
 
+  /// Forgets the sampled transforms older than `stamp_ns`, keeping on each link the last
+  /// sample before it (so a lookup at `stamp_ns` still interpolates): a live buffer's
+  /// bound. Needs sorted samples (std::logic_error otherwise).
+  void forgetBefore(std::int64_t stamp_ns);
+
   /// `source`'s pose in `target` at `stamp_ns`: nullopt (with `why`) when a sampled
   /// transform on the way has no samples on both sides of the stamp within
   /// `max_gap_ns` of each other (or one at the stamp). TfError when a frame is missing
