@@ -32,7 +32,7 @@ int main(int argc, char** argv) {
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
   ros::NodeHandle nh, pnh("~");
-  mobmap::ros1::NodeParams params;
+  mobmap::live::Params params;
   try {
     params = mobmap::ros1::readParams(pnh);
   } catch (const std::exception& e) {
