@@ -25,6 +25,8 @@ packages=(
   ros-core libroscpp-dev libtf2-ros-dev libimage-transport-dev libnav-msgs-dev libstd-srvs-dev
   libgeometry-msgs-dev python3-rospy python3-nav-msgs python3-std-srvs python3-geometry-msgs
   python3-actionlib-msgs python3-sensor-msgs
+  # mobmap_ros2 (Cyclone DDS and its IDL compiler) and its test's Fast DDS participant
+  cyclonedds-dev cyclonedds-tools libfastrtps-dev iproute2
   # the viewer's test draws the page in headless Chromium
   chromium
 )
