@@ -40,7 +40,7 @@ int main(int argc, char** argv) {
   std::signal(SIGTERM, onSignal);
   try {
     mobmap::ros2::Node node(args);
-    node.run(g_stop);
+    if (!node.run(g_stop)) return 1;
   } catch (const std::invalid_argument& e) {
     std::fprintf(stderr, "mobmap_ros2: %s\n", e.what());
     return 2;

@@ -374,14 +374,15 @@ void Node::serve() {
   }
 }
 
-void Node::run(const std::atomic<bool>& stop) {
+bool Node::run(const std::atomic<bool>& stop) {
   while (!stop.load() && !failed_.load()) {
     if (!waitset_->wait(100)) continue;
     for (const auto& r : readers_) r->takeAll();
     watch_->takeAll();
     serve();
   }
-  core_->log(live::Level::kInfo, failed_ ? "stopping: mapping could not start" : "stopping");
+  core_->log(failed_ ? live::Level::kError : live::Level::kInfo, failed_ ? "stopping: mapping could not start" : "stopping");
+  return !failed_;
 }
 
 void Node::publishLoop() {

@@ -55,8 +55,9 @@ class Node {
   ~Node();
   Node(const Node&) = delete;
   Node& operator=(const Node&) = delete;
-  /// Receives until `stop` is set (or the core gives up), then stops cleanly.
-  void run(const std::atomic<bool>& stop);
+  /// Receives until `stop` is set (or the core gives up), then stops cleanly; false when
+  /// mapping could not start.
+  bool run(const std::atomic<bool>& stop);
 
  private:
   void receive(RawReader& reader, const std::uint8_t* data, std::size_t size,

@@ -508,3 +508,23 @@ def test_sigint_saves_a_complete_map(dds):
     info = subprocess.run([EXE, "info", str(exit_map), "--json"], check=True, capture_output=True, text=True)
     assert json.loads(info.stdout)["metadata"]["frames"] >= final["map_frames"]
     assert not list((dds["tmp"] / "exit").glob("*.tmp*"))
+
+
+@pytest.mark.parametrize("args, says", [
+    (["-p", "resolution:=-1"], "resolution must be a finite number above 0"),
+    (["-p", "nonsense:=1"], "unknown parameter nonsense"),
+    (["-p", "use_sim_time:=maybe"], "use_sim_time must be true or false"),
+    (["--params-file", "/nonexistent/node.yaml"], "/nonexistent/node.yaml: cannot read the parameters file"),
+    (["-r", "depth"], "-r expects name:=value"),
+])
+def test_bad_parameters_stop_it_at_start_naming_them(args, says):
+    r = subprocess.run([NODE, "--ros-args"] + args, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and says in r.stderr, r.stderr
+
+
+def test_the_shipped_parameter_file_is_read(tmp_path):
+    shipped = os.path.join(os.path.dirname(__file__), "..", "..", "ros2", "config", "mobmap.yaml")
+    # A wrong value after the file: the file itself was read without complaint.
+    r = subprocess.run([NODE, "--ros-args", "--params-file", shipped, "-p", "clearance:=0"], capture_output=True, text=True,
+                       timeout=60)
+    assert r.returncode == 2 and "clearance must be" in r.stderr, r.stderr
