@@ -528,3 +528,40 @@ def test_the_shipped_parameter_file_is_read(tmp_path):
     r = subprocess.run([NODE, "--ros-args", "--params-file", shipped, "-p", "clearance:=0"], capture_output=True, text=True,
                        timeout=60)
     assert r.returncode == 2 and "clearance must be" in r.stderr, r.stderr
+
+
+def test_a_renamed_node_maps_compressed_depth(dds):
+    """A second node under another name and namespace, reading image_transport's
+    compressedDepth, fed by a peer of its own (after the first node has stopped)."""
+    assert dds["node"].poll() is not None, "runs after the first node stopped"
+    tmp, frames = dds["tmp"], 60
+    feed = tmp / "compressed.jsonl"
+    subprocess.run(["node", os.path.join(RECORDINGS, "write_bag.mjs"), "--seq", str(tmp / "corridor"), "--layout", "base",
+                    "--world", "map", "--depth", "compressed16", "--frames", str(frames), "--feed", str(feed)], check=True,
+                   stdout=subprocess.DEVNULL)
+    log = open(tmp / "renamed.log", "w")
+    node = subprocess.Popen([NODE, "--ros-args", "-r", "__ns:=/robot1", "-r", "__node:=mapper", "-r", "depth:=/camera/depth/image_raw",
+                             "-p", "compressed:=true", "-p", "use_sim_time:=true", "-p", "status_rate:=5"],
+                            env=dds["env"], stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    peer = Peer(tmp, "renamed", dds["domain"], dds["env"])
+    try:
+        peer(f"sub status rt/robot1/mapper/status {T['string']} latched")
+        pubs = [("/camera/depth/image_raw/compressedDepth", "rt/camera/depth/image_raw/compressedDepth",
+                 "sensor_msgs::msg::dds_::CompressedImage_", "reliable")] + PUBS[1:]
+        for name, topic, kind, qos in pubs:
+            peer(f"pub {name} {topic} {kind} {qos}")
+        wait_for("the renamed node to match", lambda: all(peer.matched(p[0]) for p in pubs + [("status",)]))
+        peer(f"play {feed} 0.5 clock")
+        wait_for("the recording to be played", lambda: peer.seen(event="played"))
+
+        def done():
+            s = status_of(peer)
+            return s and s["received"] > 0 and s["fused"] + s["dropped"] + s["late"] + s["unreadable"] >= s["received"] and s
+        s = wait_for("every compressed frame to be accounted for", done)
+        print("renamed node:", s)
+        assert s["world_frame"] == "map" and s["unreadable"] == 0 and s["received"] >= frames * 0.9 and s["fused"] >= 10
+    finally:
+        peer.stop()
+        os.killpg(node.pid, signal.SIGINT)
+        node.wait(HANG)
+        log.close()
