@@ -331,47 +331,44 @@ void Node::onPublication(const Publication& pub) {
   }
 }
 
+namespace {
+
+/// Takes each request on `reader` and writes `answer`'s reply with the request's client id
+/// and sequence number (rmw_cyclonedds's framing).
+template <typename Request, typename Response>
+void answerAll(dds_entity_t reader, Writer& writer, live::Core& core, const std::function<void(Response&)>& answer) {
+  for (;;) {
+    void* samples[1] = {nullptr};
+    dds_sample_info_t info;
+    if (dds_take(reader, samples, &info, 1, 1) <= 0) return;
+    const auto* req = static_cast<const Request*>(samples[0]);
+    Response res{};
+    res.client_id = req->client_id;
+    res.sequence_number = req->sequence_number;
+    const bool valid = info.valid_data;
+    dds_return_loan(reader, samples, 1);
+    if (!valid) continue;
+    answer(res);
+    try {
+      writer.write(&res);
+    } catch (const DdsError& e) {
+      core.warn("reply", e.what());
+    }
+  }
+}
+
+}  // namespace
+
 void Node::serve() {
-  // A request, then its reply with the client's id and sequence number.
-  for (;;) {
-    void* samples[1] = {nullptr};
-    dds_sample_info_t info;
-    if (dds_take(save_request_, samples, &info, 1, 1) <= 0) break;
-    const auto* req = static_cast<const std_srvs_srv_dds__Trigger_Request_*>(samples[0]);
-    std_srvs_srv_dds__Trigger_Response_ res{};
-    res.client_id = req->client_id;
-    res.sequence_number = req->sequence_number;
-    const bool valid = info.valid_data;
-    dds_return_loan(save_request_, samples, 1);
-    if (!valid) continue;
-    std::string said;
-    res.success = core_->save(core_->params().save_path, &said);
-    core_->log(res.success ? live::Level::kInfo : live::Level::kError, said);
-    res.message = const_cast<char*>(said.c_str());
-    try {
-      save_reply_->write(&res);
-    } catch (const DdsError& e) {
-      core_->warn("reply", e.what());
-    }
-  }
-  for (;;) {
-    void* samples[1] = {nullptr};
-    dds_sample_info_t info;
-    if (dds_take(clear_request_, samples, &info, 1, 1) <= 0) break;
-    const auto* req = static_cast<const std_srvs_srv_dds__Empty_Request_*>(samples[0]);
-    std_srvs_srv_dds__Empty_Response_ res{};
-    res.client_id = req->client_id;
-    res.sequence_number = req->sequence_number;
-    const bool valid = info.valid_data;
-    dds_return_loan(clear_request_, samples, 1);
-    if (!valid) continue;
-    core_->clear();
-    try {
-      clear_reply_->write(&res);
-    } catch (const DdsError& e) {
-      core_->warn("reply", e.what());
-    }
-  }
+  std::string said;
+  answerAll<std_srvs_srv_dds__Trigger_Request_, std_srvs_srv_dds__Trigger_Response_>(
+      save_request_, *save_reply_, *core_, [&](std_srvs_srv_dds__Trigger_Response_& res) {
+        res.success = core_->save(core_->params().save_path, &said);
+        core_->log(res.success ? live::Level::kInfo : live::Level::kError, said);
+        res.message = const_cast<char*>(said.c_str());
+      });
+  answerAll<std_srvs_srv_dds__Empty_Request_, std_srvs_srv_dds__Empty_Response_>(
+      clear_request_, *clear_reply_, *core_, [&](std_srvs_srv_dds__Empty_Response_&) { core_->clear(); });
 }
 
 bool Node::run(const std::atomic<bool>& stop) {

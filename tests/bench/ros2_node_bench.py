@@ -12,7 +12,6 @@ buffer, to show what the buffer is for.
 DDS stays on this machine: every participant on 127.0.0.1 without multicast, inside a
 network namespace of its own when `unshare -rn` works (the script re-runs itself there).
 """
-import json
 import os
 import re
 import subprocess

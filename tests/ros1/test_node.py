@@ -14,8 +14,6 @@ import signal
 import socket
 import struct
 import subprocess
-import sys
-import time
 
 import numpy as np
 import pytest
@@ -23,17 +21,16 @@ import pytest
 rospy = pytest.importorskip("rospy", reason="rospy (python3-rospy) is not installed")
 from std_msgs.msg import String  # noqa: E402
 from nav_msgs.msg import OccupancyGrid  # noqa: E402
-from std_srvs.srv import Trigger, Empty  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
 
 import mobmap  # noqa: E402
-from corridor import corridor_height, in_shadow, VOXEL  # noqa: E402
+from node_checks import HANG, cloud_agreement, wait_for, VOXEL, judge_elevation, judge_occupancy  # noqa: E402
 
 EXE = os.environ["MOBMAP_EXE"]
 NODE = os.environ["MOBMAP_NODE"]
 WRITE_BAG1 = os.environ["MOBMAP_WRITE_BAG1"]
 READ_OCTOMAP = os.environ["MOBMAP_READ_OCTOMAP"]
 FRAMES = 240
-HANG = 300  # seconds after which a wait is a failure, never a pass
 # Upstream's MD5 sums (the ROS 1 message definitions of grid_map_msgs and octomap_msgs).
 GRID_MAP_MD5 = "95681e052b1f73bf87b7eb984382b401"
 OCTOMAP_MD5 = "9a45536b45c5e409cd49f04bb2d9999f"
@@ -43,17 +40,6 @@ def free_port():
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
-
-
-def wait_for(what, condition):
-    """Polls `condition` until it returns something true; fails after HANG seconds."""
-    end = time.monotonic() + HANG
-    while time.monotonic() < end:
-        got = condition()
-        if got:
-            return got
-        time.sleep(0.05)
-    pytest.fail("gave up waiting for " + what)
 
 
 class Latest:
@@ -237,19 +223,10 @@ def test_the_cloud_agrees_with_mobmap_build(ros):
     c = parse_cloud(m._buff)
     assert c["fields"] == ["x", "y", "z", "mobility", "variance"]
     assert c["header"]["frame_id"] == "map"
-    scored = np.isfinite(c["mobility"])
-    assert scored.sum() > 5000
-    pts = np.column_stack([c["x"], c["y"], c["z"]])[scored].astype(np.float64)
-    rng = np.random.default_rng(67)
-    probe = rng.choice(len(pts), size=min(4000, len(pts)), replace=False)
-    built = mobmap.open_map(str(ros["built"]))
-    q = built.query(pts[probe], frame="world")
-    both = np.isfinite(q["mobility"])
-    assert both.mean() > 0.8, "the node's surface voxels lie where build's are"
-    live = c["mobility"][scored][probe][both]
-    ref = q["mobility"][both]
-    agree = np.mean((live >= 0.5) == (ref >= 0.5))
-    print(f"cloud: {len(pts)} scored voxels; {both.sum()} probes scored in both; walkable agrees at {agree:.3f}")
+    n, probes, scored_in_both, agree = cloud_agreement(c, mobmap.open_map(str(ros["built"])), seed=67)
+    assert n > 5000
+    assert scored_in_both > 0.8, "the node's surface voxels lie where build's are"
+    print(f"cloud: {n} scored voxels; {probes} probes scored in both; walkable agrees at {agree:.3f}")
     assert agree >= 0.95
 
 
@@ -258,20 +235,7 @@ def test_the_occupancy_grid_has_the_floor_free_and_the_45_degree_ramp_occupied(r
     info = g.info
     assert g.header.frame_id == "map"
     data = np.array(g.data, dtype=np.int16).reshape(info.height, info.width)
-    xs = info.origin.position.x + (np.arange(info.width) + 0.5) * info.resolution
-    ys = info.origin.position.y + (np.arange(info.height) + 0.5) * info.resolution
-    floor, ramp = [], []
-    for r, y in enumerate(ys):
-        for c, x in enumerate(xs):
-            if data[r, c] < 0:
-                continue
-            if 6.4 < x < 6.8 and -1.2 < y < -0.6:
-                ramp.append(data[r, c])
-            elif corridor_height(x, y) == 0.0 and corridor_height(x - 0.3, y) == 0.0 and corridor_height(x + 0.3, y) == 0.0 \
-                    and corridor_height(x, y - 0.3) == 0.0 and corridor_height(x, y + 0.3) == 0.0 and abs(y) < 1.2 \
-                    and not in_shadow(x, y):
-                floor.append(data[r, c])
-    floor, ramp = np.array(floor), np.array(ramp)
+    floor, ramp = judge_occupancy(data, info.origin.position.x, info.origin.position.y, info.resolution)
     print(f"occupancy: {len(floor)} floor cells {np.mean(floor == 0):.3f} free; {len(ramp)} ramp cells {np.mean(ramp == 100):.3f} occupied")
     assert len(floor) > 500 and np.mean(floor == 0) >= 0.9
     assert len(ramp) > 20 and np.mean(ramp == 100) >= 0.9
@@ -293,21 +257,7 @@ def test_the_elevation_map_is_upstreams_grid_map_and_matches_the_corridor(ros):
     # grid_map's order: column-major, index (0, 0) at the largest x and y.
     cx, cy = info["position"][0], info["position"][1]
     res = info["resolution"]
-    judged, within = 0, 0
-    for j in range(n):
-        for i in range(n):
-            e = elevation[j * n + i]
-            if not np.isfinite(e):
-                continue
-            x, y = cx + (n / 2 - i - 0.5) * res, cy + (n / 2 - j - 0.5) * res
-            # The highest surface within the cell.
-            truths = [corridor_height(x + dx, y + dy) for dx in (-res / 2, 0, res / 2) for dy in (-res / 2, 0, res / 2)]
-            if any(t is None for t in truths) or in_shadow(x, y):
-                continue
-            judged += 1
-            # The elevation is the top face of the voxel holding the surface, so up to a
-            # voxel above it; the sensor's noise may take it one voxel either way.
-            within += -VOXEL - 1e-4 <= e - max(truths) <= 2 * VOXEL + 1e-4
+    judged, within = judge_elevation(elevation, n, cx, cy, res)
     print(f"elevation map at ({cx:.2f}, {cy:.2f}): {judged} cells judged, {within / max(judged, 1):.3f} within a voxel")
     assert judged > 1000
     assert within / judged >= 0.95

@@ -101,6 +101,16 @@ Qos qosNamed(const std::string& q) {
   throw std::invalid_argument("unknown QoS " + q);
 }
 
+/// A writer's or a reader's QoS as ROS 2's profile `q` sets it.
+template <typename EndpointQos>
+void apply(EndpointQos& e, const Qos& q) {
+  e.reliability().kind = q.reliable ? RELIABLE_RELIABILITY_QOS : BEST_EFFORT_RELIABILITY_QOS;
+  e.durability().kind = q.transient_local ? TRANSIENT_LOCAL_DURABILITY_QOS : VOLATILE_DURABILITY_QOS;
+  e.history().kind = KEEP_LAST_HISTORY_QOS;
+  e.history().depth = q.depth;
+  e.endpoint().history_memory_policy = eprosima::fastrtps::rtps::DYNAMIC_REUSABLE_MEMORY_MODE;
+}
+
 class Peer : public DataWriterListener {
  public:
   Peer(int domain, std::string out) : out_(std::move(out)) {
@@ -139,13 +149,8 @@ class Peer : public DataWriterListener {
   }
 
   void pub(const std::string& name, const std::string& dds_topic, const std::string& type, const std::string& qos) {
-    const Qos q = qosNamed(qos);
     DataWriterQos wq = DATAWRITER_QOS_DEFAULT;
-    wq.reliability().kind = q.reliable ? RELIABLE_RELIABILITY_QOS : BEST_EFFORT_RELIABILITY_QOS;
-    wq.durability().kind = q.transient_local ? TRANSIENT_LOCAL_DURABILITY_QOS : VOLATILE_DURABILITY_QOS;
-    wq.history().kind = KEEP_LAST_HISTORY_QOS;
-    wq.history().depth = q.depth;
-    wq.endpoint().history_memory_policy = eprosima::fastrtps::rtps::DYNAMIC_REUSABLE_MEMORY_MODE;
+    apply(wq, qosNamed(qos));
     wq.publish_mode().kind = ASYNCHRONOUS_PUBLISH_MODE;  // large samples go out in fragments
     DataWriter* w = publisher_->create_datawriter(topic(dds_topic, type), wq, this);
     if (!w) throw std::runtime_error("cannot write " + dds_topic);
@@ -158,13 +163,8 @@ class Peer : public DataWriterListener {
   }
 
   void sub(const std::string& name, const std::string& dds_topic, const std::string& type, const std::string& qos) {
-    const Qos q = qosNamed(qos);
     DataReaderQos rq = DATAREADER_QOS_DEFAULT;
-    rq.reliability().kind = q.reliable ? RELIABLE_RELIABILITY_QOS : BEST_EFFORT_RELIABILITY_QOS;
-    rq.durability().kind = q.transient_local ? TRANSIENT_LOCAL_DURABILITY_QOS : VOLATILE_DURABILITY_QOS;
-    rq.history().kind = KEEP_LAST_HISTORY_QOS;
-    rq.history().depth = q.depth;
-    rq.endpoint().history_memory_policy = eprosima::fastrtps::rtps::DYNAMIC_REUSABLE_MEMORY_MODE;
+    apply(rq, qosNamed(qos));
     auto listener = std::make_unique<Listener>(this, name);
     DataReader* r = subscriber_->create_datareader(topic(dds_topic, type), rq, listener.get());
     if (!r) throw std::runtime_error("cannot read " + dds_topic);

@@ -15,7 +15,6 @@ waits on a clock: each step waits for what the node or the peer reports.
 import base64
 import json
 import os
-import queue
 import signal
 import struct
 import subprocess
@@ -27,7 +26,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "ros1"))
-from corridor import corridor_height, in_shadow, VOXEL  # noqa: E402  (the corridor's geometry)
+from node_checks import HANG, cloud_agreement, wait_for, judge_elevation, judge_occupancy  # noqa: E402
 
 import mobmap  # noqa: E402
 
@@ -37,7 +36,6 @@ PEER = os.environ["MOBMAP_DDS_PEER"]
 RECORDINGS = os.environ["MOBMAP_RECORDINGS"]
 READ_OCTOMAP = os.environ.get("MOBMAP_READ_OCTOMAP", "")
 FRAMES = 240
-HANG = 300  # seconds after which a wait is a failure, never a pass
 CYCLONE_LOOPBACK = """<CycloneDDS><Domain id="any">
   <General><Interfaces><NetworkInterface address="127.0.0.1"/></Interfaces><AllowMulticast>false</AllowMulticast></General>
   <Discovery><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>20</MaxAutoParticipantIndex>
@@ -52,16 +50,6 @@ T = {  # ROS 2 types as DDS names them
     "octomap": "octomap_msgs::msg::dds_::Octomap_",
     "trigger_req": "std_srvs::srv::dds_::Trigger_Request_", "trigger_res": "std_srvs::srv::dds_::Trigger_Response_",
 }
-
-
-def wait_for(what, condition):
-    end = time.monotonic() + HANG
-    while time.monotonic() < end:
-        got = condition()
-        if got:
-            return got
-        time.sleep(0.05)
-    pytest.fail("gave up waiting for " + what)
 
 
 class Cdr:
@@ -322,16 +310,10 @@ def test_the_cloud_agrees_with_mobmap_build(dds):
     c = final_sample(dds, "cloud", parse_cloud)
     assert c["fields"] == ["x", "y", "z", "mobility", "variance"] and c["rest"] == 0
     assert c["header"]["frame_id"] == "map"
-    scored = np.isfinite(c["mobility"])
-    assert scored.sum() > 5000
-    pts = np.column_stack([c["x"], c["y"], c["z"]])[scored].astype(np.float64)
-    rng = np.random.default_rng(68)
-    probe = rng.choice(len(pts), size=min(4000, len(pts)), replace=False)
-    q = mobmap.open_map(str(dds["built"])).query(pts[probe], frame="world")
-    both = np.isfinite(q["mobility"])
-    assert both.mean() > 0.8, "the node's surface voxels lie where build's are"
-    agree = np.mean((c["mobility"][scored][probe][both] >= 0.5) == (q["mobility"][both] >= 0.5))
-    print(f"cloud: {len(pts)} scored voxels; {both.sum()} probes scored in both; walkable agrees at {agree:.3f}")
+    n, probes, scored_in_both, agree = cloud_agreement(c, mobmap.open_map(str(dds["built"])), seed=68)
+    assert n > 5000
+    assert scored_in_both > 0.8, "the node's surface voxels lie where build's are"
+    print(f"cloud: {n} scored voxels; {probes} probes scored in both; walkable agrees at {agree:.3f}")
     assert agree >= 0.95
 
 
@@ -339,20 +321,7 @@ def test_the_occupancy_grid_has_the_floor_free_and_the_45_degree_ramp_occupied(d
     g = final_sample(dds, "occ", parse_occupancy)
     assert g["header"]["frame_id"] == "map" and g["rest"] == 0
     (ox, oy, _), _ = g["origin"]
-    xs = ox + (np.arange(g["width"]) + 0.5) * g["resolution"]
-    ys = oy + (np.arange(g["height"]) + 0.5) * g["resolution"]
-    floor, ramp = [], []
-    for r, y in enumerate(ys):
-        for c, x in enumerate(xs):
-            v = g["data"][r, c]
-            if v < 0:
-                continue
-            if 6.4 < x < 6.8 and -1.2 < y < -0.6:
-                ramp.append(v)
-            elif all(corridor_height(x + dx, y + dy) == 0.0 for dx, dy in ((0, 0), (-.3, 0), (.3, 0), (0, -.3), (0, .3))) \
-                    and abs(y) < 1.2 and not in_shadow(x, y):
-                floor.append(v)
-    floor, ramp = np.array(floor), np.array(ramp)
+    floor, ramp = judge_occupancy(g["data"], ox, oy, g["resolution"])
     print(f"occupancy: {len(floor)} floor cells {np.mean(floor == 0):.3f} free; {len(ramp)} ramp cells {np.mean(ramp == 100):.3f} occupied")
     assert len(floor) > 500 and np.mean(floor == 0) >= 0.9
     assert len(ramp) > 20 and np.mean(ramp == 100) >= 0.9
@@ -369,18 +338,7 @@ def test_the_elevation_map_is_grid_maps_layout_and_matches_the_corridor(dds):
     assert [d[0] for d in dims] == ["column_index", "row_index"] and elevation.size == n * n
     cx, cy = g["position"][0], g["position"][1]
     res = g["resolution"]
-    judged = within = 0
-    for j in range(n):
-        for i in range(n):
-            e = elevation[j * n + i]
-            if not np.isfinite(e):
-                continue
-            x, y = cx + (n / 2 - i - 0.5) * res, cy + (n / 2 - j - 0.5) * res
-            truths = [corridor_height(x + dx, y + dy) for dx in (-res / 2, 0, res / 2) for dy in (-res / 2, 0, res / 2)]
-            if any(t is None for t in truths) or in_shadow(x, y):
-                continue
-            judged += 1
-            within += -VOXEL - 1e-4 <= e - max(truths) <= 2 * VOXEL + 1e-4
+    judged, within = judge_elevation(elevation, n, cx, cy, res)
     print(f"elevation map at ({cx:.2f}, {cy:.2f}): {judged} cells judged, {within / max(judged, 1):.3f} within a voxel")
     assert judged > 1000 and within / judged >= 0.95
 
