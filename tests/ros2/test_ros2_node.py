@@ -523,3 +523,105 @@ def test_a_renamed_node_maps_compressed_depth(dds):
         os.killpg(node.pid, signal.SIGINT)
         node.wait(HANG)
         log.close()
+
+
+class CdrWriter:
+    """Little-endian plain CDR, aligned from the end of the 4-byte header."""
+
+    def __init__(self):
+        self.b = bytearray([0, 1, 0, 0])
+
+    def put(self, fmt, *v):
+        size = struct.calcsize(fmt[0])
+        self.b.extend(b"\0" * ((-(len(self.b) - 4)) % size))
+        self.b.extend(struct.pack("<" + fmt, *v))
+
+    def string(self, s):
+        e = s.encode() + b"\0"
+        self.put("I", len(e))
+        self.b.extend(e)
+
+
+def cloud_from_image(image, k):
+    """The depth image (16UC1, mm) as an organized PointCloud2 (float32 x, y, z in the
+    image's frame, NaN where there is no depth)."""
+    r = Cdr(image)
+    header = r.header()
+    height, width = r.take("II")
+    assert r.string() == "16UC1"
+    r.take("B")
+    r.take("II")  # step, the data's length
+    depth = np.frombuffer(image, dtype="<u2", count=height * width, offset=r.at).reshape(height, width) / 1000.0
+    u, v = np.meshgrid(np.arange(width), np.arange(height))
+    z = np.where(depth > 0, depth, np.nan)
+    xyz = np.stack([(u - k[2]) / k[0] * z, (v - k[5]) / k[4] * z, z], axis=-1).astype("<f4")
+    w = CdrWriter()
+    w.put("iI", header["stamp_ns"] // 1_000_000_000, header["stamp_ns"] % 1_000_000_000)
+    w.string(header["frame_id"])
+    w.put("II", height, width)
+    w.put("I", 3)
+    for i, name in enumerate("xyz"):
+        w.string(name)
+        w.put("I", 4 * i)
+        w.put("B", 7)
+        w.put("I", 1)
+    w.put("B", 0)
+    w.put("II", 12, 12 * width)
+    data = xyz.tobytes()
+    w.put("I", len(data))
+    w.b.extend(data)
+    w.put("B", 0)
+    return bytes(w.b)
+
+
+def test_a_node_maps_organized_point_clouds(dds):
+    """use_points: the corridor's depth images sent as organized PointCloud2 (after the
+    first node has stopped)."""
+    assert dds["node"].poll() is not None, "runs after the first node stopped"
+    tmp, frames = dds["tmp"], 40
+    lines, out, seen = dds["feed"].read_text().splitlines(), [], 0
+    k = None
+    for line in lines:
+        m = json.loads(line)
+        data = base64.b64decode(m["data"])
+        if m["topic"] == "/camera/depth/camera_info":
+            r = Cdr(data)
+            r.header()
+            r.take("II")
+            r.string()
+            for _ in range(r.take("I")):
+                r.take("d")  # distortion
+            k = r.take("d" * 9)
+        elif m["topic"] == "/camera/depth/image_raw":
+            seen += 1
+            if seen > frames:
+                break
+            m = {"topic": "/points", "type": "sensor_msgs/msg/PointCloud2", "t": m["t"],
+                 "data": base64.b64encode(cloud_from_image(data, k)).decode()}
+        out.append(json.dumps(m))
+    feed = tmp / "points.jsonl"
+    feed.write_text("\n".join(out) + "\n")
+    log = open(tmp / "points.log", "w")
+    node = subprocess.Popen([NODE, "--ros-args", "-r", "points:=/points", "-p", "use_points:=true", "-p", "use_sim_time:=true",
+                             "-p", "status_rate:=5"], env=dds["env"], stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    peer = Peer(tmp, "points", dds["domain"], dds["env"])
+    try:
+        peer(f"sub status rt/mobmap/status {T['string']} latched")
+        pubs = [("/points", "rt/points", T["cloud"], "reliable")] + PUBS[1:]
+        for name, topic, kind, qos in pubs:
+            peer(f"pub {name} {topic} {kind} {qos}")
+        wait_for("the points node to match", lambda: all(peer.matched(p[0]) for p in pubs + [("status",)]))
+        peer(f"play {feed} 0.25 clock")
+        wait_for("the clouds to be played", lambda: peer.seen(event="played"))
+
+        def done():
+            s = status_of(peer)
+            return s and s["received"] > 0 and s["fused"] + s["dropped"] + s["late"] + s["unreadable"] >= s["received"] and s
+        s = wait_for("every cloud to be accounted for", done)
+        print("points node:", s)
+        assert s["world_frame"] == "map" and s["unreadable"] == 0 and s["received"] >= frames * 0.9 and s["fused"] >= 5
+    finally:
+        peer.stop()
+        os.killpg(node.pid, signal.SIGINT)
+        node.wait(HANG)
+        log.close()
