@@ -63,7 +63,9 @@ def main():
                            stdout=subprocess.DEVNULL)
             while not status or status[-1]["fused"] + status[-1]["dropped"] + status[-1]["late"] + status[-1]["unreadable"] < status[-1]["received"]:
                 time.sleep(0.1)
-            time.sleep(1.0)  # a few more GridMaps at the final map
+            n_reports = len(status)
+            while len(status) < n_reports + 4:  # a few more GridMaps at the final map, by the node's reports
+                time.sleep(0.1)
             s = status[-1]
             # Under simulated time played at `rate`, the node's stamp->map latency is in bag
             # time: divided by the rate it is wall time.

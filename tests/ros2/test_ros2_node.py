@@ -488,6 +488,36 @@ def test_the_shipped_parameter_file_is_read(tmp_path):
     assert r.returncode == 2 and "clearance must be" in r.stderr, r.stderr
 
 
+def play_into_another_node(dds, name, node_args, status_topic, source, feed, rate):
+    """mobmap_ros2 started with `node_args` (simulated time), fed by a peer of its own with
+    `source` (name, DDS topic, type; reliable), the corridor's camera_info, TF and clock,
+    playing `feed` at `rate`: the node's status once every sample it received is accounted
+    for. The node is stopped after."""
+    tmp = dds["tmp"]
+    log = open(tmp / (name + ".log"), "w")
+    node = subprocess.Popen([NODE, "--ros-args"] + node_args + ["-p", "use_sim_time:=true", "-p", "status_rate:=5"],
+                            env=dds["env"], stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    peer = Peer(tmp, name, dds["domain"], dds["env"])
+    try:
+        peer(f"sub status {status_topic} {T['string']} latched")
+        pubs = [source + ("reliable",)] + PUBS[1:]
+        for pub_name, topic, kind, qos in pubs:
+            peer(f"pub {pub_name} {topic} {kind} {qos}")
+        wait_for(f"the {name} node to match", lambda: all(peer.matched(p[0]) for p in pubs + [("status",)]))
+        peer(f"play {feed} {rate} clock")
+        wait_for("the recording to be played", lambda: peer.seen(event="played"))
+
+        def done():
+            s = status_of(peer)
+            return s and s["received"] > 0 and s["fused"] + s["dropped"] + s["late"] + s["unreadable"] >= s["received"] and s
+        return wait_for(f"every sample the {name} node received to be accounted for", done)
+    finally:
+        peer.stop()
+        os.killpg(node.pid, signal.SIGINT)
+        node.wait(HANG)
+        log.close()
+
+
 def test_a_renamed_node_maps_compressed_depth(dds):
     """A second node under another name and namespace, reading image_transport's
     compressedDepth, fed by a peer of its own (after the first node has stopped)."""
@@ -497,32 +527,12 @@ def test_a_renamed_node_maps_compressed_depth(dds):
     subprocess.run(["node", os.path.join(RECORDINGS, "write_bag.mjs"), "--seq", str(tmp / "corridor"), "--layout", "base",
                     "--world", "map", "--depth", "compressed16", "--frames", str(frames), "--feed", str(feed)], check=True,
                    stdout=subprocess.DEVNULL)
-    log = open(tmp / "renamed.log", "w")
-    node = subprocess.Popen([NODE, "--ros-args", "-r", "__ns:=/robot1", "-r", "__node:=mapper", "-r", "depth:=/camera/depth/image_raw",
-                             "-p", "compressed:=true", "-p", "use_sim_time:=true", "-p", "status_rate:=5"],
-                            env=dds["env"], stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
-    peer = Peer(tmp, "renamed", dds["domain"], dds["env"])
-    try:
-        peer(f"sub status rt/robot1/mapper/status {T['string']} latched")
-        pubs = [("/camera/depth/image_raw/compressedDepth", "rt/camera/depth/image_raw/compressedDepth",
-                 "sensor_msgs::msg::dds_::CompressedImage_", "reliable")] + PUBS[1:]
-        for name, topic, kind, qos in pubs:
-            peer(f"pub {name} {topic} {kind} {qos}")
-        wait_for("the renamed node to match", lambda: all(peer.matched(p[0]) for p in pubs + [("status",)]))
-        peer(f"play {feed} 0.5 clock")
-        wait_for("the recording to be played", lambda: peer.seen(event="played"))
-
-        def done():
-            s = status_of(peer)
-            return s and s["received"] > 0 and s["fused"] + s["dropped"] + s["late"] + s["unreadable"] >= s["received"] and s
-        s = wait_for("every compressed frame to be accounted for", done)
-        print("renamed node:", s)
-        assert s["world_frame"] == "map" and s["unreadable"] == 0 and s["received"] >= frames * 0.9 and s["fused"] >= 10
-    finally:
-        peer.stop()
-        os.killpg(node.pid, signal.SIGINT)
-        node.wait(HANG)
-        log.close()
+    s = play_into_another_node(dds, "renamed", ["-r", "__ns:=/robot1", "-r", "__node:=mapper", "-r", "depth:=/camera/depth/image_raw",
+                                                "-p", "compressed:=true"], "rt/robot1/mapper/status",
+                               ("/camera/depth/image_raw/compressedDepth", "rt/camera/depth/image_raw/compressedDepth",
+                                "sensor_msgs::msg::dds_::CompressedImage_"), feed, 0.5)
+    print("renamed node:", s)
+    assert s["world_frame"] == "map" and s["unreadable"] == 0 and s["received"] >= frames * 0.9 and s["fused"] >= 10
 
 
 class CdrWriter:
@@ -601,27 +611,7 @@ def test_a_node_maps_organized_point_clouds(dds):
         out.append(json.dumps(m))
     feed = tmp / "points.jsonl"
     feed.write_text("\n".join(out) + "\n")
-    log = open(tmp / "points.log", "w")
-    node = subprocess.Popen([NODE, "--ros-args", "-r", "points:=/points", "-p", "use_points:=true", "-p", "use_sim_time:=true",
-                             "-p", "status_rate:=5"], env=dds["env"], stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
-    peer = Peer(tmp, "points", dds["domain"], dds["env"])
-    try:
-        peer(f"sub status rt/mobmap/status {T['string']} latched")
-        pubs = [("/points", "rt/points", T["cloud"], "reliable")] + PUBS[1:]
-        for name, topic, kind, qos in pubs:
-            peer(f"pub {name} {topic} {kind} {qos}")
-        wait_for("the points node to match", lambda: all(peer.matched(p[0]) for p in pubs + [("status",)]))
-        peer(f"play {feed} 0.25 clock")
-        wait_for("the clouds to be played", lambda: peer.seen(event="played"))
-
-        def done():
-            s = status_of(peer)
-            return s and s["received"] > 0 and s["fused"] + s["dropped"] + s["late"] + s["unreadable"] >= s["received"] and s
-        s = wait_for("every cloud to be accounted for", done)
-        print("points node:", s)
-        assert s["world_frame"] == "map" and s["unreadable"] == 0 and s["received"] >= frames * 0.9 and s["fused"] >= 5
-    finally:
-        peer.stop()
-        os.killpg(node.pid, signal.SIGINT)
-        node.wait(HANG)
-        log.close()
+    s = play_into_another_node(dds, "points", ["-r", "points:=/points", "-p", "use_points:=true"], "rt/mobmap/status",
+                               ("/points", "rt/points", T["cloud"]), feed, 0.25)
+    print("points node:", s)
+    assert s["world_frame"] == "map" and s["unreadable"] == 0 and s["received"] >= frames * 0.9 and s["fused"] >= 5
