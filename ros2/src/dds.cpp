@@ -87,7 +87,7 @@ int RawReader::takeAll() {
       if (size > 0) ddsi_serdata_to_ser(sd, 0, size, buffer_.data());
       ddsi_serdata_unref(sd);
       ++n;
-      handler_(buffer_.data(), buffer_.size());
+      handler_(*this, buffer_.data(), buffer_.size());
       if (buffer_.capacity() > (64u << 20)) std::vector<std::uint8_t>().swap(buffer_);  // a rare huge sample is not kept
     } else {
       ddsi_serdata_unref(sd);

@@ -55,7 +55,7 @@ class Participant {
 /// A reader whose samples arrive as their CDR bytes (the 4-byte encapsulation header first).
 class RawReader {
  public:
-  using Handler = std::function<void(const std::uint8_t* data, std::size_t size)>;
+  using Handler = std::function<void(const RawReader& reader, const std::uint8_t* data, std::size_t size)>;
   RawReader(Participant& p, const dds_topic_descriptor_t* type, const std::string& topic, const Qos& qos, Handler handler);
   ~RawReader();
   RawReader(const RawReader&) = delete;

@@ -192,13 +192,9 @@ Node::Node(const Args& args) : args_(args) {
   using sources::ros::Wire;
   const auto add = [&](const dds_topic_descriptor_t* type, const std::string& ros_topic, const Qos& qos,
                        std::function<void(const std::uint8_t*, std::size_t)> handle) {
-    const std::string dds = ddsTopic(ros_topic);
-    auto holder = std::make_shared<RawReader*>(nullptr);
-    auto reader = std::make_unique<RawReader>(*participant_, type, dds, qos,
-                                              [this, holder, handle](const std::uint8_t* d, std::size_t n) {
-                                                receive(**holder, d, n, handle);
-                                              });
-    *holder = reader.get();
+    auto reader = std::make_unique<RawReader>(
+        *participant_, type, ddsTopic(ros_topic), qos,
+        [this, handle](const RawReader& r, const std::uint8_t* d, std::size_t n) { receive(r, d, n, handle); });
     waitset_->attach(reader->condition());
     readers_.push_back(std::move(reader));
   };
@@ -301,7 +297,7 @@ std::int64_t Node::now() const {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
-void Node::receive(RawReader& reader, const std::uint8_t* data, std::size_t size,
+void Node::receive(const RawReader& reader, const std::uint8_t* data, std::size_t size,
                    const std::function<void(const std::uint8_t*, std::size_t)>& handle) {
   const std::string topic = reader.topic().substr(2);
   if (static_cast<double>(size) > dp_.max_sample_mb * 1048576.0) {

@@ -60,7 +60,7 @@ class Node {
   bool run(const std::atomic<bool>& stop);
 
  private:
-  void receive(RawReader& reader, const std::uint8_t* data, std::size_t size,
+  void receive(const RawReader& reader, const std::uint8_t* data, std::size_t size,
                const std::function<void(const std::uint8_t*, std::size_t)>& handle);
   void onPublication(const Publication& p);
   void serve();

@@ -220,6 +220,24 @@ def status_of(peer):
     return parse_status(data) if data else None
 
 
+def until_reported(peer, what, send, condition):
+    """Calls `send` until the node's status satisfies `condition`: its image reader is best
+    effort, so a sample may be lost on the way; one the node has not reported within ten
+    of its reports (two seconds at status_rate 5) is sent again. Returns that status."""
+    def attempt():
+        send()
+        seen, end = len(peer.samples("status")), time.monotonic() + HANG
+        while len(peer.samples("status")) < seen + 10 and time.monotonic() < end:
+            s = status_of(peer)
+            if s and condition(s):
+                return s
+            time.sleep(0.05)
+        s = status_of(peer)
+        return s if s and condition(s) else None
+
+    return wait_for(what, attempt)
+
+
 @pytest.fixture(scope="module")
 def dds(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("ros2")
@@ -259,14 +277,12 @@ def dds(tmp_path_factory):
         wait_for("the node to match every topic", lambda: all(peer.matched(p[0]) for p in PUBS + [(s[0],) for s in SUBS]))
         peer(f"play {feed} 0.25 clock")
         wait_for("the recording to be played", lambda: peer.seen(event="played"))
-        while (status_of(peer) or {}).get("map_stamp_ns") != last_stamp:
+        def tail():
             n = len(peer.seen(event="played"))
             peer(f"play {tmp / 'tail.jsonl'} 1 clock")
             wait_for("the last frame again", lambda: len(peer.seen(event="played")) > n)
-            end = time.monotonic() + HANG
-            # The node reports every 0.2 s: a few reports later the frame is fused or lost.
-            seen = len(peer.samples("status"))
-            wait_for("the node's next reports", lambda: len(peer.samples("status")) >= seen + 10 or time.monotonic() > end)
+
+        until_reported(peer, "the last frame to be fused", tail, lambda s: s["map_stamp_ns"] == last_stamp)
         final = status_of(peer)
         yield {"tmp": tmp, "env": env, "peer": peer, "node": node, "final": final, "domain": domain,
                "built": tmp / "built" / "corridor.ot", "log": tmp / "node.log", "feed": feed}
@@ -422,12 +438,12 @@ def test_malformed_oversized_and_wrongly_typed_samples_leave_the_node_running(dd
     peer(f"send /camera/depth/image_raw {tmp / 'malformed_cdr.cdr'}")
     # Malformed for the node: well-formed CDR whose rows need more pixels than it holds.
     (tmp / "malformed.cdr").write_bytes(cdr_image(4, 4, stamp, data_size=8)[:-24])
-    peer(f"send /camera/depth/image_raw {tmp / 'malformed.cdr'}")
-    wait_for("the malformed sample to be counted", lambda: status_of(peer)["unreadable"] == before["unreadable"] + 1)
+    until_reported(peer, "the malformed sample to be counted", lambda: peer(f"send /camera/depth/image_raw {tmp / 'malformed.cdr'}"),
+                   lambda s: s["unreadable"] == before["unreadable"] + 1)
     # Oversized: 3 MB, over the node's max_sample_mb of 2 (and under DDS's limit of twice that).
     (tmp / "big.cdr").write_bytes(cdr_image(1500, 1000, stamp))
-    peer(f"send /camera/depth/image_raw {tmp / 'big.cdr'}")
-    wait_for("the oversized sample to be counted", lambda: status_of(peer)["unreadable"] == before["unreadable"] + 2)
+    until_reported(peer, "the oversized sample to be counted", lambda: peer(f"send /camera/depth/image_raw {tmp / 'big.cdr'}"),
+                   lambda s: s["unreadable"] == before["unreadable"] + 2)
     # A publisher on the depth topic with another type (a participant of its own, as a
     # topic has one type in a participant): DDS never matches it; the node says so.
     wrong = Peer(tmp, "wrong", dds["domain"], dds["env"])
