@@ -54,7 +54,7 @@ def main():
         node = subprocess.Popen([t.NODE, "--ros-args", "-r", "depth:=/camera/depth/image_raw", "-p", "use_sim_time:=true",
                                  "-p", "status_rate:=4", "-p", f"receive_buffer_mb:={buffer_mb}"],
                                 env=env, stdout=log, stderr=subprocess.STDOUT)
-        peer = t.Peer(tmp, f"peer{run}", domain, env)
+        peer = t.Peer(tmp, f"peer{run}", domain, env, pace=0)  # as a camera driver sends
         for name, topic, kind in t.SUBS:
             peer(f"sub {name} {topic} {kind} latched")
         for name, topic, kind, qos in t.PUBS:

@@ -3,7 +3,7 @@
 // bytes under ROS 2's topic and type names and QoS, confined to the loopback interface
 // (UDP on 127.0.0.1, no multicast, unicast peers on 127.0.0.1 only).
 //
-//   dds_peer --domain N --out DIR       then commands on stdin, one per line:
+//   dds_peer --domain N --out DIR [--pace BYTES_PER_MS]   then commands on stdin, one per line:
 //   pub NAME DDS_TOPIC TYPE QOS          a writer (QOS: sensor | reliable | latched | tf | tf_static | service)
 //   sub NAME DDS_TOPIC TYPE QOS          a reader; each sample goes to DIR/NAME-<n>.cdr
 //   send NAME FILE                       one sample, the file's bytes
@@ -21,6 +21,7 @@
 #include <fastdds/dds/subscriber/SampleInfo.hpp>
 #include <fastdds/dds/subscriber/Subscriber.hpp>
 #include <fastdds/dds/topic/TopicDataType.hpp>
+#include <fastdds/rtps/flowcontrol/FlowControllerDescriptor.hpp>
 #include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
 #include <fastrtps/utils/IPLocator.h>
 
@@ -113,9 +114,20 @@ void apply(EndpointQos& e, const Qos& q) {
 
 class Peer : public DataWriterListener {
  public:
-  Peer(int domain, std::string out) : out_(std::move(out)) {
+  /// `pace`: at most this many bytes a millisecond leave each writer (0: as fast as they
+  /// come). A receiver whose socket buffer the host caps (net.core.rmem_max) loses most
+  /// fragments of a burst; a paced peer lets the tests judge mapping, not the host.
+  Peer(int domain, std::string out, int pace) : out_(std::move(out)) {
     DomainParticipantQos pq;
     pq.name("mobmap_test_peer");
+    if (pace > 0) {
+      auto paced = std::make_shared<eprosima::fastdds::rtps::FlowControllerDescriptor>();
+      paced->name = kPaced;
+      paced->max_bytes_per_period = pace;
+      paced->period_ms = 1;
+      pq.flow_controllers().push_back(paced);
+      paced_ = true;
+    }
     // Loopback only: one UDP transport on 127.0.0.1, discovery by unicast to 127.0.0.1.
     pq.transport().use_builtin_transports = false;
     auto udp = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();
@@ -152,6 +164,7 @@ class Peer : public DataWriterListener {
     DataWriterQos wq = DATAWRITER_QOS_DEFAULT;
     apply(wq, qosNamed(qos));
     wq.publish_mode().kind = ASYNCHRONOUS_PUBLISH_MODE;  // large samples go out in fragments
+    if (paced_) wq.publish_mode().flow_controller_name = kPaced;
     DataWriter* w = publisher_->create_datawriter(topic(dds_topic, type), wq, this);
     if (!w) throw std::runtime_error("cannot write " + dds_topic);
     std::lock_guard<std::mutex> lock(mutex_);
@@ -229,6 +242,8 @@ class Peer : public DataWriterListener {
   };
 
   std::string out_;
+  static constexpr const char* kPaced = "mobmap_test_paced";
+  bool paced_ = false;
   DomainParticipant* participant_ = nullptr;
   Publisher* publisher_ = nullptr;
   Subscriber* subscriber_ = nullptr;
@@ -298,12 +313,14 @@ int play(Peer& peer, const std::string& feed, double rate, bool clock) {
 int main(int argc, char** argv) {
   int domain = 0;
   std::string out = ".";
+  int pace = 0;
   for (int i = 1; i + 1 < argc; i += 2) {
     if (std::strcmp(argv[i], "--domain") == 0) domain = std::atoi(argv[i + 1]);
     if (std::strcmp(argv[i], "--out") == 0) out = argv[i + 1];
+    if (std::strcmp(argv[i], "--pace") == 0) pace = std::atoi(argv[i + 1]);
   }
   try {
-    Peer peer(domain, out);
+    Peer peer(domain, out, pace);
     std::string line;
     while (std::getline(std::cin, line)) {
       std::istringstream in(line);

