@@ -6,6 +6,7 @@
 
 
 #include <algorithm>
+#include <iterator>
 #include <cmath>
 #include <cstdlib>
 #include <cstdio>
@@ -63,7 +64,15 @@ constexpr RobotField kRobotFields[] = {
     {"stance_width_m", &RobotParams::stance_width_m},
     {"lattice_m", &RobotParams::lattice_m},
 };
+static_assert(sizeof(RobotParams) == std::size(kRobotFields) * sizeof(double), "every field of RobotParams is in kRobotFields");
 }  // namespace
+
+bool operator==(const RobotParams& a, const RobotParams& b) {
+  for (const RobotField& f : kRobotFields) {
+    if (!(a.*f.field == b.*f.field)) return false;
+  }
+  return true;
+}
 
 bool setRobotParameter(RobotParams& params, const std::string& name, double value) {
   for (const RobotField& f : kRobotFields) {

@@ -1,20 +1,18 @@
 #include "mobmap/mapping/reachability.hpp"
 
 #include "param_error.hpp"
+#include "reach_detail.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <deque>
 #include <limits>
+#include <mutex>
 #include <sstream>
 #include <stdexcept>
 
 namespace mobmap::mapping {
 namespace {
-
-/// A start sole's support may lie this far above the start point (a point given on the
-/// floor may be a voxel low).
-constexpr double kStartSlack = 0.1;
 
 long floorDiv(long a, long b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
 
@@ -26,24 +24,26 @@ void validate(const ReachParams& p) {
 }
 
 const Place* Reachability::placeBelow(const Eigen::Vector3d& p, double max_drop_m) const {
-  if (!columns_ || !p.allFinite() || !(max_drop_m >= 0) || !std::isfinite(max_drop_m)) return nullptr;
-  const double res = columns_->resolution();
+  if (!standing_ || !p.allFinite() || !(max_drop_m >= 0) || !std::isfinite(max_drop_m)) return nullptr;
+  const SurfaceColumns& cols = columns();
+  const double res = cols.resolution();
   // At or below the voxel holding p: its top face may be up to a voxel above p.z.
-  const double voxel_top = columns_->centreOf(columns_->keyOf(p.z())) + res / 2;
-  const long r = columns_->runBelow(p.x(), p.y(), voxel_top, p.z() - max_drop_m);
+  const double voxel_top = cols.centreOf(cols.keyOf(p.z())) + res / 2;
+  const long r = cols.runBelow(p.x(), p.y(), voxel_top, p.z() - max_drop_m);
   return r < 0 ? nullptr : &places_[static_cast<std::size_t>(r)];
 }
 
 const Place* Reachability::placeAt(const octomap::OcTreeKey& key) const {
-  if (!columns_) return nullptr;
-  const long col = columns_->columnIndex(key[0], key[1]);
-  for (std::size_t r = columns_->runBegin(col); r < columns_->runEnd(col); ++r) {
-    if (columns_->runs()[r].top == key[2]) return &places_[r];
+  if (!standing_) return nullptr;
+  const SurfaceColumns& cols = columns();
+  const long col = cols.columnIndex(key[0], key[1]);
+  for (std::size_t r = cols.runBegin(col); r < cols.runEnd(col); ++r) {
+    if (cols.runs()[r].top == key[2]) return &places_[r];
   }
   return nullptr;
 }
 
-std::vector<std::size_t> Reachability::footPlacesNear(double x, double y, double radius_m) const {
+std::vector<std::size_t> Standability::footPlacesNear(double x, double y, double radius_m) const {
   std::vector<std::size_t> out;
   if (!columns_ || lnx_ == 0 || !std::isfinite(x) || !std::isfinite(y) || !(radius_m >= 0)) return out;
   const double cell = lattice_ * columns_->resolution();
@@ -60,20 +60,25 @@ std::vector<std::size_t> Reachability::footPlacesNear(double x, double y, double
   return out;
 }
 
+std::vector<std::size_t> Reachability::footPlacesNear(double x, double y, double radius_m) const {
+  return standing_ ? standing_->footPlacesNear(x, y, radius_m) : std::vector<std::size_t>{};
+}
+
 SoleReach Reachability::sole(const Foot& foot, double search_up_m, double search_down_m) const {
   SoleReach out;
-  if (!columns_ || !std::isfinite(foot.z) || !(search_up_m >= 0) || !(search_down_m >= 0)) return out;
+  if (!standing_ || !std::isfinite(foot.z) || !(search_up_m >= 0) || !(search_down_m >= 0)) return out;
+  const SurfaceColumns& cols = columns();
   // The surface under the sole's centre in the band searched, else the sole's own height.
-  const long r = columns_->runBelow(foot.x, foot.y, foot.z + search_up_m, foot.z - search_down_m);
-  const double z_ref = r >= 0 ? columns_->topFace(columns_->runs()[static_cast<std::size_t>(r)]) : foot.z;
+  const long r = cols.runBelow(foot.x, foot.y, foot.z + search_up_m, foot.z - search_down_m);
+  const double z_ref = r >= 0 ? cols.topFace(cols.runs()[static_cast<std::size_t>(r)]) : foot.z;
   RobotParams robot = params_.robot;
   robot.sole_length_m = foot.length, robot.sole_width_m = foot.width;
-  out.foothold = evaluateFoothold(*columns_, foot.x, foot.y, foot.yaw, z_ref, robot);
+  out.foothold = evaluateFoothold(cols, foot.x, foot.y, foot.yaw, z_ref, robot);
   out.standable = out.foothold.standable();
   if (!out.standable) return out;
   for (const std::size_t f : footPlacesNear(foot.x, foot.y, robot.max_stride_m)) {
     const FootPlace& from = feet_[f];
-    if (from.reachable && canStep(*columns_, from.x, from.y, from.z, foot.x, foot.y, out.foothold.z, robot)) {
+    if (from.reachable && canStep(cols, from.x, from.y, from.z, foot.x, foot.y, out.foothold.z, robot)) {
       out.reachable = true;
       break;
     }
@@ -81,10 +86,15 @@ SoleReach Reachability::sole(const Foot& foot, double search_up_m, double search
   return out;
 }
 
+std::size_t Standability::memoryBytes() const {
+  return sizeof(*this) + places_.capacity() * sizeof(Place) + feet_.capacity() * sizeof(FootPlace) +
+         feet_offsets_.capacity() * sizeof(std::uint32_t) + support_masks_.capacity() * sizeof(std::uint64_t);
+}
+
 std::size_t Reachability::memoryBytes() const {
   return sizeof(*this) + places_.capacity() * sizeof(Place) + feet_.capacity() * sizeof(FootPlace) +
-         feet_offsets_.capacity() * sizeof(std::uint32_t) + start_feet_.capacity() * sizeof(std::size_t) +
-         (columns_ ? columns_->memoryBytes() : 0);
+         start_feet_.capacity() * sizeof(std::size_t) +
+         (standing_ ? standing_->memoryBytes() + standing_->columns().memoryBytes() : 0);
 }
 
 Reachability computeReachability(const MobilityOcTree& tree, const Eigen::Vector3d& start, const ReachParams& params,
@@ -93,23 +103,72 @@ Reachability computeReachability(const MobilityOcTree& tree, const Eigen::Vector
   return computeReachability(std::make_shared<const SurfaceColumns>(tree), start, params, budget);
 }
 
-Reachability computeReachability(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start,
-                                 const ReachParams& params, const Budget& budget) {
-  constexpr const char* kWhat = "computeReachability";
-  validate(params);
-  if (!start.allFinite()) throw std::invalid_argument("computeReachability: the start point is not finite");
-  if (!columns) throw std::invalid_argument("computeReachability: no columns");
-  const SurfaceColumns& cols = *columns;
+namespace {
+
+constexpr const char* kWhat = "computeReachability";
+
+/// max_step_m of at least two voxels of `cols` (support heights are known to a voxel).
+void checkStepAgainstVoxels(const SurfaceColumns& cols, const RobotParams& robot, const char* context) {
   const double res = cols.resolution();
-  const RobotParams& robot = params.robot;
   if (robot.max_step_m < 2 * res - 1e-9) {
     std::ostringstream msg;
     msg << "is " << robot.max_step_m << " (must be at least two voxels, " << 2 * res
         << " m in this map: support heights are known to a voxel)";
-    throw util::FieldError("max_step_m", msg.str(), "ReachParams");
+    throw util::FieldError("max_step_m", msg.str(), context);
   }
-  Reachability r;
-  r.params_ = params;
+}
+
+/// How far (in height) from its reference the surface under a sole's sample may lie to
+/// carry it: evaluateFoothold()'s band.
+double supportBand(const RobotParams& robot, double res) {
+  constexpr double kPi = 3.14159265358979323846;
+  return 0.5 * std::hypot(robot.sole_length_m, robot.sole_width_m) * std::tan(robot.max_tilt_deg * kPi / 180) +
+         robot.max_unevenness_m + res;
+}
+
+}  // namespace
+
+Reachability computeReachability(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start,
+                                 const ReachParams& params, const Budget& budget) {
+  validate(params);
+  if (!start.allFinite()) throw std::invalid_argument("computeReachability: the start point is not finite");
+  if (!columns) throw std::invalid_argument("computeReachability: no columns");
+  checkStepAgainstVoxels(*columns, params.robot, "ReachParams");
+  return computeReachability(computeStandability(std::move(columns), params.robot, budget), start, params, budget);
+}
+
+FootPlace detail::judgeFootPlace(const SurfaceColumns& cols, long kx, long ky, std::size_t run, const RobotParams& robot,
+                                 std::vector<std::size_t>* standable_supports) {
+  thread_local std::vector<std::size_t> supports;
+  FootPlace fp;
+  fp.x = cols.centreOf(kx), fp.y = cols.centreOf(ky), fp.place = run;
+  double z_sum = 0;
+  int z_n = 0;
+  const double top = cols.topFace(cols.runs()[run]);
+  for (int h = 0; h < kHeadings / 2; ++h) {
+    const Foothold f = evaluateFoothold(cols, fp.x, fp.y, headingYaw(h), top, robot, standable_supports ? &supports : nullptr);
+    if (!f.geometryOk()) continue;
+    fp.geometry_ok |= static_cast<std::uint8_t>(1u << h);
+    z_sum += f.z, ++z_n;
+    if (!f.standable()) continue;
+    fp.standable |= static_cast<std::uint8_t>(1u << h);
+    fp.min_mobility = std::max(fp.min_mobility, static_cast<float>(f.min_mobility));
+    if (standable_supports) standable_supports->insert(standable_supports->end(), supports.begin(), supports.end());
+  }
+  if (z_n) fp.z = z_sum / z_n;
+  return fp;
+}
+
+std::shared_ptr<const Standability> computeStandability(std::shared_ptr<const SurfaceColumns> columns, const RobotParams& robot,
+                                                        const Budget& budget) {
+  validate(robot);
+  if (!columns) throw std::invalid_argument("computeStandability: no columns");
+  const SurfaceColumns& cols = *columns;
+  checkStepAgainstVoxels(cols, robot, "RobotParams");
+  const double res = cols.resolution();
+  auto out = std::make_shared<Standability>();
+  Standability& r = *out;
+  r.robot_ = robot;
   r.columns_ = columns;
   const auto& runs = cols.runs();
 
@@ -138,15 +197,14 @@ Reachability computeReachability(std::shared_ptr<const SurfaceColumns> columns, 
     r.lny_ = std::max(0L, floorDiv(cols.keyY0() + cols.columnsY() - 1, s) - r.ly0_ + 1);
   }
   r.feet_offsets_.assign(static_cast<std::size_t>(r.lnx_ * r.lny_) + 1, 0);
-  // The surfaces a standable (or reachable) sole rests on.
+  // A sole's samples lie within half its diagonal of its centre: their columns within
+  // this many of the centre's.
+  r.mask_reach_ = static_cast<long>(std::ceil(0.5 * std::hypot(robot.sole_length_m, robot.sole_width_m) / res)) + 1;
+  const long side = 2 * r.mask_reach_ + 1;
+  r.mask_words_ = static_cast<std::size_t>((side * side + 63) / 64);
+  std::vector<std::uint64_t> mask(r.mask_words_);
+  // The surfaces a standable sole rests on.
   std::vector<std::size_t> supports;
-  const auto markUnder = [&r](const std::vector<std::size_t>& under, bool reachable) {
-    for (const std::size_t run : under) {
-      Place& p = r.places_[run];
-      if (!p.standable) ++r.standable_, p.standable = true;
-      if (reachable && !p.reachable) ++r.reachable_, p.reachable = true;
-    }
-  };
   for (long i = 0; i < r.lnx_; ++i) {
     budget.check(kWhat);  // a row of lattice columns: at most milliseconds
     for (long j = 0; j < r.lny_; ++j) {
@@ -154,28 +212,48 @@ Reachability computeReachability(std::shared_ptr<const SurfaceColumns> columns, 
       const long kx = (r.lx0_ + i) * s, ky = (r.ly0_ + j) * s;
       const long col = cols.columnIndex(kx, ky);
       for (std::size_t run = cols.runBegin(col); run < cols.runEnd(col); ++run) {
-        FootPlace fp;
-        fp.x = cols.centreOf(kx), fp.y = cols.centreOf(ky), fp.place = run;
-        double z_sum = 0;
-        int z_n = 0;
-        for (int h = 0; h < kHeadings / 2; ++h) {
-          const Foothold f = evaluateFoothold(cols, fp.x, fp.y, headingYaw(h), cols.topFace(runs[run]), robot, &supports);
-          if (!f.geometryOk()) continue;
-          fp.geometry_ok |= static_cast<std::uint8_t>(1u << h);
-          z_sum += f.z, ++z_n;
-          if (f.standable()) {
-            fp.standable |= static_cast<std::uint8_t>(1u << h);
-            fp.min_mobility = std::max(fp.min_mobility, static_cast<float>(f.min_mobility));
-            markUnder(supports, false);
-          }
-        }
+        supports.clear();
+        const FootPlace fp = detail::judgeFootPlace(cols, kx, ky, run, robot, &supports);
         if (!fp.geometry_ok) continue;
-        fp.z = z_sum / z_n;
+        std::fill(mask.begin(), mask.end(), 0);
+        for (const std::size_t under : supports) {
+          Place& p = r.places_[under];
+          if (!p.standable) ++r.standable_, p.standable = true;
+          const long c = cols.runColumn(under);
+          const long dx = cols.keyX0() + c / cols.columnsY() - kx + r.mask_reach_;
+          const long dy = cols.keyY0() + c % cols.columnsY() - ky + r.mask_reach_;
+          if (dx < 0 || dy < 0 || dx >= side || dy >= side) throw std::logic_error("computeStandability: a support outside the sole's reach");
+          const auto bit = static_cast<std::size_t>(dx * side + dy);
+          mask[bit / 64] |= std::uint64_t{1} << (bit % 64);
+        }
         r.feet_.push_back(fp);
+        r.support_masks_.insert(r.support_masks_.end(), mask.begin(), mask.end());
       }
     }
   }
   r.feet_offsets_.back() = static_cast<std::uint32_t>(r.feet_.size());
+  return out;
+}
+
+Reachability computeReachability(std::shared_ptr<const Standability> standing, const Eigen::Vector3d& start,
+                                 const ReachParams& params, const Budget& budget) {
+  validate(params);
+  if (!start.allFinite()) throw std::invalid_argument("computeReachability: the start point is not finite");
+  if (!standing) throw std::invalid_argument("computeReachability: no standability");
+  if (standing->robot() != params.robot) {
+    throw std::invalid_argument("computeReachability: the soles were judged for another robot than `robot`");
+  }
+  const Standability& st = *standing;
+  const SurfaceColumns& cols = st.columns();
+  const double res = cols.resolution();
+  const RobotParams& robot = params.robot;
+  const auto& runs = cols.runs();
+  Reachability r;
+  r.params_ = params;
+  r.standing_ = standing;
+  r.places_ = st.places_;
+  r.feet_ = st.feet_;
+  const long s = st.lattice_;
 
   // The start soles, chosen by geometry alone (see ReachParams::Start).
   const double level_tol = std::max(0.05, 2 * res);
@@ -184,22 +262,10 @@ Reachability computeReachability(std::shared_ptr<const SurfaceColumns> columns, 
     return (f.x - start.x()) * (f.x - start.x()) + (f.y - start.y()) * (f.y - start.y());
   };
   if (params.start_rule == ReachParams::Start::kNearest) {
-    std::optional<std::size_t> ref;
-    for (const std::size_t f : near) {
-      const FootPlace& fp = r.feet_[f];
-      if (fp.z > start.z() + kStartSlack) continue;
-      if (!ref || dist2(fp) < dist2(r.feet_[*ref]) - 1e-12 ||
-          (dist2(fp) <= dist2(r.feet_[*ref]) + 1e-12 && fp.z > r.feet_[*ref].z)) {
-        ref = f;
-      }
-    }
-    if (ref) {
-      const FootPlace& c = r.feet_[*ref];
-      const double around = std::max(0.5 * robot.sole_length_m, s * res);
-      for (const std::size_t f : r.footPlacesNear(c.x, c.y, around)) {
-        if (r.feet_[f].isStandable() && std::abs(r.feet_[f].z - c.z) <= level_tol) r.start_feet_.push_back(f);
-      }
-    }
+    r.start_feet_ = detail::nearestStartFeet(
+        start, near, std::max(0.5 * robot.sole_length_m, s * res), level_tol,
+        [&](double x, double y, double radius) { return st.footPlacesNear(x, y, radius); },
+        [&](std::size_t f) -> const FootPlace& { return r.feet_[f]; });
   } else {
     // The largest level: the most walkable surface, as `info` measures it.
     const std::vector<Level> levels = gatherLevels(walkableBins(cols), res, 1, 0.0);
@@ -258,12 +324,12 @@ Reachability computeReachability(std::shared_ptr<const SurfaceColumns> columns, 
     const std::size_t a = queue.front();
     queue.pop_front();
     const FootPlace& from = r.feet_[a];
-    const long ci = floorDiv(cols.keyOf(from.x), s) - r.lx0_, cj = floorDiv(cols.keyOf(from.y), s) - r.ly0_;
+    const long ci = floorDiv(cols.keyOf(from.x), s) - st.lx0_, cj = floorDiv(cols.keyOf(from.y), s) - st.ly0_;
     for (const auto& [di, dj] : offsets) {
       const long i = ci + di, j = cj + dj;
-      if (i < 0 || j < 0 || i >= r.lnx_ || j >= r.lny_) continue;
-      const auto c = static_cast<std::size_t>(i * r.lny_ + j);
-      for (std::size_t b = r.feet_offsets_[c]; b < r.feet_offsets_[c + 1]; ++b) {
+      if (i < 0 || j < 0 || i >= st.lnx_ || j >= st.lny_) continue;
+      const auto c = static_cast<std::size_t>(i * st.lny_ + j);
+      for (std::size_t b = st.feet_offsets_[c]; b < st.feet_offsets_[c + 1]; ++b) {
         FootPlace& to = r.feet_[b];
         if (to.reachable || !to.isStandable() || !canStep(cols, from.x, from.y, from.z, to.x, to.y, to.z, robot)) continue;
         to.reachable = true;
@@ -272,18 +338,156 @@ Reachability computeReachability(std::shared_ptr<const SurfaceColumns> columns, 
     }
   }
 
-  // The surfaces under reachable soles.
+  // The surfaces under reachable soles: in each column a standable sole of the foot
+  // place rests on, the surface evaluateFoothold() found there.
+  const double band = supportBand(robot, res);
+  const long side = 2 * st.mask_reach_ + 1;
   for (std::size_t k = 0; k < r.feet_.size(); ++k) {
     if ((k & 1023u) == 0) budget.check(kWhat);
     const FootPlace& f = r.feet_[k];
     if (!f.reachable) continue;
-    for (int h = 0; h < kHeadings / 2; ++h) {
-      if (!(f.standable & (1u << h))) continue;
-      (void)evaluateFoothold(cols, f.x, f.y, headingYaw(h), cols.topFace(runs[f.place]), robot, &supports);
-      markUnder(supports, true);
+    const double z_ref = cols.topFace(runs[f.place]);
+    const long kx = cols.keyOf(f.x) - st.mask_reach_, ky = cols.keyOf(f.y) - st.mask_reach_;
+    const std::uint64_t* mask = st.support_masks_.data() + k * st.mask_words_;
+    for (std::size_t w = 0; w < st.mask_words_; ++w) {
+      for (std::uint64_t bits = mask[w]; bits; bits &= bits - 1) {
+        const long bit = static_cast<long>(w * 64) + __builtin_ctzll(bits);
+        const long col = cols.columnIndex(kx + bit / side, ky + bit % side);
+        for (std::size_t run = cols.runEnd(col); run > cols.runBegin(col); --run) {
+          const double top = cols.topFace(runs[run - 1]);
+          if (top > z_ref + band) continue;
+          if (top >= z_ref - band) {
+            Place& p = r.places_[run - 1];
+            if (!p.reachable) ++r.reachable_, p.reachable = true;
+          }
+          break;
+        }
+      }
     }
   }
   return r;
+}
+
+// ---- ReachCache ---------------------------------------------------------------------
+
+struct ReachCache::Impl {
+  struct Entry {
+    const SurfaceColumns* columns = nullptr;  ///< the map, by identity (the value keeps it alive)
+    RobotParams robot;
+    /// For a walk: its params and start; for standability none.
+    std::optional<std::pair<ReachParams, Eigen::Vector3d>> walk;
+    std::shared_ptr<const Standability> standing;
+    std::shared_ptr<const Reachability> reach;
+    std::size_t bytes = 0;
+    std::uint64_t used = 0;
+  };
+  std::size_t max_bytes;
+  mutable std::mutex mutex;
+  std::vector<Entry> entries;
+  std::uint64_t clock = 0;
+  Stats stats;
+
+  static bool sameWalk(const std::pair<ReachParams, Eigen::Vector3d>& w, const ReachParams& p, const Eigen::Vector3d& start) {
+    return w.first.robot == p.robot && w.first.start_radius_m == p.start_radius_m && w.first.start_rule == p.start_rule &&
+           w.second == start;
+  }
+
+  Entry* find(const SurfaceColumns* columns, const RobotParams& robot, const ReachParams* walk, const Eigen::Vector3d* start) {
+    for (Entry& e : entries) {
+      if (e.columns != columns || e.robot != robot || e.walk.has_value() != (walk != nullptr)) continue;
+      if (walk && !sameWalk(*e.walk, *walk, *start)) continue;
+      e.used = ++clock;
+      return &e;
+    }
+    return nullptr;
+  }
+
+  // Under the lock: keeps `e` (unless an equal entry came meanwhile), then drops the least
+  // recently used others while the bytes pass the bound.
+  void insert(Entry e) {
+    e.used = ++clock;
+    entries.push_back(std::move(e));
+    std::size_t bytes = 0;
+    for (const Entry& k : entries) bytes += k.bytes;
+    while (bytes > max_bytes && entries.size() > 1) {
+      auto oldest = std::min_element(entries.begin(), entries.end() - 1,
+                                     [](const Entry& a, const Entry& b) { return a.used < b.used; });
+      bytes -= oldest->bytes;
+      entries.erase(oldest);
+      ++stats.evictions;
+    }
+  }
+};
+
+ReachCache::ReachCache(std::size_t max_bytes) : impl_(std::make_unique<Impl>()) { impl_->max_bytes = max_bytes; }
+ReachCache::~ReachCache() = default;
+
+std::shared_ptr<const Standability> ReachCache::standability(const std::shared_ptr<const SurfaceColumns>& columns,
+                                                             const RobotParams& robot, const Budget& budget) {
+  if (!columns) throw std::invalid_argument("ReachCache: no columns");
+  {
+    const std::lock_guard<std::mutex> lock(impl_->mutex);
+    if (Impl::Entry* e = impl_->find(columns.get(), robot, nullptr, nullptr)) {
+      ++impl_->stats.hits;
+      return e->standing;
+    }
+    ++impl_->stats.misses;
+  }
+  auto standing = computeStandability(columns, robot, budget);
+  const std::lock_guard<std::mutex> lock(impl_->mutex);
+  if (Impl::Entry* e = impl_->find(columns.get(), robot, nullptr, nullptr)) return e->standing;
+  Impl::Entry e;
+  e.columns = columns.get(), e.robot = robot, e.standing = standing;
+  e.bytes = standing->memoryBytes() + columns->memoryBytes();
+  impl_->insert(std::move(e));
+  return standing;
+}
+
+std::shared_ptr<const Reachability> ReachCache::findReachability(const std::shared_ptr<const SurfaceColumns>& columns,
+                                                                 const Eigen::Vector3d& start, const ReachParams& params) const {
+  if (!columns) return nullptr;
+  const std::lock_guard<std::mutex> lock(impl_->mutex);
+  const Impl::Entry* e = impl_->find(columns.get(), params.robot, &params, &start);
+  return e ? e->reach : nullptr;
+}
+
+std::shared_ptr<const Reachability> ReachCache::reachability(const std::shared_ptr<const SurfaceColumns>& columns,
+                                                             const Eigen::Vector3d& start, const ReachParams& params,
+                                                             const Budget& budget) {
+  validate(params);
+  if (!columns) throw std::invalid_argument("ReachCache: no columns");
+  if (!start.allFinite()) throw std::invalid_argument("computeReachability: the start point is not finite");
+  checkStepAgainstVoxels(*columns, params.robot, "ReachParams");
+  {
+    const std::lock_guard<std::mutex> lock(impl_->mutex);
+    if (Impl::Entry* e = impl_->find(columns.get(), params.robot, &params, &start)) {
+      ++impl_->stats.hits;
+      return e->reach;
+    }
+  }
+  auto reach = std::make_shared<const Reachability>(computeReachability(standability(columns, params.robot, budget), start, params, budget));
+  const std::lock_guard<std::mutex> lock(impl_->mutex);
+  ++impl_->stats.misses;
+  if (Impl::Entry* e = impl_->find(columns.get(), params.robot, &params, &start)) return e->reach;
+  Impl::Entry e;
+  e.columns = columns.get(), e.robot = params.robot, e.walk = std::make_pair(params, start), e.reach = reach;
+  // Its own copies only: what it shares is counted with its standability.
+  e.bytes = reach->memoryBytes() - reach->standability()->memoryBytes() - columns->memoryBytes();
+  impl_->insert(std::move(e));
+  return reach;
+}
+
+ReachCache::Stats ReachCache::stats() const {
+  const std::lock_guard<std::mutex> lock(impl_->mutex);
+  Stats s = impl_->stats;
+  s.entries = impl_->entries.size();
+  for (const Impl::Entry& e : impl_->entries) s.bytes += e.bytes;
+  return s;
+}
+
+void ReachCache::clear() {
+  const std::lock_guard<std::mutex> lock(impl_->mutex);
+  impl_->entries.clear();
 }
 
 }  // namespace mobmap::mapping

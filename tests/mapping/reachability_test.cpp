@@ -636,5 +636,97 @@ TEST(Reachability, MemoryBytesCountsWhatTheResultHolds) {
             r.places().size() * sizeof(Place) + r.footPlaces().size() * sizeof(FootPlace) + r.columns().memoryBytes());
 }
 
+// The surfaces marked reachable are exactly those under some standable sole of a
+// reachable foot place, judged again here sole by sole; one Standability shared by walks
+// from several starts gives what a whole computation gives from each.
+TEST(Standability, SharedByWalksFromSeveralStartsEqualsWholeComputationsAndTheSolesUnderThem) {
+  std::mt19937 rng(19);
+  for (int m = 0; m < 4; ++m) {
+    const MobilityOcTree t = randomMap(rng);
+    const auto columns = std::make_shared<const SurfaceColumns>(t);
+    ReachParams p;
+    p.robot.max_step_m = 0.1 + 0.03 * m;
+    p.start_radius_m = 0.5;
+    const auto standing = computeStandability(columns, p.robot);
+    std::uniform_real_distribution<double> ux(0.2, 1.7), uy(0.2, 1.3);
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d start(ux(rng), uy(rng), 0.5);
+      const Reachability whole = computeReachability(columns, start, p);
+      const Reachability shared = computeReachability(standing, start, p);
+      ASSERT_EQ(whole.footPlaces().size(), shared.footPlaces().size());
+      ASSERT_EQ(whole.start(), shared.start());
+      for (std::size_t f = 0; f < whole.footPlaces().size(); ++f) {
+        const FootPlace &a = whole.footPlaces()[f], &b = shared.footPlaces()[f];
+        ASSERT_TRUE(a.x == b.x && a.y == b.y && a.z == b.z && a.place == b.place && a.standable == b.standable &&
+                    a.geometry_ok == b.geometry_ok && a.reachable == b.reachable)
+            << "map " << m << " foot " << f;
+      }
+      std::vector<bool> under(whole.places().size(), false);
+      std::vector<std::size_t> supports;
+      for (const FootPlace& f : whole.footPlaces()) {
+        if (!f.reachable) continue;
+        for (int h = 0; h < kHeadings / 2; ++h) {
+          if (!(f.standable & (1u << h))) continue;
+          (void)evaluateFoothold(*columns, f.x, f.y, headingYaw(h), columns->topFace(columns->runs()[f.place]), p.robot, &supports);
+          for (const std::size_t r : supports) under[r] = true;
+        }
+      }
+      std::size_t reachable = 0;
+      for (std::size_t q = 0; q < whole.places().size(); ++q) {
+        ASSERT_EQ(whole.places()[q].reachable, under[q]) << "map " << m << " place " << q;
+        ASSERT_EQ(shared.places()[q].reachable, under[q]) << "map " << m << " place " << q;
+        ASSERT_EQ(shared.places()[q].standable, whole.places()[q].standable);
+        reachable += under[q];
+      }
+      EXPECT_EQ(whole.reachableCount(), reachable);
+      EXPECT_EQ(shared.reachableCount(), reachable);
+    }
+    ReachParams other = p;
+    other.robot.max_step_m += 0.01;
+    EXPECT_THROW((void)computeReachability(standing, {0.9, 0.7, 0.5}, other), std::invalid_argument);
+  }
+}
+
+TEST(ReachCache, KeepsOneResultPerMapRobotAndStartAndHoldsItsBound) {
+  const Scene s;
+  const auto columns = std::make_shared<const SurfaceColumns>(s.tree);
+  ReachCache cache;
+  ReachParams p;
+  const Eigen::Vector3d start(0.7, 0.3, 0.02), elsewhere(2.5, 1.5, 0.02);
+  const auto a = cache.reachability(columns, start, p);
+  EXPECT_EQ(cache.reachability(columns, start, p), a);  // the same object, not worked out again
+  EXPECT_EQ(cache.findReachability(columns, start, p), a);
+  EXPECT_EQ(cache.findReachability(columns, elsewhere, p), nullptr);
+  const auto b = cache.reachability(columns, elsewhere, p);
+  EXPECT_NE(b, a);
+  EXPECT_EQ(b->standability(), a->standability());  // the soles judged once for both
+  ReachParams q = p;
+  q.robot.max_step_m = 0.2;
+  const auto c = cache.reachability(columns, start, q);
+  EXPECT_NE(c->standability(), a->standability());
+  // Each equals a computation of its own.
+  for (const auto& [r, from, params] : {std::make_tuple(a, start, p), std::make_tuple(b, elsewhere, p), std::make_tuple(c, start, q)}) {
+    const Reachability direct = computeReachability(columns, from, params);
+    EXPECT_EQ(direct.reachableCount(), r->reachableCount());
+    EXPECT_EQ(direct.start(), r->start());
+  }
+  const auto another_map = std::make_shared<const SurfaceColumns>(s.tree);  // equal, but another snapshot
+  EXPECT_EQ(cache.findReachability(another_map, start, p), nullptr);
+  ReachCache::Stats st = cache.stats();
+  EXPECT_EQ(st.entries, 5u);  // two standabilities, three walks
+  EXPECT_GE(st.bytes, a->standability()->memoryBytes() + c->standability()->memoryBytes());
+  // A bound under one entry's bytes keeps the newest alone.
+  ReachCache small(1);
+  (void)small.reachability(columns, start, p);
+  (void)small.reachability(columns, elsewhere, p);
+  st = small.stats();
+  EXPECT_EQ(st.entries, 1u);
+  EXPECT_GE(st.evictions, 2u);
+  EXPECT_NE(small.findReachability(columns, elsewhere, p), nullptr);
+  EXPECT_EQ(small.findReachability(columns, start, p), nullptr);
+  cache.clear();
+  EXPECT_EQ(cache.stats().entries, 0u);
+}
+
 }  // namespace
 }  // namespace mobmap::mapping

@@ -54,6 +54,10 @@ struct RobotParams {
 /// std::invalid_argument "RobotParams: <field> is <value> (<rule>)".
 void validate(const RobotParams& params);
 
+/// Every field equal (a cache's key).
+[[nodiscard]] bool operator==(const RobotParams& a, const RobotParams& b);
+[[nodiscard]] inline bool operator!=(const RobotParams& a, const RobotParams& b) { return !(a == b); }
+
 /// RobotParams' fields by name (the names above: sole_length_m ... lattice_m), for callers
 /// that take them as keyword arguments or JSON (Python, `mobmap serve`). False for a name
 /// that is none of them; the value is not checked (validate() does).

@@ -102,13 +102,55 @@ struct StartLevel {
   }
 };
 
+class Reachability;
+
+/// Which lattice soles of a map can be stood on, wherever the robot starts: the part of
+/// computeReachability() that does not depend on the start (most of its time), worked
+/// out once per map and robot and shared by every walk over them (ReachCache).
+/// Immutable; safe to query from several threads.
+class Standability {
+ public:
+  /// Every surface; `standable` set, `reachable` false.
+  [[nodiscard]] const std::vector<Place>& places() const { return places_; }
+  /// Every lattice sole centre whose geometry passes for some heading; `reachable` false.
+  [[nodiscard]] const std::vector<FootPlace>& footPlaces() const { return feet_; }
+  [[nodiscard]] const RobotParams& robot() const { return robot_; }
+  [[nodiscard]] double resolution() const { return columns_->resolution(); }
+  [[nodiscard]] const SurfaceColumns& columns() const { return *columns_; }
+  [[nodiscard]] std::shared_ptr<const SurfaceColumns> sharedColumns() const { return columns_; }
+  /// Foot places whose centres lie within `radius_m` of (x, y), horizontally.
+  [[nodiscard]] std::vector<std::size_t> footPlacesNear(double x, double y, double radius_m) const;
+  /// Surfaces (places) under a standable sole.
+  [[nodiscard]] std::size_t standableCount() const { return standable_; }
+  /// Bytes this holds, the columns not included (they belong to the map).
+  [[nodiscard]] std::size_t memoryBytes() const;
+
+ private:
+  friend std::shared_ptr<const Standability> computeStandability(std::shared_ptr<const SurfaceColumns>, const RobotParams&,
+                                                                const Budget&);
+  friend Reachability computeReachability(std::shared_ptr<const Standability>, const Eigen::Vector3d&, const ReachParams&,
+                                          const Budget&);
+  RobotParams robot_;
+  std::shared_ptr<const SurfaceColumns> columns_;
+  std::vector<Place> places_;  ///< one per run of columns_, same index
+  std::vector<FootPlace> feet_;
+  long lattice_ = 1, lx0_ = 0, ly0_ = 0, lnx_ = 0, lny_ = 0;  ///< lattice step (voxels) and extent (lattice cells)
+  std::vector<std::uint32_t> feet_offsets_;  ///< per lattice cell, into feet_
+  /// Per foot place, the columns around its centre ((2 reach + 1)^2, row by row) that
+  /// carry one of its standable soles: what a reachable foot marks reachable.
+  long mask_reach_ = 0;
+  std::size_t mask_words_ = 0;
+  std::vector<std::uint64_t> support_masks_;
+  std::size_t standable_ = 0;
+};
+
 /// The result of computeReachability(). Immutable; safe to query from several threads.
 class Reachability {
  public:
   [[nodiscard]] const std::vector<Place>& places() const { return places_; }
   [[nodiscard]] const std::vector<FootPlace>& footPlaces() const { return feet_; }
   [[nodiscard]] const ReachParams& params() const { return params_; }
-  [[nodiscard]] double resolution() const { return columns_ ? columns_->resolution() : 0.0; }
+  [[nodiscard]] double resolution() const { return standing_ ? standing_->resolution() : 0.0; }
   /// The foot place the walk is reported to start from (index into footPlaces()): the
   /// nearest of the start soles; nullopt when there was no standable sole to start on
   /// (then nothing is reachable).
@@ -117,7 +159,7 @@ class Reachability {
   /// walkable; nullopt otherwise.
   [[nodiscard]] const std::optional<StartLevel>& startLevel() const { return start_level_; }
   /// Surfaces (places) under a standable / a reachable sole.
-  [[nodiscard]] std::size_t standableCount() const { return standable_; }
+  [[nodiscard]] std::size_t standableCount() const { return standing_ ? standing_->standableCount() : 0; }
   [[nodiscard]] std::size_t reachableCount() const { return reachable_; }
   /// The highest place in the column of `p_map` whose top face is at or below p's height
   /// plus half a voxel and no lower than `max_drop_m` below p.z; nullptr if none.
@@ -129,29 +171,36 @@ class Reachability {
   /// reachable sole gets there.
   [[nodiscard]] SoleReach sole(const Foot& foot, double search_up_m = 0.1, double search_down_m = 0.1) const;
   /// The surface runs the map is made of (shared with the planner).
-  [[nodiscard]] const SurfaceColumns& columns() const { return *columns_; }
-  [[nodiscard]] std::shared_ptr<const SurfaceColumns> sharedColumns() const { return columns_; }
+  [[nodiscard]] const SurfaceColumns& columns() const { return standing_->columns(); }
+  [[nodiscard]] std::shared_ptr<const SurfaceColumns> sharedColumns() const { return standing_->sharedColumns(); }
+  /// What the walk was worked out over (shared with other walks of the same robot).
+  [[nodiscard]] std::shared_ptr<const Standability> standability() const { return standing_; }
   /// Foot places whose centres lie within `radius_m` of (x, y), horizontally.
   [[nodiscard]] std::vector<std::size_t> footPlacesNear(double x, double y, double radius_m) const;
   /// The standable foot places the walk started from (all reachable).
   [[nodiscard]] const std::vector<std::size_t>& startFeet() const { return start_feet_; }
-  /// Bytes this result holds, its columns included (what a cache of results counts).
+  /// Bytes this result holds, what it shares (its Standability and columns) included.
   [[nodiscard]] std::size_t memoryBytes() const;
 
  private:
-  friend Reachability computeReachability(std::shared_ptr<const SurfaceColumns>, const Eigen::Vector3d&, const ReachParams&,
+  friend Reachability computeReachability(std::shared_ptr<const Standability>, const Eigen::Vector3d&, const ReachParams&,
                                           const Budget&);
   ReachParams params_;
-  std::shared_ptr<const SurfaceColumns> columns_;
-  std::vector<Place> places_;  ///< one per run of columns_, same index
+  std::shared_ptr<const Standability> standing_;
+  std::vector<Place> places_;  ///< one per run of the columns, same index
   std::vector<FootPlace> feet_;
-  long lattice_ = 1, lx0_ = 0, ly0_ = 0, lnx_ = 0, lny_ = 0;  ///< lattice step (voxels) and extent (lattice cells)
-  std::vector<std::uint32_t> feet_offsets_;  ///< per lattice cell, into feet_
   std::optional<std::size_t> start_;
   std::vector<std::size_t> start_feet_;
   std::optional<StartLevel> start_level_;
-  std::size_t standable_ = 0, reachable_ = 0;
+  std::size_t reachable_ = 0;
 };
+
+/// Judges every lattice sole of the map as a place to stand for `robot` (the start-free
+/// part of computeReachability). std::invalid_argument for invalid params (a max_step_m
+/// under two voxels too); std::length_error if the map spans more than 2^26 columns;
+/// BudgetExceeded when `budget` runs out first.
+[[nodiscard]] std::shared_ptr<const Standability> computeStandability(std::shared_ptr<const SurfaceColumns> columns,
+                                                                      const RobotParams& robot, const Budget& budget = {});
 
 /// Finds every place of `tree`, every lattice sole that can be stood on, and which of them
 /// the robot can walk to from `start_map` (params.start_rule). Map frame, z up.
@@ -164,5 +213,46 @@ class Reachability {
 [[nodiscard]] Reachability computeReachability(std::shared_ptr<const SurfaceColumns> columns,
                                                const Eigen::Vector3d& start_map, const ReachParams& params = {},
                                                const Budget& budget = {});
+/// The walk alone, over soles already judged for params.robot (std::invalid_argument when
+/// `standing` was judged for another robot).
+[[nodiscard]] Reachability computeReachability(std::shared_ptr<const Standability> standing,
+                                               const Eigen::Vector3d& start_map, const ReachParams& params = {},
+                                               const Budget& budget = {});
+
+/// Standability and reachability kept per map (its SurfaceColumns, by identity) and
+/// robot, and walks per start, so that `reach`, layers, the planner and the server work
+/// each out once per map snapshot and parameter set. Least recently used entries go when
+/// the bytes held pass the bound (the newest entry always stays), and so do entries
+/// whose map no caller holds any more. Safe to use from several threads; a result is
+/// computed outside the lock (two threads asking at once may both compute it).
+class ReachCache {
+ public:
+  explicit ReachCache(std::size_t max_bytes = std::size_t{256} << 20);
+  ReachCache(const ReachCache&) = delete;
+  ReachCache& operator=(const ReachCache&) = delete;
+  ~ReachCache();
+
+  /// computeStandability(columns, robot, budget), or the one kept.
+  [[nodiscard]] std::shared_ptr<const Standability> standability(const std::shared_ptr<const SurfaceColumns>& columns,
+                                                                 const RobotParams& robot, const Budget& budget = {});
+  /// computeReachability(columns, start_map, params, budget), or the one kept for the same
+  /// map, params and start point.
+  [[nodiscard]] std::shared_ptr<const Reachability> reachability(const std::shared_ptr<const SurfaceColumns>& columns,
+                                                                 const Eigen::Vector3d& start_map, const ReachParams& params,
+                                                                 const Budget& budget = {});
+  /// The kept walk for these, if any (never computes).
+  [[nodiscard]] std::shared_ptr<const Reachability> findReachability(const std::shared_ptr<const SurfaceColumns>& columns,
+                                                                     const Eigen::Vector3d& start_map,
+                                                                     const ReachParams& params) const;
+  struct Stats {
+    std::size_t bytes = 0, entries = 0, hits = 0, misses = 0, evictions = 0;
+  };
+  [[nodiscard]] Stats stats() const;
+  void clear();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 }  // namespace mobmap::mapping
