@@ -2,6 +2,7 @@
 
 #include "mobmap/mapping/reachability.hpp"
 #include "param_error.hpp"
+#include "reach_detail.hpp"
 
 #include <algorithm>
 #include <array>
@@ -15,6 +16,8 @@
 #include <optional>
 #include <set>
 #include <tuple>
+#include <unordered_map>
+#include <unordered_set>
 
 namespace mobmap::mapping {
 namespace {
@@ -22,7 +25,15 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kSurfaceSearch = 2.0;  ///< how far below the start and goal points to look for a surface
 constexpr double kLevelSlack = 0.1;     ///< a sole's support this close to a level counts as on it
-constexpr std::size_t kReachCheck = 4096;  ///< expansions after which the planner checks that the goal can be reached
+/// Expansions after which the planner checks whole-map reachability (see lookBackFeet).
+constexpr std::size_t kReachCheck = 8192;
+/// How many foot places the look back from the goal may visit after `expansions` (0: no
+/// look then): a few hundred after 2,048 (a goal on a ledge or a stair cut off from the
+/// rest), more after 4,096, when the search has come far enough to meet it.
+std::size_t lookBackFeet(std::size_t expansions) {
+  return expansions == 2048 ? 256 : expansions == 4096 ? 2048 : 0;
+}
+constexpr std::size_t kDiagnoseFeet = 40000;  ///< foot places the search for the step that blocks may visit
 
 long floorDiv(long a, long b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
 
@@ -262,13 +273,12 @@ std::optional<double> surfaceUnder(const SurfaceColumns& cols, const Eigen::Vect
   return z;
 }
 
-// Reachability of every sole from the start stance, for the planner's checks.
-Reachability reachFromStart(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start, const PlanParams& p,
-                            const Budget& budget) {
+// The walk the planner checks a goal against: from the start stance.
+ReachParams reachParamsOf(const PlanParams& p) {
   ReachParams rp;
   rp.robot = p.robot;
   rp.start_radius_m = p.start_radius_m + 0.5 * p.robot.stance_width_m;
-  return computeReachability(std::move(columns), start, rp, budget);
+  return rp;
 }
 
 // The standable foot places at the goal: within the goal tolerance, on the goal's level.
@@ -283,6 +293,14 @@ std::vector<std::size_t> goalFeet(const Reachability& reach, const Eigen::Vector
 
 bool goalReachable(const Reachability& reach, const std::vector<std::size_t>& goals) {
   return std::any_of(goals.begin(), goals.end(), [&](std::size_t g) { return reach.footPlaces()[g].reachable; });
+}
+
+std::string blockingStep(const std::vector<FootPlace>& path, const RobotParams& robot, double res);
+
+std::string cutOff() {
+  return "the goal is cut off from the start: every way there crosses a wall or an obstacle higher than "
+         "`swing_clearance_m`, a stretch over `max_gap_m` without surface, or surface the robot cannot stand on "
+         "(`min_mobility`, `max_tilt_deg`)";
 }
 
 // Why the goal cannot be reached over the soles and steps (the search found nothing).
@@ -324,18 +342,18 @@ std::string diagnose(const SurfaceColumns& cols, const Reachability& reach, cons
       open.push({wb, b});
     }
   }
-  if (!reached) {
-    return "the goal is cut off from the start: every way there crosses a wall or an obstacle higher than "
-           "`swing_clearance_m`, a stretch over `max_gap_m` without surface, or surface the robot cannot stand on "
-           "(`min_mobility`, `max_tilt_deg`)";
-  }
-  // The first step on that way (from the start) over the limit.
-  std::vector<std::size_t> path;
-  for (std::size_t b = *reached; b < feet.size(); b = parent[b]) path.push_back(b);
+  if (!reached) return cutOff();
+  std::vector<FootPlace> path;
+  for (std::size_t b = *reached; b < feet.size(); b = parent[b]) path.push_back(feet[b]);
   std::reverse(path.begin(), path.end());
+  return blockingStep(path, robot, res);
+}
+
+// The first step over the height limit on `path` (foot places from the start to the goal).
+std::string blockingStep(const std::vector<FootPlace>& path, const RobotParams& robot, double res) {
   for (std::size_t i = 1; i < path.size(); ++i) {
-    const FootPlace& from = feet[path[i - 1]];
-    const FootPlace& to = feet[path[i]];
+    const FootPlace& from = path[i - 1];
+    const FootPlace& to = path[i];
     if (stepHeightOk(from.z, to.z, robot, res)) continue;
     // The numbers add up as printed: the heights to a tenth of a millimetre, the rise and
     // what the step needs from those.
@@ -350,6 +368,172 @@ std::string diagnose(const SurfaceColumns& cols, const Reachability& reach, cons
   }
   return "the goal is cut off from the start (no step over the limits found on the way; `max_gap_m` or `swing_clearance_m` "
          "may block it)";
+}
+
+// Foot places judged on demand, as computeStandability() judges them: for the planner's
+// quick look around the goal, which must not cost a whole map's soles.
+class LazyFeet {
+ public:
+  LazyFeet(const SurfaceColumns& cols, const RobotParams& robot)
+      : cols_(cols), robot_(robot), s_(std::max(1L, std::lround(robot.lattice_m / cols.resolution()))) {
+    const long rad = static_cast<long>(std::floor(robot.max_stride_m / (s_ * cols.resolution()) + 1e-9));
+    for (long di = -rad; di <= rad; ++di) {
+      for (long dj = -rad; dj <= rad; ++dj) {
+        if ((di || dj) && std::hypot(di, dj) * s_ * cols.resolution() <= robot.max_stride_m + 1e-9) offsets_.emplace_back(di, dj);
+      }
+    }
+  }
+
+  /// The foot places (indices) of lattice cell (i, j): key (i s, j s).
+  const std::vector<std::size_t>& cell(long i, long j) {
+    const long col = cols_.columnIndex(i * s_, j * s_);
+    if (col < 0) return none_;
+    auto [it, fresh] = cells_.try_emplace(col);
+    if (fresh) {
+      for (std::size_t run = cols_.runBegin(col); run < cols_.runEnd(col); ++run) {
+        const FootPlace fp = detail::judgeFootPlace(cols_, i * s_, j * s_, run, robot_);
+        if (!fp.geometry_ok) continue;
+        it->second.push_back(feet_.size());
+        feet_.push_back(fp);
+      }
+    }
+    return it->second;
+  }
+
+  const FootPlace& operator[](std::size_t f) const { return feet_[f]; }
+  [[nodiscard]] std::size_t judged() const { return feet_.size(); }
+
+  /// Foot places within `radius` of (x, y), in Standability::footPlacesNear()'s order.
+  std::vector<std::size_t> near(double x, double y, double radius) {
+    std::vector<std::size_t> out;
+    const double cell_m = s_ * cols_.resolution();
+    const long ci = floorDiv(cols_.keyOf(x), s_), cj = floorDiv(cols_.keyOf(y), s_);
+    const long rad = static_cast<long>(std::ceil(radius / cell_m)) + 1;
+    for (long i = ci - rad; i <= ci + rad; ++i) {
+      for (long j = cj - rad; j <= cj + rad; ++j) {
+        for (const std::size_t f : cell(i, j)) {
+          if (std::hypot(feet_[f].x - x, feet_[f].y - y) <= radius + 1e-9) out.push_back(f);
+        }
+      }
+    }
+    return out;
+  }
+
+  /// Visits the foot places a stride or less from foot place `f` (lattice offsets).
+  template <class F>
+  void neighbours(std::size_t f, F&& visit) {
+    const long ci = floorDiv(cols_.keyOf(feet_[f].x), s_), cj = floorDiv(cols_.keyOf(feet_[f].y), s_);
+    for (const auto& [di, dj] : offsets_) {
+      // cell() may grow feet_: copy the indices' list before visiting.
+      const std::vector<std::size_t> there = cell(ci + di, cj + dj);
+      for (const std::size_t g : there) visit(g);
+    }
+  }
+
+  [[nodiscard]] long lattice() const { return s_; }
+
+ private:
+  const SurfaceColumns& cols_;
+  const RobotParams& robot_;
+  long s_;
+  std::vector<std::pair<long, long>> offsets_;
+  std::unordered_map<long, std::vector<std::size_t>> cells_;
+  std::vector<FootPlace> feet_;
+  const std::vector<std::size_t> none_;
+};
+
+enum class Verdict { kUnknown, kReachable, kUnreachable };
+
+// A quick look from the goal back towards the start over foot places judged on demand:
+// every foot place that can step, one step after another, to a standable sole at the
+// goal (computeReachability()'s steps, walked backwards). kUnreachable when those run
+// out, none of them a start sole (then whole-map reachability would say the same);
+// kReachable when one of them is a sole the search has already reached from the start
+// (`reached(run)`); kUnknown after `cap` of them.
+template <class Reached>
+Verdict lookBackFromGoal(LazyFeet& feet, const SurfaceColumns& cols, const Eigen::Vector3d& start, const Eigen::Vector3d& goal,
+                         double z_goal, const PlanParams& p, std::size_t cap, Reached&& reached) {
+  const RobotParams& robot = p.robot;
+  std::unordered_set<std::size_t> seen;
+  std::deque<std::size_t> queue;
+  for (const std::size_t f : feet.near(goal.x(), goal.y(), p.goal_tolerance_m)) {
+    if (feet[f].isStandable() && std::abs(feet[f].z - z_goal) <= kLevelSlack + robot.max_unevenness_m && seen.insert(f).second) {
+      queue.push_back(f);
+    }
+  }
+  while (!queue.empty()) {
+    const std::size_t a = queue.front();
+    queue.pop_front();
+    if (reached(feet[a].place)) return Verdict::kReachable;
+    if (seen.size() > cap) return Verdict::kUnknown;
+    const FootPlace to = feet[a];
+    feet.neighbours(a, [&](std::size_t b) {
+      const FootPlace& from = feet[b];
+      if (seen.count(b) || !from.isStandable() || !canStep(cols, from.x, from.y, from.z, to.x, to.y, to.z, robot)) return;
+      seen.insert(b);
+      queue.push_back(b);
+    });
+  }
+  // Cut off: unless a start sole is among them.
+  const double res = cols.resolution();
+  const auto near = feet.near(start.x(), start.y(), p.start_radius_m + 0.5 * robot.stance_width_m);
+  const auto starts = detail::nearestStartFeet(
+      start, near, std::max(0.5 * robot.sole_length_m, feet.lattice() * res), std::max(0.05, 2 * res),
+      [&](double x, double y, double radius) { return feet.near(x, y, radius); }, [&](std::size_t f) -> const FootPlace& { return feet[f]; });
+  for (const std::size_t f : starts) {
+    if (seen.count(f)) return Verdict::kReachable;
+  }
+  return Verdict::kUnreachable;
+}
+
+// diagnose() for a goal lookBackFromGoal() found cut off: the easiest way there (the
+// lowest highest step), searched backwards from the goal, nearest the start first among
+// equals; nullopt after `cap` foot places.
+std::optional<std::string> diagnoseFromGoal(LazyFeet& feet, const SurfaceColumns& cols, const Eigen::Vector3d& start,
+                                            const Eigen::Vector3d& goal, double z_goal, const PlanParams& p, std::size_t cap) {
+  const RobotParams& robot = p.robot;
+  const double res = cols.resolution();
+  const auto near = feet.near(start.x(), start.y(), p.start_radius_m + 0.5 * robot.stance_width_m);
+  const auto starts = detail::nearestStartFeet(
+      start, near, std::max(0.5 * robot.sole_length_m, feet.lattice() * res), std::max(0.05, 2 * res),
+      [&](double x, double y, double radius) { return feet.near(x, y, radius); }, [&](std::size_t f) -> const FootPlace& { return feet[f]; });
+  if (starts.empty()) return std::nullopt;
+  const std::unordered_set<std::size_t> is_start(starts.begin(), starts.end());
+  std::unordered_map<std::size_t, std::pair<double, std::size_t>> best;  // worst step so far, next foot towards the goal
+  using Item = std::tuple<double, double, std::size_t>;               // worst, distance to the start, foot
+  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> open;
+  const auto towardStart = [&](std::size_t f) { return std::hypot(feet[f].x - start.x(), feet[f].y - start.y()); };
+  constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
+  for (const std::size_t f : feet.near(goal.x(), goal.y(), p.goal_tolerance_m)) {
+    if (feet[f].isStandable() && std::abs(feet[f].z - z_goal) <= kLevelSlack + robot.max_unevenness_m) {
+      best[f] = {0.0, kNone};
+      open.push({0.0, towardStart(f), f});
+    }
+  }
+  std::unordered_set<std::size_t> done;
+  while (!open.empty()) {
+    const auto [w, d, a] = open.top();
+    open.pop();
+    if (!done.insert(a).second) continue;
+    if (is_start.count(a)) {
+      std::vector<FootPlace> path;
+      for (std::size_t f = a; f != kNone; f = best[f].second) path.push_back(feet[f]);
+      return blockingStep(path, robot, res);
+    }
+    if (done.size() > cap) return std::nullopt;
+    const FootPlace to = feet[a];
+    feet.neighbours(a, [&](std::size_t b) {
+      const FootPlace& from = feet[b];
+      if (done.count(b) || !from.isStandable()) return;
+      const double wb = std::max(w, std::abs(from.z - to.z));
+      const auto it = best.find(b);
+      if (it != best.end() && wb >= it->second.first) return;
+      if (swingProblem(cols, from.x, from.y, from.z, to.x, to.y, to.z, robot) != FootholdProblem::kNone) return;
+      best[b] = {wb, a};
+      open.push({wb, towardStart(b), b});
+    });
+  }
+  return cutOff();
 }
 
 }  // namespace
@@ -413,25 +597,25 @@ const char* toString(Side side) { return side == Side::kLeft ? "left" : "right";
 
 namespace {
 Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start, const Eigen::Vector3d& goal,
-          const PlanParams& params, const Budget& budget, std::chrono::steady_clock::time_point t0);
+          const PlanParams& params, const Budget& budget, std::chrono::steady_clock::time_point t0, ReachCache* cache);
 }  // namespace
 
 Plan planFootsteps(const MobilityOcTree& tree, const Eigen::Vector3d& start, const Eigen::Vector3d& goal, const PlanParams& params,
                    const Budget& budget) {
   const auto t0 = std::chrono::steady_clock::now();  // the columns count against the time limit too
   validate(params);
-  return planWithin(std::make_shared<const SurfaceColumns>(tree), start, goal, params, budget, t0);
+  return planWithin(std::make_shared<const SurfaceColumns>(tree), start, goal, params, budget, t0, nullptr);
 }
 
 Plan planFootsteps(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start, const Eigen::Vector3d& goal,
-                   const PlanParams& params, const Budget& budget) {
-  return planWithin(std::move(columns), start, goal, params, budget, std::chrono::steady_clock::now());
+                   const PlanParams& params, const Budget& budget, ReachCache* cache) {
+  return planWithin(std::move(columns), start, goal, params, budget, std::chrono::steady_clock::now(), cache);
 }
 
 namespace {
 
 Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start, const Eigen::Vector3d& goal,
-          const PlanParams& params, const Budget& budget, std::chrono::steady_clock::time_point t0) {
+          const PlanParams& params, const Budget& budget, std::chrono::steady_clock::time_point t0, ReachCache* cache) {
   validate(params);
   // The time limit bounds the whole call (the reachability worked out for a goal that
   // seems out of reach included); the caller's budget, when it runs out, ends the call
@@ -591,15 +775,20 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
   std::optional<std::uint64_t> goal_key;
   bool expansions_spent = false;
   // A goal the robot cannot get to at all would have the search expand every state it
-  // can reach (seconds): after kReachCheck expansions, whole-map reachability (about half
-  // a second on a 10 m corridor) says whether to go on.
-  std::optional<Reachability> reach;
+  // can reach (seconds). After 2,048 and 4,096 expansions a look back from the goal
+  // (lookBackFeet) settles most such cases (a goal on a ledge or stair cut off from the
+  // rest) or meets the search; failing that, after kReachCheck expansions, whole-map
+  // reachability (a quarter of a second on a 10 m corridor, nothing when a cache keeps
+  // it) says whether to go on.
+  std::shared_ptr<const Reachability> reach;
   std::vector<std::size_t> goal_feet;
+  const ReachParams reach_params = reachParamsOf(params);
   // False when the time ran out first.
   const auto checkReach = [&] {
     if (reach) return true;
     try {
-      reach = reachFromStart(columns, start, params, limited);
+      reach = cache ? cache->reachability(columns, start, reach_params, limited)
+                    : std::make_shared<const Reachability>(computeReachability(columns, start, reach_params, limited));
     } catch (const BudgetExceeded&) {
       budget.check("planFootsteps");  // the caller's budget: its exception
       return false;                   // the time limit
@@ -607,6 +796,23 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
     goal_feet = goalFeet(*reach, goal, *z_goal, params);
     return true;
   };
+  if (cache) {
+    reach = cache->findReachability(columns, start, reach_params);
+    if (reach) goal_feet = goalFeet(*reach, goal, *z_goal, params);
+  }
+  Verdict verdict = reach ? (goalReachable(*reach, goal_feet) ? Verdict::kReachable : Verdict::kUnreachable) : Verdict::kUnknown;
+  std::optional<LazyFeet> lazy;
+  const auto reachedFromStart = [&](std::size_t run) {
+    const RunRecord* rec = search.touched(run);
+    return rec && std::any_of(rec->nodes.begin(), rec->nodes.end(), [](const Node& n) { return n.closed; });
+  };
+  if (verdict == Verdict::kUnreachable) {
+    // The easiest way there, looked for from the goal (the whole-map search floods all
+    // the start's level first).
+    lazy.emplace(cols, robot);
+    if (auto why = diagnoseFromGoal(*lazy, cols, start, goal, *z_goal, params, kDiagnoseFeet)) return finish(std::move(*why));
+    return finish(diagnose(cols, *reach, goal_feet, params));
+  }
   const auto outOfTime = [&] {
     plan.time_limit_reached = plan.expansions < params.max_expansions;
     return finish(format("no plan within the limits (%.1f s, ", params.time_limit_s) + std::to_string(plan.expansions) +
@@ -642,7 +848,15 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
       expansions_spent = true;
       break;
     }
-    if (plan.expansions == kReachCheck) {
+    if (lookBackFeet(plan.expansions) && verdict == Verdict::kUnknown) {
+      if (!lazy) lazy.emplace(cols, robot);
+      verdict = lookBackFromGoal(*lazy, cols, start, goal, *z_goal, params, lookBackFeet(plan.expansions), reachedFromStart);
+      if (verdict == Verdict::kUnreachable) {
+        if (auto why = diagnoseFromGoal(*lazy, cols, start, goal, *z_goal, params, kDiagnoseFeet)) return finish(std::move(*why));
+        break;  // diagnosed below, over the whole map
+      }
+    }
+    if (plan.expansions == kReachCheck && verdict == Verdict::kUnknown) {
       if (!checkReach()) return outOfTime();
       if (!goalReachable(*reach, goal_feet)) break;  // diagnosed below
     }

@@ -1,6 +1,8 @@
 // Footstep planning on the simulated corridor: time and expansions of long plans, with
 // the time of one whole-map reachability run (every sole, every step) in the same run as
-// the reference. Prints medians. Release builds only.
+// the reference, that run's two parts (judging the soles, once per map and robot; the
+// walk, per start), and a refusal with the start's reachability kept in a ReachCache.
+// Prints medians. Release builds only.
 //
 //   planning_bench [REPEATS] [HEURISTIC_WEIGHT]
 #include "mobmap/mapping/footstep_planner.hpp"
@@ -80,6 +82,7 @@ int main(int argc, char** argv) {
       {"corner to corner, past the box and the ramps", {1.2, 1.1, 0.0}, {9.4, -1.2, 0.0}, 0.15},
       {"up the stairs (20 cm steps)", {1.0, 0.0, 0.0}, {7.05, 0.9, 0.68}, 0.2},
       {"stairs refused (15 cm steps)", {1.0, 0.0, 0.0}, {7.05, 0.9, 0.68}, 0.15},
+      {"far end to the top tread (20 cm steps)", {9.4, -1.2, 0.0}, {7.05, 0.9, 0.68}, 0.2},
   };
   std::vector<double> reach_ms;
   for (int i = 0; i < repeats; ++i) {
@@ -89,6 +92,23 @@ int main(int argc, char** argv) {
   }
   const double reach = median(reach_ms);
   std::printf("reference: computeReachability over the whole map: median %.1f ms\n", reach);
+  {
+    // Whole-map reachability split: the soles judged once per map and robot, then a walk
+    // per start.
+    std::vector<double> judge_ms, walk_ms;
+    std::size_t bytes = 0;
+    for (int i = 0; i < repeats; ++i) {
+      const auto t0 = Clock::now();
+      const auto standing = mapping::computeStandability(columns, {});
+      const auto t1 = Clock::now();
+      const auto r = mapping::computeReachability(standing, {2.0 + 0.1 * i, 0.0, 0.05}, {});
+      walk_ms.push_back(ms(t1, Clock::now()));
+      judge_ms.push_back(ms(t0, t1));
+      bytes = standing->memoryBytes();
+    }
+    std::printf("  of which judging every sole (once per map and robot): median %.1f ms, %.1f MB kept; a walk from a new start: median %.1f ms\n",
+                median(judge_ms), bytes / 1e6, median(walk_ms));
+  }
   std::printf("%-48s %6s %9s %9s %11s %10s %8s %9s %16s\n", "plan", "found", "length_m", "steps", "expansions", "median_ms", "/reach",
               "cost", "footsteps_hash");
   const double weight = argc > 2 ? std::atof(argv[2]) : 1.0;
@@ -108,6 +128,29 @@ int main(int argc, char** argv) {
                 plan.footsteps.size() >= 2 ? plan.footsteps.size() - 2 : 0, plan.expansions, median(t), median(t) / reach,
                 plan.cost, static_cast<unsigned long long>(footstepsHash(plan)));
     if (!plan.found) std::printf("    reason: %s\n", plan.reason.c_str());
+  }
+  // A caller that keeps a ReachCache (the server, Python, a planner trying several goals):
+  // the start's reachability worked out once, then each refusal is immediate.
+  {
+    const Case& c = cases[3];
+    mapping::PlanParams pp;
+    pp.heuristic_weight = weight;
+    pp.robot.max_step_m = c.max_step;
+    mapping::ReachCache cache;
+    (void)mapping::planFootsteps(columns, c.from, c.to, pp, {}, &cache);  // fills it if the plan needed it
+    mapping::ReachParams rp;
+    rp.robot = pp.robot;
+    rp.start_radius_m = pp.start_radius_m + 0.5 * pp.robot.stance_width_m;
+    (void)cache.reachability(columns, c.from, rp);
+    std::vector<double> t;
+    mapping::Plan plan;
+    for (int i = 0; i < repeats; ++i) {
+      const auto t0 = Clock::now();
+      plan = mapping::planFootsteps(columns, c.from, c.to, pp, {}, &cache);
+      t.push_back(ms(t0, Clock::now()));
+    }
+    std::printf("%-48s %6s %9s %9s %11zu %10.1f %8.2f\n", "stairs refused, the start's reach kept", plan.found ? "yes" : "no", "", "",
+                plan.expansions, median(t), median(t) / reach);
   }
   return 0;
 }

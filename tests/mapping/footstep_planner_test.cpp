@@ -222,5 +222,62 @@ TEST(FootstepPlanner, WeightOneFindsTheReferenceCostAndLargerWeightsStayWithinTh
   EXPECT_GE(compared, 6);  // enough pairs had a plan to compare
 }
 
+// A refusal for a goal out of reach (the look back from the goal, or whole-map
+// reachability) agrees with whole-map reachability worked out here; with a cache the
+// planner answers the same, plan for plan and reason for reason.
+TEST(FootstepPlanner, RefusesOnlyGoalsWholeMapReachabilitySaysAreOutOfReachWithOrWithoutACache) {
+  int refused = 0, found = 0;
+  // voxel_scene.hpp's floor, stairs to a platform, ledge, walled room and annex.
+  const Scene scene;
+  const auto cols = std::make_shared<const SurfaceColumns>(scene.tree);
+  ReachCache cache;
+  const std::vector<Eigen::Vector3d> starts = {{0.7, 0.3, 0.05}, {1.0, 1.5, 0.05}, {0.6, 1.0, 0.05}};
+  const std::vector<Eigen::Vector3d> goals = {{1.8, 0.3, 0.35}, {2.55, 0.3, 0.35}, {2.6, 1.6, 0.05},
+                                              {3.3, 0.4, 0.05}, {1.5, 1.2, 0.05}, {1.2, 0.3, 0.15}};
+  for (std::size_t si = 0; si < starts.size(); ++si) {
+    for (std::size_t gi = 0; gi < goals.size(); ++gi) {
+      const Eigen::Vector3d start = starts[si], goal = goals[gi];
+      PlanParams p;
+      p.heuristic_weight = (si + gi) % 2 ? 1.0 : 1.25;
+      p.robot.max_step_m = 0.06 + 0.045 * static_cast<double>((si + gi) % 3);
+      Plan plan, cached;
+      try {
+        plan = planFootsteps(cols, start, goal, p);
+        cached = planFootsteps(cols, start, goal, p, {}, &cache);
+      } catch (const PlanInputError&) {
+        continue;
+      }
+      SCOPED_TRACE("start " + std::to_string(si) + " goal " + std::to_string(gi) + ": " + plan.reason);
+      ASSERT_EQ(plan.found, cached.found);
+      EXPECT_EQ(plan.reason, cached.reason);
+      EXPECT_EQ(plan.cost, cached.cost);
+      ASSERT_EQ(plan.footsteps.size(), cached.footsteps.size());
+      if (plan.found) {
+        ++found;
+        continue;
+      }
+      if (plan.time_limit_reached || plan.reason.find("narrow passage") != std::string::npos) continue;
+      // Out of reach, says the planner: no standable sole at the goal is reachable.
+      ReachParams rp;
+      rp.robot = p.robot;
+      rp.start_radius_m = p.start_radius_m + 0.5 * p.robot.stance_width_m;
+      const Reachability reach = computeReachability(cols, start, rp);
+      const long below = cols->runBelow(goal.x(), goal.y(), goal.z() + 0.1, goal.z() - 2.0);
+      if (below < 0) continue;
+      const double z_goal = cols->topFace(cols->runs()[static_cast<std::size_t>(below)]);
+      for (const std::size_t f : reach.footPlacesNear(goal.x(), goal.y(), p.goal_tolerance_m)) {
+        const FootPlace& fp = reach.footPlaces()[f];
+        if (fp.isStandable() && std::abs(fp.z - z_goal) <= 0.1 + p.robot.max_unevenness_m) {
+          EXPECT_FALSE(fp.reachable) << plan.reason;
+        }
+      }
+      ++refused;
+    }
+  }
+  std::printf("[ info ] %d plans found, %d refused as out of reach\n", found, refused);
+  EXPECT_GE(refused, 3);  // both kinds of answer were compared
+  EXPECT_GE(found, 3);
+}
+
 }  // namespace
 }  // namespace mobmap::mapping

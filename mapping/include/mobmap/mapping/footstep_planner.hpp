@@ -8,6 +8,7 @@
 #include "mobmap/mapping/budget.hpp"
 #include "mobmap/mapping/footholds.hpp"
 #include "mobmap/mapping/mobility_octree.hpp"
+#include "mobmap/mapping/reachability.hpp"
 
 #include <Eigen/Core>
 
@@ -103,9 +104,12 @@ class PlanInputError : public std::runtime_error {
 [[nodiscard]] Plan planFootsteps(const MobilityOcTree& tree, const Eigen::Vector3d& start_map,
                                  const Eigen::Vector3d& goal_map, const PlanParams& params = {},
                                  const Budget& budget = {});
-/// The same over columns already made from the map.
+/// The same over columns already made from the map. With a `cache`, whole-map
+/// reachability from the start (the check of a goal that may be out of reach) is taken
+/// from it when kept there, and kept there when worked out: a caller that plans to
+/// several goals, or again on the same map snapshot, pays for it once.
 [[nodiscard]] Plan planFootsteps(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start_map,
                                  const Eigen::Vector3d& goal_map, const PlanParams& params = {},
-                                 const Budget& budget = {});
+                                 const Budget& budget = {}, ReachCache* cache = nullptr);
 
 }  // namespace mobmap::mapping
