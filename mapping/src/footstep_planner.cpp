@@ -25,13 +25,18 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kSurfaceSearch = 2.0;  ///< how far below the start and goal points to look for a surface
 constexpr double kLevelSlack = 0.1;     ///< a sole's support this close to a level counts as on it
-/// Expansions after which the planner checks whole-map reachability (see lookBackFeet).
-constexpr std::size_t kReachCheck = 8192;
 /// How many foot places the look back from the goal may visit after `expansions` (0: no
 /// look then): a few hundred after 2,048 (a goal on a ledge or a stair cut off from the
-/// rest), more after 4,096, when the search has come far enough to meet it.
+/// rest), eight times more at each doubling after, when the search has come far enough
+/// to meet it or the goal's part of the map is larger (up to ~2 s of judging soles).
 std::size_t lookBackFeet(std::size_t expansions) {
-  return expansions == 2048 ? 256 : expansions == 4096 ? 2048 : 0;
+  switch (expansions) {
+    case 2048: return 256;
+    case 4096: return 2048;
+    case 8192: return 16384;
+    case 16384: return 131072;
+    default: return 0;
+  }
 }
 constexpr std::size_t kDiagnoseFeet = 40000;  ///< foot places the search for the step that blocks may visit
 
@@ -512,7 +517,9 @@ std::optional<std::string> diagnoseFromGoal(LazyFeet& feet, const SurfaceColumns
   }
   std::unordered_set<std::size_t> done;
   while (!open.empty()) {
-    const auto [w, d, a] = open.top();
+    // Plain variables: the lambda below captures them (clang refuses a structured binding).
+    const double w = std::get<0>(open.top());
+    const std::size_t a = std::get<2>(open.top());
     open.pop();
     if (!done.insert(a).second) continue;
     if (is_start.count(a)) {
@@ -775,11 +782,12 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
   std::optional<std::uint64_t> goal_key;
   bool expansions_spent = false;
   // A goal the robot cannot get to at all would have the search expand every state it
-  // can reach (seconds). After 2,048 and 4,096 expansions a look back from the goal
-  // (lookBackFeet) settles most such cases (a goal on a ledge or stair cut off from the
-  // rest) or meets the search; failing that, after kReachCheck expansions, whole-map
-  // reachability (a quarter of a second on a 10 m corridor, nothing when a cache keeps
-  // it) says whether to go on.
+  // can reach (seconds). After 2,048 expansions and at each doubling up to 16,384 a look
+  // back from the goal (lookBackFeet) settles such cases (a goal on a ledge or a stair
+  // cut off from the rest, a room without a door) or meets the search. Whole-map
+  // reachability is used when a cache keeps it for this start; it is worked out only to
+  // say why a search that has run out found nothing (on a building of 40 x 40 m it
+  // takes tens of seconds).
   std::shared_ptr<const Reachability> reach;
   std::vector<std::size_t> goal_feet;
   const ReachParams reach_params = reachParamsOf(params);
@@ -855,10 +863,6 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
         if (auto why = diagnoseFromGoal(*lazy, cols, start, goal, *z_goal, params, kDiagnoseFeet)) return finish(std::move(*why));
         break;  // diagnosed below, over the whole map
       }
-    }
-    if (plan.expansions == kReachCheck && verdict == Verdict::kUnknown) {
-      if (!checkReach()) return outOfTime();
-      if (!goalReachable(*reach, goal_feet)) break;  // diagnosed below
     }
     const Foothold& from = search.foothold(st.run, rec, st.heading);
     const double x = rec.x, y = rec.y;
