@@ -4,6 +4,7 @@
 
 #include "mobmap/mapping/map_metadata.hpp"
 #include "mobmap/mapping/mobility_map.hpp"
+#include "mobmap/mapping/reachability.hpp"
 
 #include <pybind11/pybind11.h>
 
@@ -19,6 +20,9 @@ struct MapHandle {
   std::optional<mapping::MapMetadata> metadata;
   /// Gravity (down) in the world frame, when known (for MAP.json on save).
   std::optional<Eigen::Vector3d> gravity_down_world;
+  /// The soles judged and the walks worked out for plan() and reachable() on this map,
+  /// kept for the next call (per robot and start; 256 MB at most).
+  std::shared_ptr<mapping::ReachCache> reach_cache = std::make_shared<mapping::ReachCache>(std::size_t{256} << 20);
 };
 
 void bindMap(pybind11::module_& m);

@@ -56,7 +56,7 @@ py::dict plan(const MapHandle& h, const py::handle& start, const py::handle& goa
   mapping::Plan p;
   {
     py::gil_scoped_release unlocked;
-    p = mapping::planFootsteps(h.map->surfaceColumns(), s, g, params);
+    p = mapping::planFootsteps(h.map->surfaceColumns(), s, g, params, {}, h.reach_cache.get());
   }
   const auto n = static_cast<py::ssize_t>(p.footsteps.size());
   auto xyz = newArray(n, 3), yaw = newArray(n), min_mobility = newArray(n), tilt = newArray(n);
@@ -120,7 +120,8 @@ py::array_t<bool> reachable(const MapHandle& h, const py::handle& start, const p
   const auto in = p.unchecked<2>();
   {
     py::gil_scoped_release unlocked;
-    const mapping::Reachability reach = mapping::computeReachability(h.map->surfaceColumns(), s, params);
+    const auto kept = h.reach_cache->reachability(h.map->surfaceColumns(), s, params);
+    const mapping::Reachability& reach = *kept;
     for (py::ssize_t i = 0; i < p.shape(0); ++i) {
       Eigen::Vector3d q(in(i, 0), in(i, 1), in(i, 2));
       if (frame == Frame::kWorld) q = h.map->worldToMap(q);

@@ -383,6 +383,10 @@ struct Api::Cache {
   std::map<int, std::size_t> cells_over;  // level -> a count its cells are known to pass
   Kept<std::string> layers;                // /api/layer's answers by their query
   Kept<mapping::Reachability> reach;       // by ReachRequest::key
+  // The soles judged per robot and the walks per start, shared by "reach" and plans.
+  mapping::ReachCache soles;
+
+  explicit Cache(std::size_t soles_bytes) : soles(soles_bytes) {}
 
   // Drops what belongs to an older map.
   void follow(const std::shared_ptr<const ServedMap>& s) {
@@ -393,6 +397,7 @@ struct Api::Cache {
     cells_over.clear();
     layers.clear();
     reach.clear();
+    soles.clear();
   }
   void keepReach(const std::string& key, std::shared_ptr<const mapping::Reachability> r, const Limits& limits) {
     const std::size_t bytes = r->memoryBytes();
@@ -409,7 +414,7 @@ Api::Api(std::string map_label, const MapSource& source, Limits limits)
     : label_(std::move(map_label)),
       source_(source),
       limits_(limits),
-      cache_(std::make_shared<Cache>()),
+      cache_(std::make_shared<Cache>(limits.max_reach_cache_bytes)),
       state_(std::make_shared<State>()) {}
 
 Api::ReachCacheFigures Api::reachCache() const {
@@ -462,8 +467,7 @@ struct Api::Exchange {
     takeHeavySlot();
     std::shared_ptr<const mapping::Reachability> r;
     try {
-      r = std::make_shared<const mapping::Reachability>(
-          mapping::computeReachability(map.surfaceColumns(), q->from_map, q->params, budget));
+      r = api.cache_->soles.reachability(map.surfaceColumns(), q->from_map, q->params, budget);
     } catch (const std::invalid_argument& e) {  // a step under two voxels of this map
       throw Refusal(400, std::string("\"reach\": ") + e.what());
     }
@@ -656,7 +660,11 @@ Response Api::Exchange::plan() {
     // when the server stops.
     mapping::Budget stop;
     stop.stop = &api.state_->stop;
-    plan = mapping::planFootsteps(map.surfaceColumns(), from, to, plan_params, stop);
+    {
+      const std::lock_guard<std::mutex> lock(api.cache_->mutex);
+      api.cache_->follow(served);
+    }
+    plan = mapping::planFootsteps(map.surfaceColumns(), from, to, plan_params, stop, &api.cache_->soles);
   } catch (const mapping::PlanInputError& e) {
     throw Refusal(400, e.what());
   } catch (const std::invalid_argument& e) {

@@ -68,7 +68,9 @@ struct Limits {
   std::size_t max_heavy_requests = 2;  ///< heavy requests answered at once; more: 503
   double max_request_s = 60;         ///< a request still working after this: 503
   std::size_t max_reach_cache_entries = 4;       ///< reachabilities kept per map
-  std::size_t max_reach_cache_bytes = 512u << 20;  ///< and their memory, at most
+  /// and their memory, at most; the soles judged for them and for plans (shared across
+  /// starts, mapping::ReachCache) are kept within as much again
+  std::size_t max_reach_cache_bytes = 512u << 20;
   /// Connections one client address may hold: a quarter of max_connections (16); more: 503 at once.
   [[nodiscard]] std::size_t max_connections_per_client() const { return std::max<std::size_t>(1, max_connections / 4); }
   /// Values (numbers, strings, arrays, objects) one body may hold: enough for max_batch
