@@ -5,17 +5,21 @@
 // Prints medians. Release builds only.
 //
 //   planning_bench [REPEATS] [HEURISTIC_WEIGHT]
+//   planning_bench building [REPEATS] [HEURISTIC_WEIGHT] [SIZE_M]   the building of
+//       tests/mapping/building_scene.hpp (40 m): its trips of ~10, 30 and 60 m
 #include "mobmap/mapping/footstep_planner.hpp"
 #include "mobmap/mapping/mobility_map.hpp"
 #include "mobmap/mapping/reachability.hpp"
 #include "mobmap/perception/pipeline.hpp"
 #include "mobmap/sim/corridor_scene.hpp"
+#include "../mapping/building_scene.hpp"
 
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <memory>
 #include <vector>
 
@@ -49,10 +53,55 @@ std::uint64_t footstepsHash(const mapping::Plan& plan) {
 
 }  // namespace
 
+// The building: time to make it, whole-map reachability and its parts, and each trip.
+int buildingBench(int repeats, double weight, double size_m) {
+  mapping::building::Params bp;
+  bp.size_m = size_m;
+  auto t0 = Clock::now();
+  const mapping::building::Scene scene(bp);
+  const double make_ms = ms(t0, Clock::now());
+  t0 = Clock::now();
+  const auto columns = std::make_shared<const mapping::SurfaceColumns>(scene.tree);
+  std::printf("planning benchmark: the building, %.0f x %.0f m, two floors, %zu voxels (made in %.0f ms), %zu surface runs "
+              "(%.0f ms, %.1f MB), one core, %d repeats, heuristic weight %.2f\n",
+              size_m, size_m, static_cast<std::size_t>(scene.tree.getNumLeafNodes()), make_ms, columns->runs().size(),
+              ms(t0, Clock::now()), columns->memoryBytes() / 1e6, repeats, weight);
+  t0 = Clock::now();
+  const auto standing = mapping::computeStandability(columns, {});
+  const auto t1 = Clock::now();
+  const auto reach = mapping::computeReachability(standing, scene.trips.front().from, {});
+  std::printf("whole-map reachability: judging every sole %.0f ms (%zu foot places, %.1f MB kept), the walk %.0f ms; "
+              "%zu of %zu surfaces reachable\n",
+              ms(t0, t1), standing->footPlaces().size(), standing->memoryBytes() / 1e6, ms(t1, Clock::now()),
+              reach.reachableCount(), reach.places().size());
+  std::printf("%-52s %6s %9s %7s %11s %10s %9s %16s\n", "trip", "found", "length_m", "steps", "expansions", "median_ms", "cost",
+              "footsteps_hash");
+  for (const auto& trip : scene.trips) {
+    mapping::PlanParams pp;
+    pp.heuristic_weight = weight;
+    std::vector<double> t;
+    mapping::Plan plan;
+    for (int i = 0; i < repeats; ++i) {
+      const auto a = Clock::now();
+      plan = mapping::planFootsteps(columns, trip.from, trip.to, pp);
+      t.push_back(ms(a, Clock::now()));
+    }
+    std::printf("%-52s %6s %9.2f %7zu %11zu %10.1f %9.4f %016llx\n", trip.name.c_str(), plan.found ? "yes" : "no", plan.length_m,
+                plan.footsteps.size() >= 2 ? plan.footsteps.size() - 2 : 0, plan.expansions, median(t), plan.cost,
+                static_cast<unsigned long long>(footstepsHash(plan)));
+    if (!plan.found) std::printf("    reason: %s\n", plan.reason.c_str());
+  }
+  return 0;
+}
+
 int main(int argc, char** argv) {
 #ifndef NDEBUG
   std::fprintf(stderr, "warning: this is not a Release build; the numbers mean little\n");
 #endif
+  if (argc > 1 && std::strcmp(argv[1], "building") == 0) {
+    return buildingBench(argc > 2 ? std::max(1, std::atoi(argv[2])) : 1, argc > 3 ? std::atof(argv[3]) : 1.25,
+                         argc > 4 ? std::atof(argv[4]) : 40.0);
+  }
   const int repeats = argc > 1 ? std::max(1, std::atoi(argv[1])) : 7;
   // The corridor walked to x = 8 (320 frames, Kinect noise with rounded edges), every
   // fourth frame fused: the map reaches the end wall at x = 10.
