@@ -286,12 +286,17 @@ ReachParams reachParamsOf(const PlanParams& p) {
   return rp;
 }
 
+// A standable foot place on the goal's level (with the goal tolerance around it: a sole the plan may end on).
+bool atGoalLevel(const FootPlace& f, double z_goal, const RobotParams& robot) {
+  return f.isStandable() && std::abs(f.z - z_goal) <= kLevelSlack + robot.max_unevenness_m;
+}
+
 // The standable foot places at the goal: within the goal tolerance, on the goal's level.
 std::vector<std::size_t> goalFeet(const Reachability& reach, const Eigen::Vector3d& goal, double z_goal, const PlanParams& p) {
   std::vector<std::size_t> goals;
   for (const std::size_t f : reach.footPlacesNear(goal.x(), goal.y(), p.goal_tolerance_m)) {
     const FootPlace& fp = reach.footPlaces()[f];
-    if (fp.isStandable() && std::abs(fp.z - z_goal) <= kLevelSlack + p.robot.max_unevenness_m) goals.push_back(f);
+    if (atGoalLevel(fp, z_goal, p.robot)) goals.push_back(f);
   }
   return goals;
 }
@@ -380,14 +385,10 @@ std::string blockingStep(const std::vector<FootPlace>& path, const RobotParams& 
 class LazyFeet {
  public:
   LazyFeet(const SurfaceColumns& cols, const RobotParams& robot)
-      : cols_(cols), robot_(robot), s_(std::max(1L, std::lround(robot.lattice_m / cols.resolution()))) {
-    const long rad = static_cast<long>(std::floor(robot.max_stride_m / (s_ * cols.resolution()) + 1e-9));
-    for (long di = -rad; di <= rad; ++di) {
-      for (long dj = -rad; dj <= rad; ++dj) {
-        if ((di || dj) && std::hypot(di, dj) * s_ * cols.resolution() <= robot.max_stride_m + 1e-9) offsets_.emplace_back(di, dj);
-      }
-    }
-  }
+      : cols_(cols),
+        robot_(robot),
+        s_(std::max(1L, std::lround(robot.lattice_m / cols.resolution()))),
+        offsets_(detail::strideOffsets(robot, s_, cols.resolution())) {}
 
   /// The foot places (indices) of lattice cell (i, j): key (i s, j s).
   const std::vector<std::size_t>& cell(long i, long j) {
@@ -435,7 +436,25 @@ class LazyFeet {
     }
   }
 
-  [[nodiscard]] long lattice() const { return s_; }
+  /// The start soles of a walk from `start` (the planner's: reachParamsOf), as
+  /// computeReachability() picks them.
+  std::vector<std::size_t> startFeet(const Eigen::Vector3d& start, const PlanParams& p) {
+    const double res = cols_.resolution();
+    return detail::nearestStartFeet(
+        start, near(start.x(), start.y(), p.start_radius_m + 0.5 * robot_.stance_width_m),
+        std::max(0.5 * robot_.sole_length_m, s_ * res), std::max(0.05, 2 * res),
+        [&](double x, double y, double radius) { return near(x, y, radius); },
+        [&](std::size_t f) -> const FootPlace& { return feet_[f]; });
+  }
+
+  /// The standable soles at the goal (goalFeet()'s rule).
+  std::vector<std::size_t> goalFeet(const Eigen::Vector3d& goal, double z_goal, const PlanParams& p) {
+    std::vector<std::size_t> out;
+    for (const std::size_t f : near(goal.x(), goal.y(), p.goal_tolerance_m)) {
+      if (atGoalLevel(feet_[f], z_goal, p.robot)) out.push_back(f);
+    }
+    return out;
+  }
 
  private:
   const SurfaceColumns& cols_;
@@ -461,10 +480,8 @@ Verdict lookBackFromGoal(LazyFeet& feet, const SurfaceColumns& cols, const Eigen
   const RobotParams& robot = p.robot;
   std::unordered_set<std::size_t> seen;
   std::deque<std::size_t> queue;
-  for (const std::size_t f : feet.near(goal.x(), goal.y(), p.goal_tolerance_m)) {
-    if (feet[f].isStandable() && std::abs(feet[f].z - z_goal) <= kLevelSlack + robot.max_unevenness_m && seen.insert(f).second) {
-      queue.push_back(f);
-    }
+  for (const std::size_t f : feet.goalFeet(goal, z_goal, p)) {
+    if (seen.insert(f).second) queue.push_back(f);
   }
   while (!queue.empty()) {
     const std::size_t a = queue.front();
@@ -480,12 +497,7 @@ Verdict lookBackFromGoal(LazyFeet& feet, const SurfaceColumns& cols, const Eigen
     });
   }
   // Cut off: unless a start sole is among them.
-  const double res = cols.resolution();
-  const auto near = feet.near(start.x(), start.y(), p.start_radius_m + 0.5 * robot.stance_width_m);
-  const auto starts = detail::nearestStartFeet(
-      start, near, std::max(0.5 * robot.sole_length_m, feet.lattice() * res), std::max(0.05, 2 * res),
-      [&](double x, double y, double radius) { return feet.near(x, y, radius); }, [&](std::size_t f) -> const FootPlace& { return feet[f]; });
-  for (const std::size_t f : starts) {
+  for (const std::size_t f : feet.startFeet(start, p)) {
     if (seen.count(f)) return Verdict::kReachable;
   }
   return Verdict::kUnreachable;
@@ -498,10 +510,7 @@ std::optional<std::string> diagnoseFromGoal(LazyFeet& feet, const SurfaceColumns
                                             const Eigen::Vector3d& goal, double z_goal, const PlanParams& p, std::size_t cap) {
   const RobotParams& robot = p.robot;
   const double res = cols.resolution();
-  const auto near = feet.near(start.x(), start.y(), p.start_radius_m + 0.5 * robot.stance_width_m);
-  const auto starts = detail::nearestStartFeet(
-      start, near, std::max(0.5 * robot.sole_length_m, feet.lattice() * res), std::max(0.05, 2 * res),
-      [&](double x, double y, double radius) { return feet.near(x, y, radius); }, [&](std::size_t f) -> const FootPlace& { return feet[f]; });
+  const auto starts = feet.startFeet(start, p);
   if (starts.empty()) return std::nullopt;
   const std::unordered_set<std::size_t> is_start(starts.begin(), starts.end());
   std::unordered_map<std::size_t, std::pair<double, std::size_t>> best;  // worst step so far, next foot towards the goal
@@ -509,11 +518,9 @@ std::optional<std::string> diagnoseFromGoal(LazyFeet& feet, const SurfaceColumns
   std::priority_queue<Item, std::vector<Item>, std::greater<Item>> open;
   const auto towardStart = [&](std::size_t f) { return std::hypot(feet[f].x - start.x(), feet[f].y - start.y()); };
   constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
-  for (const std::size_t f : feet.near(goal.x(), goal.y(), p.goal_tolerance_m)) {
-    if (feet[f].isStandable() && std::abs(feet[f].z - z_goal) <= kLevelSlack + robot.max_unevenness_m) {
-      best[f] = {0.0, kNone};
-      open.push({0.0, towardStart(f), f});
-    }
+  for (const std::size_t f : feet.goalFeet(goal, z_goal, p)) {
+    best[f] = {0.0, kNone};
+    open.push({0.0, towardStart(f), f});
   }
   std::unordered_set<std::size_t> done;
   while (!open.empty()) {

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstddef>
 #include <optional>
+#include <utility>
 #include <vector>
 
 namespace mobmap::mapping::detail {
@@ -15,6 +16,19 @@ namespace mobmap::mapping::detail {
 /// A start sole's support may lie this far above the start point (a point given on the
 /// floor may be a voxel low).
 inline constexpr double kStartSlack = 0.1;
+
+/// The lattice offsets (in lattice steps of `s` voxels of `res`) a step of at most
+/// max_stride_m can make: what a walk over foot places tries from each.
+inline std::vector<std::pair<long, long>> strideOffsets(const RobotParams& robot, long s, double res) {
+  std::vector<std::pair<long, long>> offsets;
+  const long rad = static_cast<long>(std::floor(robot.max_stride_m / (s * res) + 1e-9));
+  for (long di = -rad; di <= rad; ++di) {
+    for (long dj = -rad; dj <= rad; ++dj) {
+      if ((di || dj) && std::hypot(di, dj) * s * res <= robot.max_stride_m + 1e-9) offsets.emplace_back(di, dj);
+    }
+  }
+  return offsets;
+}
 
 /// The foot place on `run` at lattice column (kx, ky): its headings judged
 /// (geometry_ok == 0 when no heading's geometry passes). The supports of each standable

@@ -307,13 +307,7 @@ Reachability computeReachability(std::shared_ptr<const Standability> standing, c
   }
 
   // Walk: breadth first over steps between standable soles.
-  std::vector<std::pair<long, long>> offsets;
-  const long rad = static_cast<long>(std::floor(robot.max_stride_m / (s * res) + 1e-9));
-  for (long di = -rad; di <= rad; ++di) {
-    for (long dj = -rad; dj <= rad; ++dj) {
-      if ((di || dj) && std::hypot(di, dj) * s * res <= robot.max_stride_m + 1e-9) offsets.emplace_back(di, dj);
-    }
-  }
+  const auto offsets = detail::strideOffsets(robot, s, res);
   std::deque<std::size_t> queue;
   for (const std::size_t f : r.start_feet_) {
     r.feet_[f].reachable = true;

@@ -186,7 +186,6 @@ int main(int argc, char** argv) {
     pp.heuristic_weight = weight;
     pp.robot.max_step_m = c.max_step;
     mapping::ReachCache cache;
-    (void)mapping::planFootsteps(columns, c.from, c.to, pp, {}, &cache);  // fills it if the plan needed it
     mapping::ReachParams rp;
     rp.robot = pp.robot;
     rp.start_radius_m = pp.start_radius_m + 0.5 * pp.robot.stance_width_m;
