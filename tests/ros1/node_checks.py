@@ -112,3 +112,29 @@ def judge_elevation(elevation, n, cx, cy, res):
             judged += 1
             within += -VOXEL - 1e-4 <= e - max(truths) <= 2 * VOXEL + 1e-4
     return judged, within
+
+
+def check_cloud(cloud, built_map, seed):
+    """The node's cloud agrees with `mobmap build` of the same recording (cloud_agreement):
+    many scored voxels, lying where build's are, walkable-or-not alike on 95 % of probes."""
+    n, probes, scored_in_both, agree = cloud_agreement(cloud, built_map, seed)
+    assert n > 5000
+    assert scored_in_both > 0.8, "the node's surface voxels lie where build's are"
+    print(f"cloud: {n} scored voxels; {probes} probes scored in both; walkable agrees at {agree:.3f}")
+    assert agree >= 0.95
+
+
+def check_occupancy(data, x0, y0, resolution):
+    """judge_occupancy's open floor free and 45-degree ramp occupied, each at 90 %."""
+    floor, ramp = judge_occupancy(data, x0, y0, resolution)
+    print(f"occupancy: {len(floor)} floor cells {np.mean(floor == 0):.3f} free; {len(ramp)} ramp cells {np.mean(ramp == 100):.3f} occupied")
+    assert len(floor) > 500 and np.mean(floor == 0) >= 0.9
+    assert len(ramp) > 20 and np.mean(ramp == 100) >= 0.9
+
+
+def check_elevation(elevation, n, cx, cy, res):
+    """judge_elevation: many cells judged, 95 % of them within a voxel of the corridor."""
+    judged, within = judge_elevation(elevation, n, cx, cy, res)
+    print(f"elevation map at ({cx:.2f}, {cy:.2f}): {judged} cells judged, {within / max(judged, 1):.3f} within a voxel")
+    assert judged > 1000
+    assert within / judged >= 0.95
