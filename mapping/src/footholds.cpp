@@ -298,6 +298,8 @@ std::string formatLimit(double value) {
   return buf;
 }
 
+double swingLegTop(const RobotParams& robot) { return std::max(robot.clearance_m, robot.swing_clearance_m + kLegBand); }
+
 bool stepHeightOk(double za, double zb, const RobotParams& robot, double resolution) {
   return std::abs(za - zb) + resolution <= robot.max_step_m + 1e-9;
 }
@@ -313,7 +315,7 @@ FootholdProblem swingProblem(const SurfaceColumns& cols, double xa, double ya, d
   const double res = cols.resolution();
   const double hi = std::max(za, zb), lo = std::min(za, zb);
   const double blocked_above = hi + robot.swing_clearance_m;
-  const double leg_top = hi + std::max(robot.clearance_m, robot.swing_clearance_m + kLegBand);
+  const double leg_top = hi + swingLegTop(robot);
   const double dx = xb - xa, dy = yb - ya, len = std::hypot(dx, dy);
   const double step = res / 2;
   const int n = std::max(1, static_cast<int>(std::ceil(len / step)));

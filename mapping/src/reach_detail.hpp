@@ -30,6 +30,14 @@ inline std::vector<std::pair<long, long>> strideOffsets(const RobotParams& robot
   return offsets;
 }
 
+/// How far (in height) from its reference the surface under a sole's sample may lie to
+/// carry it: evaluateFoothold()'s band.
+inline double supportBand(const RobotParams& robot, double res) {
+  constexpr double kPi = 3.14159265358979323846;
+  return 0.5 * std::hypot(robot.sole_length_m, robot.sole_width_m) * std::tan(robot.max_tilt_deg * kPi / 180) +
+         robot.max_unevenness_m + res;
+}
+
 /// The foot place on `run` at lattice column (kx, ky): its headings judged
 /// (geometry_ok == 0 when no heading's geometry passes). The supports of each standable
 /// heading are appended to `standable_supports` when given.

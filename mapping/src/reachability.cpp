@@ -118,14 +118,6 @@ void checkStepAgainstVoxels(const SurfaceColumns& cols, const RobotParams& robot
   }
 }
 
-/// How far (in height) from its reference the surface under a sole's sample may lie to
-/// carry it: evaluateFoothold()'s band.
-double supportBand(const RobotParams& robot, double res) {
-  constexpr double kPi = 3.14159265358979323846;
-  return 0.5 * std::hypot(robot.sole_length_m, robot.sole_width_m) * std::tan(robot.max_tilt_deg * kPi / 180) +
-         robot.max_unevenness_m + res;
-}
-
 }  // namespace
 
 Reachability computeReachability(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vector3d& start,
@@ -334,7 +326,7 @@ Reachability computeReachability(std::shared_ptr<const Standability> standing, c
 
   // The surfaces under reachable soles: in each column a standable sole of the foot
   // place rests on, the surface evaluateFoothold() found there.
-  const double band = supportBand(robot, res);
+  const double band = detail::supportBand(robot, res);
   const long side = 2 * st.mask_reach_ + 1;
   for (std::size_t k = 0; k < r.feet_.size(); ++k) {
     if ((k & 1023u) == 0) budget.check(kWhat);

@@ -182,6 +182,10 @@ struct Foothold {
 /// ("0.155", not "0.15" or "0.15500000000000000"), for messages that name it.
 [[nodiscard]] std::string formatLimit(double value);
 
+/// How far above a swing's higher support swingProblem() looks for what meets the leg:
+/// max(clearance_m, swing_clearance_m + 0.5 m) (a table top 0.7 m above the floor does not).
+[[nodiscard]] double swingLegTop(const RobotParams& robot);
+
 /// Whether a step from a support at za to one at zb passes max_step_m (one voxel of
 /// margin, see RobotParams::max_step_m).
 [[nodiscard]] bool stepHeightOk(double za, double zb, const RobotParams& robot, double resolution);
