@@ -3,6 +3,7 @@
 #include "mobmap/mapping/reachability.hpp"
 #include "param_error.hpp"
 #include "reach_detail.hpp"
+#include "surface_bound.hpp"
 
 #include <algorithm>
 #include <array>
@@ -39,6 +40,10 @@ std::size_t lookBackFeet(std::size_t expansions) {
   }
 }
 constexpr std::size_t kDiagnoseFeet = 40000;  ///< foot places the search for the step that blocks may visit
+/// The map-aware bound settles the nodes up to this factor past the start's distance:
+/// the footstep search strays that far from the bound's shortest way at little cost
+/// (a factor of 1 left the 30 m trip across the building nine times as many expansions).
+constexpr double kBoundBeyond = 1.1;
 
 long floorDiv(long a, long b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
 
@@ -116,6 +121,10 @@ struct Node {
 // for the run; ~0.8 KB each.
 struct RunRecord {
   double x = 0, y = 0;
+  /// The heuristic's bound on the strides' sum from here (metres), and what it holds:
+  /// 0 nothing yet, 1 the straight line, 2 the straight line and the map-aware bound.
+  double metres = 0;
+  std::uint8_t metres_of = 0;
   std::array<std::int32_t, kHeadings / 2> foothold;
   std::array<Node, 2 * kHeadings> nodes;  ///< by heading * 2 + side
 };
@@ -579,6 +588,7 @@ constexpr PlanField kPlanFields[] = {
     {"time_limit_s", &PlanParams::time_limit_s},
 };
 constexpr const char* kMaxExpansions = "max_expansions";
+constexpr const char* kMapBoundAfter = "map_bound_after";
 }  // namespace
 
 bool setPlanParameter(PlanParams& params, const std::string& name, double value) {
@@ -588,6 +598,13 @@ bool setPlanParameter(PlanParams& params, const std::string& name, double value)
       params.*f.field = value;
       return true;
     }
+  }
+  if (name == kMapBoundAfter) {
+    if (!(value >= 0 && value <= 1e12 && value == std::floor(value))) {
+      throw util::FieldError("map_bound_after", "must be a whole number >= 0", "PlanParams");
+    }
+    params.map_bound_after = static_cast<std::size_t>(value);
+    return true;
   }
   if (name != kMaxExpansions) return false;
   if (!(value >= 1 && value <= 1e12 && value == std::floor(value))) {
@@ -602,6 +619,7 @@ const std::vector<std::string>& planParameterNames() {
     std::vector<std::string> n = robotParameterNames();
     for (const PlanField& f : kPlanFields) n.emplace_back(f.name);
     n.emplace_back(kMaxExpansions);
+    n.emplace_back(kMapBoundAfter);
     return n;
   }();
   return names;
@@ -711,10 +729,31 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
     if (fs.yaw > kPi) fs.yaw -= 2 * kPi;
     return fs;
   };
-  const double per_metre = (1.0 + params.step_cost_m / robot.max_stride_m) * params.heuristic_weight;
+  // A step costs at least hypot(stride, rise) + step_cost_m * stride / max_stride_m, so
+  // footsteps to the goal at least hypot(M, Z) + step_cost_m / max_stride_m * M for M at
+  // most their strides' sum and Z at most their rises' sum. M: the straight line to the
+  // goal, and once the search proves long (PlanParams::map_bound_after) the way around
+  // what no swing passes and up only where soles can stand (detail::SurfaceBound), the
+  // larger; Z: the height to the goal's level. A step lowers M by at most its stride and
+  // Z by at most its rise: consistent.
+  const double per_stride = params.step_cost_m / robot.max_stride_m;
+  const double goal_slack = kLevelSlack + robot.max_unevenness_m;  // atGoal()'s
+  const double sole_off_top = detail::soleOffTop(robot, res);
+  std::optional<detail::SurfaceBound> bound;
   const auto heuristic = [&](const State& st) {
-    const auto [x, y] = search.centre(st.run);
-    return per_metre * std::max(0.0, std::hypot(goal.x() - x, goal.y() - y) - params.goal_tolerance_m);
+    RunRecord& rec = search.record(st.run);
+    const std::uint8_t generation = bound ? 2 : 1;
+    if (rec.metres_of != generation) {
+      rec.metres = std::max(0.0, std::hypot(goal.x() - rec.x, goal.y() - rec.y) - params.goal_tolerance_m);
+      if (bound) rec.metres = std::max(rec.metres, bound->metres(st.run));
+      rec.metres_of = generation;
+    }
+    const double metres = rec.metres;
+    // The sole's height if judged, else as low a bound as its surface's top allows.
+    const Foothold* sole = search.judged(rec, st.heading);
+    const double z = sole ? sole->z : cols.topFace(cols.runs()[st.run]);
+    const double rise = std::max(0.0, std::abs(z - *z_goal) - goal_slack - (sole ? 0.0 : sole_off_top));
+    return params.heuristic_weight * (std::hypot(metres, rise) + per_stride * metres);
   };
   const auto stepCost = [&](double stride, const Foothold& from, const Foothold& to) {
     return std::hypot(stride, to.z - from.z) + params.step_cost_m + params.mobility_weight_m * (1.0 - to.min_mobility) +
@@ -833,6 +872,36 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
     return finish(format("no plan within the limits (%.1f s, ", params.time_limit_s) + std::to_string(plan.expansions) +
                   " states expanded); raise `time_limit_s`, or `heuristic_weight` to search faster for a costlier plan");
   };
+  // The map-aware bound, worked out once: nullopt to go on searching, else the answer (a
+  // goal the bound shows cut off, or the time limit).
+  const auto addMapBound = [&]() -> std::optional<Plan> {
+    if (!detail::SurfaceBound::handles(search.s_)) return std::nullopt;
+    try {
+      bound.emplace(cols, robot, search.s_, goal, *z_goal, params.goal_tolerance_m, kLevelSlack + robot.max_unevenness_m,
+                    std::vector<std::size_t>{left.run, right.run}, kBoundBeyond, limited);
+    } catch (const BudgetExceeded&) {
+      budget.check("planFootsteps");
+      return outOfTime();
+    }
+    if (bound->startCutOff()) {
+      // No footstep sequence joins the start and the goal: why.
+      if (!lazy) lazy.emplace(cols, robot);
+      if (auto why = diagnoseFromGoal(*lazy, cols, start, goal, *z_goal, params, kDiagnoseFeet)) return finish(std::move(*why));
+      if (!checkReach()) return outOfTime();
+      return finish(diagnose(cols, *reach, goal_feet, params));
+    }
+    // The open list again under the larger heuristic (still consistent: the states
+    // closed so far keep their costs).
+    std::vector<Item> items;
+    items.reserve(open.size());
+    for (; !open.empty(); open.pop()) items.push_back(open.top());
+    for (Item& it : items) it.f = -it.neg_g + heuristic(State::fromKey(it.key));
+    open = decltype(open)(std::greater<Item>(), std::move(items));
+    return std::nullopt;
+  };
+  if (params.map_bound_after == 0) {
+    if (auto answer = addMapBound()) return std::move(*answer);
+  }
   while (!open.empty()) {
     // Plain variables, not structured bindings: the lambda below captures them (C++17
     // does not let a lambda capture a structured binding; clang refuses it).
@@ -862,6 +931,9 @@ Plan planWithin(std::shared_ptr<const SurfaceColumns> columns, const Eigen::Vect
     if (++plan.expansions >= params.max_expansions) {
       expansions_spent = true;
       break;
+    }
+    if (plan.expansions == params.map_bound_after) {
+      if (auto answer = addMapBound()) return std::move(*answer);
     }
     if (lookBackFeet(plan.expansions) && verdict == Verdict::kUnknown) {
       if (!lazy) lazy.emplace(cols, robot);

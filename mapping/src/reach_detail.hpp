@@ -38,6 +38,16 @@ inline double supportBand(const RobotParams& robot, double res) {
          robot.max_unevenness_m + res;
 }
 
+/// How far a standable sole's height (its plane at its centre) may lie from the top of
+/// the surface it was judged on: its supports within supportBand() of that top, each
+/// within max_unevenness_m of the plane, which tilts at most max_tilt_deg over the half
+/// diagonal from a support to the centre.
+inline double soleOffTop(const RobotParams& robot, double res) {
+  constexpr double kPi = 3.14159265358979323846;
+  return supportBand(robot, res) + robot.max_unevenness_m +
+         0.5 * std::hypot(robot.sole_length_m, robot.sole_width_m) * std::tan(robot.max_tilt_deg * kPi / 180) + 1e-6;
+}
+
 /// The foot place on `run` at lattice column (kx, ky): its headings judged
 /// (geometry_ok == 0 when no heading's geometry passes). The supports of each standable
 /// heading are appended to `standable_supports` when given.

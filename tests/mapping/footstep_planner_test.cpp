@@ -4,6 +4,7 @@
 // Weight 1 must find the reference's cheapest cost; a larger weight at most that times
 // the weight.
 #include "mobmap/mapping/footstep_planner.hpp"
+#include "building_scene.hpp"
 #include "voxel_scene.hpp"
 
 #include <gtest/gtest.h>
@@ -185,7 +186,12 @@ double referenceCost(const SurfaceColumns& cols, const Plan& plan, const Eigen::
   return std::numeric_limits<double>::infinity();
 }
 
+// Run twice: as planFootsteps() runs by default (short plans end before the map-aware
+// bound is added) and with the bound from the first expansion (map_bound_after 0), so
+// that its admissibility and consistency are what the optimality rests on.
 TEST(FootstepPlanner, WeightOneFindsTheReferenceCostAndLargerWeightsStayWithinTheirBound) {
+  for (const std::size_t bound_after : {PlanParams{}.map_bound_after, std::size_t{0}}) {
+  SCOPED_TRACE("map_bound_after " + std::to_string(bound_after));
   int compared = 0;
   for (unsigned seed = 1; seed <= 4; ++seed) {
     const RoughScene scene(seed);
@@ -196,6 +202,7 @@ TEST(FootstepPlanner, WeightOneFindsTheReferenceCostAndLargerWeightsStayWithinTh
       const Eigen::Vector3d start(ux(rng), uy(rng), 0.3), goal(ux(rng), uy(rng), 0.3);
       PlanParams p;
       p.heuristic_weight = 1.0;
+      p.map_bound_after = bound_after;
       Plan optimal;
       try {
         optimal = planFootsteps(cols, start, goal, p);
@@ -220,12 +227,15 @@ TEST(FootstepPlanner, WeightOneFindsTheReferenceCostAndLargerWeightsStayWithinTh
     }
   }
   EXPECT_GE(compared, 6);  // enough pairs had a plan to compare
+  }
 }
 
 // A refusal for a goal out of reach (the look back from the goal, or whole-map
 // reachability) agrees with whole-map reachability worked out here; with a cache the
 // planner answers the same, plan for plan and reason for reason.
 TEST(FootstepPlanner, RefusesOnlyGoalsWholeMapReachabilitySaysAreOutOfReachWithOrWithoutACache) {
+  for (const std::size_t bound_after : {PlanParams{}.map_bound_after, std::size_t{0}}) {
+  SCOPED_TRACE("map_bound_after " + std::to_string(bound_after));
   int refused = 0, found = 0;
   // voxel_scene.hpp's floor, stairs to a platform, ledge, walled room and annex.
   const Scene scene;
@@ -240,6 +250,7 @@ TEST(FootstepPlanner, RefusesOnlyGoalsWholeMapReachabilitySaysAreOutOfReachWithO
       PlanParams p;
       p.heuristic_weight = (si + gi) % 2 ? 1.0 : 1.25;
       p.robot.max_step_m = 0.06 + 0.045 * static_cast<double>((si + gi) % 3);
+      p.map_bound_after = bound_after;
       Plan plan, cached;
       try {
         plan = planFootsteps(cols, start, goal, p);
@@ -277,6 +288,44 @@ TEST(FootstepPlanner, RefusesOnlyGoalsWholeMapReachabilitySaysAreOutOfReachWithO
   std::printf("[ info ] %d plans found, %d refused as out of reach\n", found, refused);
   EXPECT_GE(refused, 3);  // both kinds of answer were compared
   EXPECT_GE(found, 3);
+  }
+}
+
+// A building of 20 x 20 m (tests/mapping/building_scene.hpp), its room-to-room trip
+// (~21 m of footsteps through two doors and the corridors' crossing): with the map-aware
+// bound the search finds it within 100,000 expansions; with the straight line alone it
+// does not (it floods the rooms beside the way). Every step of the plan keeps the rules.
+TEST(FootstepPlanner, TheMapAwareBoundFindsATripThroughDoorsTheStraightLineDoesNot) {
+  building::Params bp;
+  bp.size_m = 20;
+  const building::Scene scene(bp);
+  const auto cols = std::make_shared<const SurfaceColumns>(scene.tree);
+  const building::Trip& trip = scene.trips[1];
+  PlanParams p;
+  p.max_expansions = 100000;
+  p.time_limit_s = 3600;  // the expansions end the search, not the clock
+  const Plan with = planFootsteps(cols, trip.from, trip.to, p);
+  ASSERT_TRUE(with.found) << with.reason;
+  EXPECT_LT(with.expansions, p.max_expansions);
+  const RobotParams& r = p.robot;
+  const double res = cols->resolution();
+  ASSERT_GE(with.footsteps.size(), 3u);
+  for (std::size_t i = 1; i < with.footsteps.size(); ++i) {
+    const Footstep& a = with.footsteps[i - 1];
+    const Footstep& b = with.footsteps[i];
+    SCOPED_TRACE("footstep " + std::to_string(i));
+    EXPECT_NE(a.side, b.side);
+    EXPECT_LE(std::hypot(b.x - a.x, b.y - a.y), r.max_stride_m + 1e-9);
+    EXPECT_TRUE(stepHeightOk(a.z, b.z, r, res));
+    EXPECT_EQ(swingProblem(*cols, a.x, a.y, a.z, b.x, b.y, b.z, r), FootholdProblem::kNone);
+    EXPECT_TRUE(evaluateFoothold(*cols, b.x, b.y, b.yaw, b.z, r).standable());
+  }
+  const Footstep& last = with.footsteps.back();
+  EXPECT_LE(std::hypot(last.x - trip.to.x(), last.y - trip.to.y()), p.goal_tolerance_m + std::hypot(r.stance_width_m, 0.0) + 1e-9);
+  p.map_bound_after = p.max_expansions;  // never
+  const Plan without = planFootsteps(cols, trip.from, trip.to, p);
+  EXPECT_FALSE(without.found);
+  EXPECT_EQ(without.expansions, p.max_expansions);
 }
 
 }  // namespace

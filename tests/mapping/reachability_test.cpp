@@ -513,14 +513,15 @@ TEST(Footholds, FormatLimitGivesTheShortestDecimalThatReadsBack) {
 TEST(FootstepPlanner, EachNamedParameterSetsTheFieldOfThatName) {
   const std::vector<std::string>& names = planParameterNames();
   EXPECT_EQ(std::set<std::string>(names.begin(), names.end()).size(), names.size());
-  EXPECT_EQ(names.size(), robotParameterNames().size() + 8);
+  EXPECT_EQ(names.size(), robotParameterNames().size() + 9);
   for (const std::string& name : names) {
     PlanParams p;
-    if (name == "max_expansions") {
+    if (name == "max_expansions" || name == "map_bound_after") {
       EXPECT_THROW(setPlanParameter(p, name, std::nan("")), std::invalid_argument);
       EXPECT_THROW(setPlanParameter(p, name, 2.5), std::invalid_argument);
+      EXPECT_THROW(setPlanParameter(p, name, -1), std::invalid_argument);
       ASSERT_TRUE(setPlanParameter(p, name, 1234));
-      EXPECT_EQ(p.max_expansions, 1234u);
+      EXPECT_EQ(name == "max_expansions" ? p.max_expansions : p.map_bound_after, 1234u);
       continue;
     }
     ASSERT_TRUE(setPlanParameter(p, name, std::nan(""))) << name;

@@ -40,6 +40,12 @@ struct PlanParams {
   double heuristic_weight = 1.25;
   double time_limit_s = 10.0;            ///< then the search gives up (found = false, with the reason)
   std::size_t max_expansions = 5000000;  ///< likewise
+  /// After this many expansions the search adds a bound that knows the map to its
+  /// heuristic (a lower bound on the walk around walls and drops, up only where soles
+  /// can stand; docs/MAPPING.md, "Footstep planning"), and a goal it shows cut off is
+  /// refused then. 0: from the start. Working it out costs about as much as a few
+  /// thousand expansions on a 12 m corridor, so the default leaves short plans without it.
+  std::size_t map_bound_after = 4096;
 };
 
 /// std::invalid_argument naming the field.
@@ -47,8 +53,9 @@ void validate(const PlanParams& params);
 
 /// PlanParams' numbers by name: the robot's (setRobotParameter) and the search's
 /// (goal_tolerance_m, step_cost_m, mobility_weight_m, variance_weight_m, start_radius_m,
-/// heuristic_weight, time_limit_s, max_expansions). False for a name that is none of
-/// them; std::invalid_argument for a max_expansions that is not a whole number >= 1. The
+/// heuristic_weight, time_limit_s, max_expansions, map_bound_after). False for a name
+/// that is none of them; std::invalid_argument for a max_expansions that is not a whole
+/// number >= 1 or a map_bound_after that is not one >= 0. The
 /// rest is checked by validate().
 bool setPlanParameter(PlanParams& params, const std::string& name, double value);
 /// The names setPlanParameter() takes: the robot's, then the search's.
