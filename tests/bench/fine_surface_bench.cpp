@@ -1,0 +1,162 @@
+// What a fused fine surface would give for roughness (issue: rough ground from the fused
+// surface). Each rough field of the simulated rough yard is seen by the walk's frames;
+// every depth pixel on it (the renderer's labels say which field) is added to per-voxel
+// point moments (count, mean, covariance) at the map's 2 cm. Each voxel's plane (the
+// covariance's smallest axis) gives its surface's share of the field's true area and of
+// its footprint: a plane cutting a cube at a random offset has mean area res^2 / |n|_1,
+// its footprint that times |n_z|. The field's area ratio is then
+//   A / A' = sum 1 / |n|_1  /  sum |n_z| / |n|_1
+// over its voxels with enough points. Printed against the exact ratio, noise-free and
+// with the Kinect model, for all frames and for frames whose camera passes within 1.5 m.
+//
+//   fine_surface_bench [FRAME_STEP] [MIN_POINTS]
+#include "mobmap/sim/corridor_scene.hpp"
+
+#include <Eigen/Eigenvalues>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <array>
+#include <string>
+#include <map>
+#include <unordered_map>
+#include <vector>
+
+using namespace mobmap;
+
+namespace {
+
+struct Moments {
+  double n = 0;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+  void add(const Eigen::Vector3d& p) {
+    n += 1;
+    sum += p;
+    outer += p * p.transpose();
+  }
+};
+
+struct Key {
+  long x, y, z;
+  bool operator==(const Key& o) const { return x == o.x && y == o.y && z == o.z; }
+};
+struct KeyHash {
+  std::size_t operator()(const Key& k) const {
+    return static_cast<std::size_t>(k.x * 73856093L) ^ static_cast<std::size_t>(k.y * 19349663L) ^ static_cast<std::size_t>(k.z * 83492791L);
+  }
+};
+
+// Per field (surface id): its voxels' moments.
+using Fields = std::map<int, std::unordered_map<Key, Moments, KeyHash>>;
+
+// Per field: a height field of fine cells, the mean height of the points in each.
+struct Heights {
+  std::unordered_map<Key, std::pair<double, double>, KeyHash> cells;  // (x, y, 0) -> (sum z, count)
+  void add(const Eigen::Vector3d& p, double res) {
+    auto& c = cells[Key{static_cast<long>(std::floor(p.x() / res)), static_cast<long>(std::floor(p.y() / res)), 0}];
+    c.first += p.z(), c.second += 1;
+  }
+};
+
+// The height field's area ratio: each square of four cells with points, two triangles
+// through their mean heights, their area over their footprint (a step between cells
+// counts as the steep face it implies, seen or not).
+double heightRatio(const Heights& h, double res, double min_points) {
+  double area = 0, footprint = 0;
+  const auto at = [&](long x, long y, double& z) {
+    const auto it = h.cells.find(Key{x, y, 0});
+    if (it == h.cells.end() || it->second.second < min_points) return false;
+    z = it->second.first / it->second.second;
+    return true;
+  };
+  for (const auto& [k, c] : h.cells) {
+    double z00, z10, z01, z11;
+    if (!at(k.x, k.y, z00) || !at(k.x + 1, k.y, z10) || !at(k.x, k.y + 1, z01) || !at(k.x + 1, k.y + 1, z11)) continue;
+    const Eigen::Vector3d a(0, 0, z00), b(res, 0, z10), c2(0, res, z01), d(res, res, z11);
+    area += 0.5 * (b - a).cross(c2 - a).norm() + 0.5 * (b - d).cross(c2 - d).norm();
+    footprint += res * res;
+  }
+  return footprint > 0 ? area / footprint : 0.0;
+}
+
+// The field's area ratio from its voxels' planes; voxels with fewer than min_points left out.
+std::pair<double, std::size_t> areaRatio(const std::unordered_map<Key, Moments, KeyHash>& voxels, double min_points) {
+  double area = 0, footprint = 0;
+  std::size_t used = 0;
+  for (const auto& [key, m] : voxels) {
+    if (m.n < min_points) continue;
+    const Eigen::Vector3d mean = m.sum / m.n;
+    const Eigen::Matrix3d cov = m.outer / m.n - mean * mean.transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+    const Eigen::Vector3d normal = eig.eigenvectors().col(0);
+    const double l1 = normal.cwiseAbs().sum();
+    area += 1.0 / l1;
+    footprint += std::abs(normal.z()) / l1;
+    ++used;
+  }
+  return {footprint > 0 ? area / footprint : 0.0, used};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const int step = argc > 1 ? std::max(1, std::atoi(argv[1])) : 2;
+  const double min_points = argc > 2 ? std::atof(argv[2]) : 5;
+  constexpr double kRes = 0.02, kFine = 0.01, kNear = 1.5;
+  std::printf("fine surface benchmark: the rough yard, every %d frame(s), per-voxel point moments at %.0f cm, voxels with >= %.0f points\n",
+              step, kRes * 100, min_points);
+  std::map<int, std::array<double, 8>> estimates;
+  std::map<int, std::pair<std::string, double>> truth;
+  int column = 0;
+  for (const sim::NoiseModel noise : {sim::NoiseModel::kNone, sim::NoiseModel::kKinect}) {
+    sim::CorridorParams p;
+    p.layout = sim::Layout::kRoughYard;
+    p.noise = noise;
+    const sim::CorridorScene scene(p);
+    Fields all, near;
+    std::map<int, Heights> heights_all, heights_near;
+    for (const sim::Surface& s : scene.surfaces()) {
+      if (s.kind == sim::SurfaceKind::kRough) truth[s.id] = {s.name, s.roughness};
+    }
+    for (int f = 0; f < p.frames; f += step) {
+      const sim::RenderedFrame r = scene.render(f);
+      const Eigen::Vector3d eye = r.T_world_camera.translation();
+      for (int v = 0; v < r.depth.height; ++v) {
+        for (int u = 0; u < r.depth.width; ++u) {
+          const std::size_t i = static_cast<std::size_t>(v) * r.depth.width + u;
+          const int label = r.labels[i];
+          const float d = r.depth.depth_m[i];
+          if (!(d > 0) || !truth.count(label)) continue;
+          const Eigen::Vector3d pw = r.T_world_camera * (perception::pixelRay(p.intrinsics, u, v) * d);
+          const Key key{static_cast<long>(std::floor(pw.x() / kRes)), static_cast<long>(std::floor(pw.y() / kRes)),
+                        static_cast<long>(std::floor(pw.z() / kRes))};
+          all[label][key].add(pw);
+          heights_all[label].add(pw, kFine);
+          if (std::hypot(eye.x() - pw.x(), eye.y() - pw.y()) <= kNear) {
+            near[label][key].add(pw);
+            heights_near[label].add(pw, kFine);
+          }
+        }
+      }
+    }
+    for (const auto& [id, t] : truth) {
+      estimates[id][column] = areaRatio(all[id], min_points).first;
+      estimates[id][column + 1] = areaRatio(near[id], min_points).first;
+      estimates[id][column + 4] = heightRatio(heights_all[id], kFine, min_points);
+      estimates[id][column + 5] = heightRatio(heights_near[id], kFine, min_points);
+    }
+    column += 2;
+  }
+  for (const int first : {0, 4}) {
+    std::printf("\n%s\n%-24s %7s %9s %9s %9s %9s\n",
+                first == 0 ? "voxel planes (2 cm)" : "height field of the mean height per 1 cm cell",
+                "field", "truth", "exact", "exact<1.5", "kinect", "kinect<1.5");
+    for (const auto& [id, t] : truth) {
+      const auto& e = estimates[id];
+      std::printf("%-24s %7.3f %9.3f %9.3f %9.3f %9.3f\n", t.first.c_str(), t.second, e[first], e[first + 1], e[first + 2], e[first + 3]);
+    }
+  }
+  return 0;
+}
