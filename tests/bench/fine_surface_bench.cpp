@@ -10,6 +10,7 @@
 // with the Kinect model, for all frames and for frames whose camera passes within 1.5 m.
 //
 //   fine_surface_bench [FRAME_STEP] [MIN_POINTS]
+#include "mobmap/gp/rule_table.hpp"
 #include "mobmap/sim/corridor_scene.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -109,6 +110,7 @@ int main(int argc, char** argv) {
               step, kRes * 100, min_points);
   std::map<int, std::array<double, 8>> estimates;
   std::map<int, std::pair<std::string, double>> truth;
+  std::map<int, std::pair<double, double>> slope_mobility;  // the field's slope and its expected mobility
   int column = 0;
   for (const sim::NoiseModel noise : {sim::NoiseModel::kNone, sim::NoiseModel::kKinect}) {
     sim::CorridorParams p;
@@ -118,7 +120,10 @@ int main(int argc, char** argv) {
     Fields all, near;
     std::map<int, Heights> heights_all, heights_near;
     for (const sim::Surface& s : scene.surfaces()) {
-      if (s.kind == sim::SurfaceKind::kRough) truth[s.id] = {s.name, s.roughness};
+      if (s.kind == sim::SurfaceKind::kRough) {
+        truth[s.id] = {s.name, s.roughness};
+        slope_mobility[s.id] = {s.slope_deg, s.expected_mobility};
+      }
     }
     for (int f = 0; f < p.frames; f += step) {
       const sim::RenderedFrame r = scene.render(f);
@@ -149,14 +154,28 @@ int main(int argc, char** argv) {
     }
     column += 2;
   }
+  // Each estimate, and the mobility the paper's rule table gives the field for it (its
+  // slope and the estimated ratio) against the one it gives for the exact ratio.
+  const gp::RuleTable rules = gp::RuleTable::paper();
   for (const int first : {0, 4}) {
-    std::printf("\n%s\n%-24s %7s %9s %9s %9s %9s\n",
+    std::printf("\n%s: area ratio (mobility by the rule table)\n%-24s %13s %15s %15s %15s %15s\n",
                 first == 0 ? "voxel planes (2 cm)" : "height field of the mean height per 1 cm cell",
                 "field", "truth", "exact", "exact<1.5", "kinect", "kinect<1.5");
+    std::array<double, 4> error{};
     for (const auto& [id, t] : truth) {
       const auto& e = estimates[id];
-      std::printf("%-24s %7.3f %9.3f %9.3f %9.3f %9.3f\n", t.first.c_str(), t.second, e[first], e[first + 1], e[first + 2], e[first + 3]);
+      const auto [slope, expected] = slope_mobility[id];
+      std::printf("%-24s %6.3f (%.2f)", t.first.c_str(), t.second, expected);
+      for (int c = 0; c < 4; ++c) {
+        const double m = rules.lookup(slope, std::max(1.0, e[first + c]));
+        error[c] += std::abs(m - expected) / static_cast<double>(truth.size());
+        std::printf(" %8.3f (%.2f)", e[first + c], m);
+      }
+      std::printf("\n");
     }
+    std::printf("%-24s %13s", "mean |mobility error|", "");
+    for (const double v : error) std::printf(" %15.2f", v);
+    std::printf("\n");
   }
   return 0;
 }
