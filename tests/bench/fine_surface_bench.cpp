@@ -1,6 +1,7 @@
 // What a fused fine surface would give for roughness (issue: rough ground from the fused
-// surface). Each rough field of the simulated rough yard is seen by the walk's frames;
-// every depth pixel on it (the renderer's labels say which field) is added to per-voxel
+// surface). Each rough field of the simulated rough yard, and its floor (which must stay
+// smooth), is seen by the walk's frames; every depth pixel on one (the renderer's labels
+// say which) is added to per-voxel
 // point moments (count, mean, covariance) at the map's 2 cm. Each voxel's plane (the
 // covariance's smallest axis) gives its surface's share of the field's true area and of
 // its footprint: a plane cutting a cube at a random offset has mean area res^2 / |n|_1,
@@ -155,7 +156,7 @@ int main(int argc, char** argv) {
     Fields all, near;
     std::map<int, Heights> heights_all, heights_near;
     for (const sim::Surface& s : scene.surfaces()) {
-      if (s.kind == sim::SurfaceKind::kRough) {
+      if (s.kind == sim::SurfaceKind::kRough || s.kind == sim::SurfaceKind::kFloor || s.kind == sim::SurfaceKind::kRamp) {
         truth[s.id] = {s.name, s.roughness};
         slope_mobility[s.id] = {s.slope_deg, s.expected_mobility};
       }
