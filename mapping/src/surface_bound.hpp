@@ -1,7 +1,7 @@
 #pragma once
 // The footstep planner's map-aware heuristic: a lower bound on the horizontal strides'
 // sum from a sole to the goal that knows walls, drops and levels (docs/MAPPING.md,
-// "Footstep planning").
+// "Reachability and footsteps").
 #include "mobmap/mapping/budget.hpp"
 #include "mobmap/mapping/footholds.hpp"
 
@@ -24,8 +24,8 @@ namespace mobmap::mapping::detail {
 /// 1.0824 times the stride long in octile steps; each passes (a) at L and lies within
 /// `dilate_` cells of a cell with a column that passes (b) at L.
 ///
-/// The graph: a node is a cell with a range of levels (0.1 m buckets, coarser on maps
-/// over 6 m tall). Moves: to a neighbouring cell at one level where a chain can pass
+/// The graph: a node is a cell with a range of levels (0.1 m buckets; coarser where the
+/// map's surfaces span more than ~5.5 m, so that 62 buckets cover them). Moves: to a neighbouring cell at one level where a chain can pass
 /// (open columns 8-adjacent, or joined through the two cells beside a corner), costing
 /// the cells' distance; between levels at a cell for free, where a sole on a surface of
 /// its lattice column can be the higher sole of a step at one level and the lower or
