@@ -1,14 +1,17 @@
 // What a fused fine surface would give for roughness (issue: rough ground from the fused
 // surface). Each rough field of the simulated rough yard, and its floor (which must stay
 // smooth), is seen by the walk's frames; every depth pixel on one (the renderer's labels
-// say which) is added to per-voxel
-// point moments (count, mean, covariance) at the map's 2 cm. Each voxel's plane (the
-// covariance's smallest axis) gives its surface's share of the field's true area and of
-// its footprint: a plane cutting a cube at a random offset has mean area res^2 / |n|_1,
-// its footprint that times |n_z|. The field's area ratio is then
-//   A / A' = sum 1 / |n|_1  /  sum |n_z| / |n|_1
-// over its voxels with enough points. Printed against the exact ratio, noise-free and
-// with the Kinect model, for all frames and for frames whose camera passes within 1.5 m.
+// say which) is added to per-voxel point moments (count, mean, covariance) at the map's
+// 2 cm. Area ratios (true area over footprint) of each field, against the exact ones and
+// as the paper's rule table turns them into mobility:
+// - voxel planes: each voxel's plane (the covariance's smallest axis) at the mean area
+//   of a plane cutting a cube at a random offset, res^2 / |n|_1, its footprint that
+//   times |n_z|: A / A' = sum 1 / |n|_1 / sum |n_z| / |n|_1;
+// - a 1 cm height field of the points' mean heights, triangulated;
+// - a 1 cm height field of each column's highest voxel plane, triangulated;
+// - the last again over all frames, each point weighted by the depth model's variance.
+// Noise-free and with the Kinect model; all frames, and those whose camera passes within
+// 1.5 m of the point.
 //
 //   fine_surface_bench [FRAME_STEP] [MIN_POINTS]
 #include "mobmap/gp/rule_table.hpp"
@@ -34,10 +37,10 @@ struct Moments {
   double n = 0;
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
-  void add(const Eigen::Vector3d& p) {
-    n += 1;
-    sum += p;
-    outer += p * p.transpose();
+  void add(const Eigen::Vector3d& p, double w = 1) {
+    n += w;
+    sum += w * p;
+    outer += w * p * p.transpose();
   }
 };
 
@@ -144,7 +147,7 @@ int main(int argc, char** argv) {
   constexpr double kRes = 0.02, kFine = 0.01, kNear = 1.5;
   std::printf("fine surface benchmark: the rough yard, every %d frame(s), per-voxel point moments at %.0f cm, voxels with >= %.0f points\n",
               step, kRes * 100, min_points);
-  std::map<int, std::array<double, 12>> estimates;
+  std::map<int, std::array<double, 16>> estimates;
   std::map<int, std::pair<std::string, double>> truth;
   std::map<int, std::pair<double, double>> slope_mobility;  // the field's slope and its expected mobility
   int column = 0;
@@ -153,7 +156,7 @@ int main(int argc, char** argv) {
     p.layout = sim::Layout::kRoughYard;
     p.noise = noise;
     const sim::CorridorScene scene(p);
-    Fields all, near;
+    Fields all, near, weighted;
     std::map<int, Heights> heights_all, heights_near;
     for (const sim::Surface& s : scene.surfaces()) {
       if (s.kind == sim::SurfaceKind::kRough || s.kind == sim::SurfaceKind::kFloor || s.kind == sim::SurfaceKind::kRamp) {
@@ -174,6 +177,11 @@ int main(int argc, char** argv) {
           const Key key{static_cast<long>(std::floor(pw.x() / kRes)), static_cast<long>(std::floor(pw.y() / kRes)),
                         static_cast<long>(std::floor(pw.z() / kRes))};
           all[label][key].add(pw);
+          {
+            // Weighted by the depth model's variance (sigma ~ z^2): one point at 1.5 m counts 1.
+            const double w = std::pow(1.5 / d, 4);
+            weighted[label][key].add(pw, w);
+          }
           heights_all[label].add(pw, kFine);
           if (std::hypot(eye.x() - pw.x(), eye.y() - pw.y()) <= kNear) {
             near[label][key].add(pw);
@@ -189,18 +197,22 @@ int main(int argc, char** argv) {
       estimates[id][column + 5] = heightRatio(heights_near[id], kFine, min_points);
       estimates[id][column + 8] = planeHeightRatio(all[id], kRes, kFine, min_points);
       estimates[id][column + 9] = planeHeightRatio(near[id], kRes, kFine, min_points);
+      estimates[id][column + 12] = planeHeightRatio(weighted[id], kRes, kFine, min_points);
+      estimates[id][column + 13] = planeHeightRatio(weighted[id], kRes, kFine, 2 * min_points);
     }
     column += 2;
   }
   // Each estimate, and the mobility the paper's rule table gives the field for it (its
   // slope and the estimated ratio) against the one it gives for the exact ratio.
   const gp::RuleTable rules = gp::RuleTable::paper();
-  for (const int first : {0, 4, 8}) {
+  for (const int first : {0, 4, 8, 12}) {
     std::printf("\n%s: area ratio (mobility by the rule table)\n%-24s %13s %15s %15s %15s %15s\n",
                 first == 0 ? "voxel planes (2 cm)"
                 : first == 4 ? "height field of the mean height per 1 cm cell"
-                             : "height field of the highest voxel plane per 1 cm cell",
-                "field", "truth", "exact", "exact<1.5", "kinect", "kinect<1.5");
+                : first == 8 ? "height field of the highest voxel plane per 1 cm cell"
+                             : "the same, all frames, each point weighted by (1.5 m / its depth)^4 (the depth model's "
+                               "variance); voxels of weight >= MIN_POINTS, and >= twice that",
+                "field", "truth", "exact", first == 12 ? "exact,2x" : "exact<1.5", "kinect", first == 12 ? "kinect,2x" : "kinect<1.5");
     std::array<double, 4> error{};
     for (const auto& [id, t] : truth) {
       const auto& e = estimates[id];
