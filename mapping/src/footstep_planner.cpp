@@ -45,7 +45,7 @@ constexpr std::size_t kDiagnoseFeet = 40000;  ///< foot places the search for th
 /// (a factor of 1 left the 30 m trip across the building nine times as many expansions).
 constexpr double kBoundBeyond = 1.1;
 
-long floorDiv(long a, long b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
+using detail::floorDiv;
 
 std::string format(const char* fmt, double a = 0, double b = 0, double c = 0, double d = 0, double e = 0, double f = 0) {
   char buf[512];

@@ -13,6 +13,9 @@
 
 namespace mobmap::mapping::detail {
 
+/// a / b rounded towards minus infinity (b > 0): the lattice cell of a voxel key.
+inline long floorDiv(long a, long b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
+
 /// A start sole's support may lie this far above the start point (a point given on the
 /// floor may be a voxel low).
 inline constexpr double kStartSlack = 0.1;

@@ -12,11 +12,7 @@
 #include <stdexcept>
 
 namespace mobmap::mapping {
-namespace {
-
-long floorDiv(long a, long b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
-
-}  // namespace
+using detail::floorDiv;
 
 void validate(const ReachParams& p) {
   validate(p.robot);

@@ -7,7 +7,6 @@
 #include <cmath>
 #include <limits>
 #include <queue>
-#include <tuple>
 #include <utility>
 
 namespace mobmap::mapping::detail {
@@ -15,8 +14,6 @@ namespace {
 
 constexpr double kOctile = 1.0824;  // 1 / cos(22.5 degrees): octile over Euclidean length, at most
 constexpr std::uint64_t kOne = 1;
-
-long floorDivide(long a, long b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
 
 // Bits lo..hi of a 64-bit mask (clamped to 0..63; none when hi < lo).
 std::uint64_t bitRange(long lo, long hi) {
@@ -85,10 +82,10 @@ SurfaceBound::SurfaceBound(const SurfaceColumns& cols, const RobotParams& robot,
   // with it along the centre line: its cell within dilate_ cells of that one's.
   dilate_ = static_cast<long>(std::ceil((robot.max_gap_m + res) / cell_m_)) + 1;
   const long margin = dilate_ + 1;
-  i0_ = floorDivide(cols.keyX0(), s_) - margin;
-  j0_ = floorDivide(cols.keyY0(), s_) - margin;
-  ni_ = floorDivide(cols.keyX0() + cols.columnsX() - 1, s_) + margin - i0_ + 1;
-  nj_ = floorDivide(cols.keyY0() + cols.columnsY() - 1, s_) + margin - j0_ + 1;
+  i0_ = floorDiv(cols.keyX0(), s_) - margin;
+  j0_ = floorDiv(cols.keyY0(), s_) - margin;
+  ni_ = floorDiv(cols.keyX0() + cols.columnsX() - 1, s_) + margin - i0_ + 1;
+  nj_ = floorDiv(cols.keyY0() + cols.columnsY() - 1, s_) + margin - j0_ + 1;
   double zmin = std::numeric_limits<double>::infinity(), zmax = -zmin;
   for (const auto& r : cols.runs()) zmin = std::min(zmin, cols.topFace(r)), zmax = std::max(zmax, cols.topFace(r));
   if (cols.runs().empty()) zmin = zmax = 0;
@@ -110,7 +107,7 @@ SurfaceBound::SurfaceBound(const SurfaceColumns& cols, const RobotParams& robot,
         const double t = cols.topFace(cols.runs()[r]);
         bits |= bitRange(bucketOf(t - support_lo_), bucketOf(t + support_hi_));
       }
-      raw[static_cast<std::size_t>(cellIndex(floorDivide(kx, s_), floorDivide(ky, s_)))] |= bits;
+      raw[static_cast<std::size_t>(cellIndex(floorDiv(kx, s_), floorDiv(ky, s_)))] |= bits;
     }
     budget.check("planFootsteps");
     std::vector<std::uint64_t> rows(n, 0);
@@ -130,15 +127,19 @@ SurfaceBound::SurfaceBound(const SurfaceColumns& cols, const RobotParams& robot,
       }
     }
   }
-  const auto cellOfRun = [&](std::size_t run) {
-    const long c = cols_.runColumn(run);
-    return std::pair<long, long>{floorDivide(cols_.keyX0() + c / cols_.columnsY(), s_), floorDivide(cols_.keyY0() + c % cols_.columnsY(), s_)};
+  // The start soles' cells and level buckets.
+  struct RootCell {
+    long i, j, lo, hi;
   };
+  std::vector<RootCell> root_cells;
+  for (const std::size_t root : roots) {
+    const auto [i, j] = cellOfRun(root);
+    root_cells.push_back({i, j, bucketOf(window(root).first), bucketOf(window(root).second)});
+  }
+  // The node of levels b.. of cell (i, j) holds a start sole.
   const auto isRoot = [&](long i, long j, long b) {
-    return std::any_of(roots.begin(), roots.end(), [&](std::size_t root) {
-      if (cellOfRun(root) != std::pair<long, long>{i, j}) return false;
-      const Cell c = cell(i, j);
-      return b <= bucketOf(window(root).second) && endOf(c, b) >= bucketOf(window(root).first);
+    return std::any_of(root_cells.begin(), root_cells.end(), [&](const RootCell& r) {
+      return r.i == i && r.j == j && b <= r.hi && endOf(cell(i, j), b) >= r.lo;
     });
   };
   struct Item {
@@ -147,7 +148,7 @@ SurfaceBound::SurfaceBound(const SurfaceColumns& cols, const RobotParams& robot,
     std::int32_t i, j, b;
     bool operator>(const Item& o) const { return key > o.key || (key == o.key && dist < o.dist); }
   };
-  if (!roots.empty()) std::tie(si_, sj_) = cellOfRun(roots.front());
+  if (!root_cells.empty()) si_ = root_cells.front().i, sj_ = root_cells.front().j;
   std::priority_queue<Item, std::vector<Item>, std::greater<Item>> queue;
   // Reaches the component of bucket b of cell (i, j) (made, b one of its nodes) at distance d.
   const auto push = [&](long i, long j, long b, double d) {
@@ -160,7 +161,7 @@ SurfaceBound::SurfaceBound(const SurfaceColumns& cols, const RobotParams& robot,
   };
   // The goal: a sole within the tolerance, the last step's lower sole below it by at most m.
   const long r = static_cast<long>(std::ceil(tolerance / cell_m_)) + 1;
-  const long gi = floorDivide(cols.keyOf(goal.x()), s_), gj = floorDivide(cols.keyOf(goal.y()), s_);
+  const long gi = floorDiv(cols.keyOf(goal.x()), s_), gj = floorDiv(cols.keyOf(goal.y()), s_);
   for (long i = gi - r; i <= gi + r; ++i) {
     for (long j = gj - r; j <= gj + r; ++j) {
       if (cellIndex(i, j) < 0) continue;
@@ -210,6 +211,12 @@ long SurfaceBound::bucketOf(double z) const { return static_cast<long>(std::floo
 long SurfaceBound::cellIndex(long i, long j) const {
   if (i < i0_ || j < j0_ || i >= i0_ + ni_ || j >= j0_ + nj_) return -1;
   return (i - i0_) * nj_ + (j - j0_);
+}
+
+// The lattice cell of a run's column.
+std::pair<long, long> SurfaceBound::cellOfRun(std::size_t run) const {
+  const long c = cols_.runColumn(run);
+  return {floorDiv(cols_.keyX0() + c / cols_.columnsY(), s_), floorDiv(cols_.keyY0() + c % cols_.columnsY(), s_)};
 }
 
 // The octile distance from cell (i, j) to the first start sole's.
@@ -379,8 +386,7 @@ bool SurfaceBound::moveOpen(long i, long j, int di, int dj, long b) {
 }
 
 double SurfaceBound::metres(std::size_t run) {
-  const long col = cols_.runColumn(run);
-  const long i = floorDivide(cols_.keyX0() + col / cols_.columnsY(), s_), j = floorDivide(cols_.keyY0() + col % cols_.columnsY(), s_);
+  const auto [i, j] = cellOfRun(run);
   if (cellIndex(i, j) < 0) return 0.0;
   const Cell c = cell(i, j);
   const auto [lo, hi] = window(run);

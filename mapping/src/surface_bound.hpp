@@ -83,6 +83,7 @@ class SurfaceBound {
   bool moveOpen(long i, long j, int di, int dj, long b);
   [[nodiscard]] std::pair<double, double> window(std::size_t run) const;
   [[nodiscard]] double toStart(long i, long j) const;
+  [[nodiscard]] std::pair<long, long> cellOfRun(std::size_t run) const;
 
   const SurfaceColumns& cols_;
   long s_;
