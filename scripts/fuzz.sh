@@ -25,7 +25,10 @@ done
 
 # Each source is compiled once, again when it or any first-party header is newer than
 # its object (a header change can change a struct's layout under an old object).
-newest_header=$(ls -t $(find util builder gp perception mapping sources apps sim tests/fuzz -name '*.hpp') | head -n 1)
+# (sort reads all its input: a reader that stops early, as head does, would let the writer die of
+# SIGPIPE once the list outgrows one pipe write, and pipefail would end the script with 141.)
+newest_header=$(find util builder gp perception mapping sources apps sim tests/fuzz -name '*.hpp' -printf '%T@ %p\n' |
+  sort -n | tail -n 1 | cut -d' ' -f2-)
 # The stale ones are compiled on every core at once; a failed compile stops the script.
 compile_flags=$(printf '%q ' "${flags[@]}")
 export compile_flags

@@ -32,7 +32,7 @@ if [ ! -f "$httplib_dir/httplib.h" ]; then
   rm -rf "$apt_dir/unpacked" && mkdir -p "$apt_dir/unpacked"
   tar xf "$apt_dir"/src/cpp-httplib_*.orig.tar.* -C "$apt_dir/unpacked"
   tar xf "$apt_dir"/src/cpp-httplib_*.debian.tar.* -C "$apt_dir/unpacked"
-  upstream=$(find "$apt_dir/unpacked" -maxdepth 2 -name httplib.h -printf '%h\n' | head -n 1)
+  upstream=$(find "$apt_dir/unpacked" -maxdepth 2 -name httplib.h -printf '%h\n' -quit)
   if [ -f "$apt_dir/unpacked/debian/patches/series" ]; then
     while read -r patch; do
       [ -n "$patch" ] && [ "${patch#\#}" = "$patch" ] && patch -s -d "$upstream" -p1 < "$apt_dir/unpacked/debian/patches/$patch"
