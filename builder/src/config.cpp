@@ -96,7 +96,11 @@ static Config parseConfigUnchecked(const std::string& text, const std::string& o
         {{"resolution_m", bind(m.resolution_m)}, {"max_range_m", max_range}, {"prob_hit", bind(m.prob_hit)},
          {"prob_miss", bind(m.prob_miss)}, {"clamp_min", bind(m.clamp_min)}, {"clamp_max", bind(m.clamp_max)},
          {"max_weight", bind(m.max_weight)}, {"range_variance_per_m2", bind(m.range_variance_per_m2)},
-         {"free_space_margin_m", bind(m.free_space_margin_m)}, {"free_space_ray_stride_px", bind(m.free_space_ray_stride_px)}},
+         {"free_space_margin_m", bind(m.free_space_margin_m)}, {"free_space_ray_stride_px", bind(m.free_space_ray_stride_px)},
+         {"fine_surface", bind(m.fine_surface)}, {"fine_min_weight", bind(m.fine_min_weight)},
+         {"fine_max_range_m", bind(m.fine_max_range_m)},
+         {"fine_window_m", bind(m.fine_window_m)}, {"fine_support_m", bind(m.fine_support_m)},
+         {"fine_support_length_m", bind(m.fine_support_length_m)}},
         origin);
   auto& g = c.model;
   Setter kind = [&](const YAML::Node& n) {

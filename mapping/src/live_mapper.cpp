@@ -113,6 +113,10 @@ struct LiveMapper::Impl {
       first->map = std::make_unique<MobilityMap>(config.map, R_map_world, o);
       second->map = std::make_unique<MobilityMap>(config.map, R_map_world, o);
     }
+    // Rough ground on the fine surface is scored with the perception's model.
+    const auto model = std::make_shared<const gp::MobilityModel>(config.model);
+    first->map->setMobilityModel(model);
+    second->map->setMobilityModel(model);
     front = std::move(first);
     back = std::move(second);
     try {

@@ -2,6 +2,7 @@
 
 #include "mobmap/mapping/footholds.hpp"
 #include "mobmap/mapping/gravity.hpp"
+#include "fine_surface.hpp"
 #include "param_error.hpp"
 #include "support_plane.hpp"
 
@@ -12,12 +13,20 @@
 #include <cmath>
 #include <limits>
 #include <sstream>
+#include <tuple>
 #include <unordered_map>
 
 namespace mobmap::mapping {
 namespace {
 
 constexpr int kBlock = 16;  // voxels per block edge in the occupied-voxel index
+// The fine surface: a point at this range weighs 1; a voxel's moments stop growing at
+// kFineMaxWeight (~500 frames of floor seen from 1.5 m), so old views fade.
+constexpr double kFineReferenceRangeM = 1.5;
+constexpr float kFineMaxWeight = 2000.0f;
+// Every second pixel each way: ~4 mm apart at 2 m on a VGA depth camera, still several
+// points per centimetre of surface, for a quarter of the cost.
+constexpr int kFinePixelStride = 2;
 
 std::uint64_t blockOf(const octomap::OcTreeKey& key) {
   return (static_cast<std::uint64_t>(key[0] / kBlock) << 32) | (static_cast<std::uint64_t>(key[1] / kBlock) << 16) |
@@ -59,6 +68,11 @@ void validate(const MapParams& p) {
   if (!(p.range_variance_per_m2 >= 0) || !std::isfinite(p.range_variance_per_m2)) detail::failParam("MapParams", "range_variance_per_m2", p.range_variance_per_m2, "must be finite and >= 0");
   if (!(p.free_space_margin_m >= 0) || !std::isfinite(p.free_space_margin_m)) detail::failParam("MapParams", "free_space_margin_m", p.free_space_margin_m, "must be finite and >= 0");
   if (p.free_space_ray_stride_px < 0) detail::failParam("MapParams", "free_space_ray_stride_px", p.free_space_ray_stride_px, "must be >= 0");
+  if (!(p.fine_max_range_m > 0) || !std::isfinite(p.fine_max_range_m)) detail::failParam("MapParams", "fine_max_range_m", p.fine_max_range_m, "must be finite and > 0");
+  if (!(p.fine_min_weight > 0) || !std::isfinite(p.fine_min_weight)) detail::failParam("MapParams", "fine_min_weight", p.fine_min_weight, "must be finite and > 0");
+  if (!(p.fine_window_m > 0 && p.fine_window_m <= 1)) detail::failParam("MapParams", "fine_window_m", p.fine_window_m, "must be in (0, 1]");
+  if (!(p.fine_support_m > 0 && p.fine_support_m <= 1)) detail::failParam("MapParams", "fine_support_m", p.fine_support_m, "must be in (0, 1]");
+  if (!(p.fine_support_length_m >= p.fine_support_m && p.fine_support_length_m <= 1)) detail::failParam("MapParams", "fine_support_length_m", p.fine_support_length_m, "must be in [fine_support_m, 1]");
 }
 
 const char* toString(VoxelState s) {
@@ -130,6 +144,7 @@ MobilityMap::MobilityMap(std::unique_ptr<MobilityOcTree> tree, MapParams params,
   tree_->setProbMiss(params_.prob_miss);
   tree_->setClampingThresMin(params_.clamp_min);
   tree_->setClampingThresMax(params_.clamp_max);
+  if (params_.fine_surface) fine_ = std::make_shared<detail::FineSurface>();
   // A loaded tree: index its occupied voxels (a pruned leaf stands for all its voxels).
   if (auto problem = voxelBudgetProblem(*tree_)) throw std::invalid_argument("MobilityMap: the tree: " + *problem);
   may_be_pruned_ = tree_->size() > 0;
@@ -158,7 +173,11 @@ MobilityMap::MobilityMap(const MobilityMap& other)
       occupied_(other.occupied_),
       occupied_blocks_(other.occupied_blocks_),
       frames_(other.frames_),
-      may_be_pruned_(other.may_be_pruned_) {}
+      may_be_pruned_(other.may_be_pruned_),
+      fine_(other.fine_ ? std::make_shared<detail::FineSurface>(*other.fine_) : nullptr),
+      model_(other.model_),
+      rough_report_(other.rough_report_),
+      rough_voxels_(other.rough_voxels_) {}
 
 std::shared_ptr<const SurfaceColumns> MobilityMap::surfaceColumns() const {
   if (auto kept = std::atomic_load(&columns_)) return kept;
@@ -205,7 +224,13 @@ IntegrationReport MobilityMap::integrate(const perception::FrameResult& frame, c
   };
   thread_local std::vector<Hit> hits;
   thread_local std::vector<int> slots;
+  // Each voxel's points this frame, for the fine surface.
+  thread_local std::vector<detail::PointMoments> moments;
   hits.clear();
+  moments.clear();
+  // With the depth image the fine surface takes every pixel (addPixelMoments); without
+  // it, the frame's points.
+  const bool fine = fine_ != nullptr && !(depth && k);
   std::size_t capacity = 1024;
   while (capacity < 2 * frame.points.size()) capacity <<= 1;
   slots.assign(capacity, -1);
@@ -223,14 +248,29 @@ IntegrationReport MobilityMap::integrate(const perception::FrameResult& frame, c
     ++report.points_fused;
     const int seg = frame.segment_of_point.empty() ? -1 : frame.segment_of_point[i];
     const double range = std::sqrt(r2);
+    // The point as an offset from its voxel's centre, weighted as depth noise allows:
+    // its variance grows with range squared, so (1.5 m / range)^4 (one at 1.5 m weighs 1).
+    const auto addMoment = [&](detail::PointMoments& m) {
+      if (!fine) return;
+      const octomap::point3d c = tree_->keyToCoord(key);
+      const Eigen::Vector3d p = T_map_camera * pc;
+      const double q = kFineReferenceRangeM * kFineReferenceRangeM / std::max(r2, 1e-6);
+      m.add(Eigen::Vector3f(static_cast<float>(p.x() - c.x()), static_cast<float>(p.y() - c.y()), static_cast<float>(p.z() - c.z())),
+            static_cast<float>(q * q));
+    };
     const std::uint64_t packed = (static_cast<std::uint64_t>(key[0]) << 32) | (static_cast<std::uint64_t>(key[1]) << 16) | key[2];
     std::size_t slot = static_cast<std::size_t>((packed * 0x9E3779B97F4A7C15ULL) >> 40) & mask;
     while (slots[slot] >= 0 && hits[static_cast<std::size_t>(slots[slot])].key != key) slot = (slot + 1) & mask;
     if (slots[slot] < 0) {
       slots[slot] = static_cast<int>(hits.size());
       hits.push_back({key, seg, range});
+      if (fine) {
+        moments.emplace_back();
+        addMoment(moments.back());
+      }
       continue;
     }
+    if (fine) addMoment(moments[static_cast<std::size_t>(slots[slot])]);
     Hit& h = hits[static_cast<std::size_t>(slots[slot])];
     if (seg >= 0 && (h.segment < 0 || frame.segments[static_cast<std::size_t>(seg)].mobility <
                                           frame.segments[static_cast<std::size_t>(h.segment)].mobility)) {
@@ -241,18 +281,22 @@ IntegrationReport MobilityMap::integrate(const perception::FrameResult& frame, c
   // Consecutive voxels share most of their path from the root (the points come in
   // image order): each descent starts where it parts from the previous one.
   MobilityOcTree::UpdatePath path;
-  for (const Hit& h : hits) {
+  for (std::size_t i = 0; i < hits.size(); ++i) {
+    const Hit& h = hits[i];
     const octomap::OcTreeKey& key = h.key;
     if (may_be_pruned_) expandPrunedAncestors(key);
     bool was_occupied = false;
     MobilityOcTreeNode* node = tree_->updateLeaf(key, true, &was_occupied, &path);
+    const bool occupied = tree_->isNodeOccupied(node);
     // An occupied voxel is listed already (occupied_ holds every occupied leaf's key).
-    if (!was_occupied && tree_->isNodeOccupied(node)) addOccupied(key);
+    if (!was_occupied && occupied) addOccupied(key);
+    if (fine && occupied) fine_->add(key, moments[i], kFineMaxWeight);
     if (h.segment < 0) continue;
     const auto& s = frame.segments[static_cast<std::size_t>(h.segment)];
     node->fuse(s.mobility, s.variance + params_.range_variance_per_m2 * h.range * h.range, params_.max_weight);
   }
   if (depth && k) {
+    if (fine_) addPixelMoments(T_map_camera, *depth, *k);
     clearSeenThrough(T_map_camera, *depth, *k);
     if (params_.free_space_ray_stride_px > 0) castFreeRays(T_map_camera, *depth, *k);
   }
@@ -283,6 +327,7 @@ void MobilityMap::addOccupied(const octomap::OcTreeKey& key) {
 
 void MobilityMap::removeOccupied(const octomap::OcTreeKey& key) {
   if (occupied_.erase(key) == 0) return;
+  if (fine_) fine_->erase(key);  // what was there has gone: its points with it
   const auto it = occupied_blocks_.find(blockOf(key));
   if (it == occupied_blocks_.end()) return;
   auto& keys = it->second;
@@ -292,6 +337,64 @@ void MobilityMap::removeOccupied(const octomap::OcTreeKey& key) {
     keys.pop_back();
   }
   if (keys.empty()) occupied_blocks_.erase(it);
+}
+
+// Each depth pixel within range, as a point weighted by (1.5 m / range)^4, into the
+// moments of its voxel when that voxel is occupied. Pixels, not the frame's points: the
+// perception's 1 cm reduction and denoising round the edges of texture a few
+// centimetres tall that the fine surface is there to keep.
+void MobilityMap::addPixelMoments(const Eigen::Isometry3d& T_map_camera, const perception::DepthImage& depth,
+                                  const perception::PinholeIntrinsics& k) {
+  struct Slot {
+    std::uint64_t packed = ~std::uint64_t{0};
+    detail::PointMoments m;
+  };
+  thread_local std::vector<Slot> table;
+  thread_local std::vector<std::uint32_t> used;
+  std::size_t capacity = 1u << 15;
+  while (capacity < occupied_.size() / 4) capacity <<= 1;
+  if (table.size() != capacity) table.assign(capacity, Slot{});
+  used.clear();
+  const std::size_t mask = capacity - 1;
+  const Eigen::Matrix3f R = T_map_camera.linear().cast<float>();
+  const Eigen::Vector3f t = T_map_camera.translation().cast<float>();
+  const double fine_range = std::min(params_.max_range_m, params_.fine_max_range_m);
+  const float max_range2 = static_cast<float>(fine_range * fine_range);
+  const float fx = static_cast<float>(k.fx), fy = static_cast<float>(k.fy);
+  const float cx = static_cast<float>(k.cx), cy = static_cast<float>(k.cy);
+  const float ref2 = static_cast<float>(kFineReferenceRangeM * kFineReferenceRangeM);
+  const int w = std::min(depth.width, k.width), h = std::min(depth.height, k.height);
+  for (int v = 0; v < h; v += kFinePixelStride) {
+    const float yv = (static_cast<float>(v) - cy) / fy;
+    for (int u = 0; u < w; u += kFinePixelStride) {
+      const float d = depth.at(u, v);
+      if (!(d > 0.f) || !std::isfinite(d)) continue;
+      const Eigen::Vector3f pc((static_cast<float>(u) - cx) / fx * d, yv * d, d);
+      const float r2 = pc.squaredNorm();
+      if (r2 > max_range2) continue;
+      const Eigen::Vector3f p = R * pc + t;
+      octomap::OcTreeKey key;
+      if (!keyOf(*tree_, p.cast<double>(), key)) continue;
+      const std::uint64_t packed = (static_cast<std::uint64_t>(key[0]) << 32) | (static_cast<std::uint64_t>(key[1]) << 16) | key[2];
+      std::size_t slot = static_cast<std::size_t>((packed * 0x9E3779B97F4A7C15ULL) >> 40) & mask;
+      while (table[slot].packed != packed && table[slot].packed != ~std::uint64_t{0}) slot = (slot + 1) & mask;
+      if (table[slot].packed != packed) {
+        if (used.size() * 2 >= capacity) continue;  // full enough: the rest of this frame's new voxels wait
+        table[slot].packed = packed;
+        used.push_back(static_cast<std::uint32_t>(slot));
+      }
+      const octomap::point3d c = tree_->keyToCoord(key);
+      const float q = ref2 / std::max(r2, 1e-6f);
+      table[slot].m.add(p - Eigen::Vector3f(c.x(), c.y(), c.z()), q * q);
+    }
+  }
+  for (const std::uint32_t slot : used) {
+    Slot& s = table[slot];
+    const octomap::OcTreeKey key(static_cast<octomap::key_type>(s.packed >> 32), static_cast<octomap::key_type>(s.packed >> 16),
+                                 static_cast<octomap::key_type>(s.packed));
+    if (occupied_.count(key)) fine_->add(key, s.m, kFineMaxWeight);
+    s = Slot{};
+  }
 }
 
 void MobilityMap::clearSeenThrough(const Eigen::Isometry3d& T_map_camera, const perception::DepthImage& depth,
@@ -379,6 +482,23 @@ void MobilityMap::castFreeRays(const Eigen::Isometry3d& T_map_camera, const perc
 
 void MobilityMap::finalize() {
   forgetColumns();
+  if (fine_) {
+    static const gp::MobilityModel default_model;
+    rough_voxels_.clear();
+    // Every surface voxel, in a fixed order (the scores do not depend on it; the list of
+    // rough voxels does).
+    std::vector<octomap::OcTreeKey> keys(occupied_.begin(), occupied_.end());
+    std::sort(keys.begin(), keys.end(), [](const octomap::OcTreeKey& a, const octomap::OcTreeKey& b) {
+      return std::tie(a[0], a[1], a[2]) < std::tie(b[0], b[1], b[2]);
+    });
+    rough_report_ = detail::scoreRoughGround(
+        *fine_, keys, *tree_, params_, model_ ? *model_ : default_model,
+        [this](const octomap::OcTreeKey& key) -> MobilityOcTreeNode* {
+          if (may_be_pruned_) expandPrunedAncestors(key);
+          return tree_->search(key);
+        },
+        &rough_voxels_);
+  }
   tree_->updateInnerOccupancy();
   tree_->prune();
   may_be_pruned_ = true;
@@ -556,5 +676,24 @@ FootprintQuery MobilityMap::footprint(const Foot& f, double search_up_m, double 
   describeSupportPlane(support, std::cos(f.yaw), std::sin(f.yaw), out);
   return out;
 }
+
+std::vector<FineSurfacePoint> MobilityMap::fineSurface(double min_weight) const {
+  std::vector<FineSurfacePoint> out;
+  if (!fine_) return out;
+  out.reserve(fine_->voxels().size());
+  for (const auto& [key, m] : fine_->voxels()) {
+    if (m.w < min_weight || !(m.w > 0)) continue;
+    const detail::VoxelPlane p = detail::planeOf(*tree_, key, m);
+    FineSurfacePoint f;
+    f.point = p.mean.cast<double>();
+    f.normal = p.normal.cast<double>();
+    f.weight = m.w;
+    f.views = m.views;
+    out.push_back(f);
+  }
+  return out;
+}
+
+std::size_t MobilityMap::fineSurfaceBytes() const { return fine_ ? fine_->memoryBytes() : 0; }
 
 }  // namespace mobmap::mapping

@@ -22,10 +22,18 @@
 #include <unordered_set>
 #include <stdexcept>
 #include <string>
+#include <vector>
+
+namespace mobmap::gp {
+class MobilityModel;
+}
 
 namespace mobmap::mapping {
 
 class SurfaceColumns;
+namespace detail {
+class FineSurface;
+}
 
 /// Map parameters, units in the names. OctoMap's sensor model (hit 0.7, miss 0.4) with
 /// a lower upper clamp than OctoMap's 0.97: at 0.9 a voxel needs ~5 misses instead of
@@ -52,6 +60,54 @@ struct MapParams {
   /// Clearing of mapped voxels (above) does not need them. Rays cost time and memory:
   /// stride 16 on VGA adds ~100 ms and ~10x the nodes per frame (docs/PERFORMANCE.md).
   int free_space_ray_stride_px = 0;
+  /// The fused fine surface (docs/ALGORITHM.md, "Rough ground from the fused surface"):
+  /// each surface voxel keeps the moments of the points every frame put in it, a point
+  /// weighted by (1.5 m / its range)^4 as depth noise grows with range squared, so the
+  /// voxel holds a plane finer than itself. finalize() scores ground that no flat sole's
+  /// rectangle (`fine_support_m` x `fine_support_length_m`) holds by the area ratio (A/A') of that surface in a window of
+  /// `fine_window_m` and the model's rule, in place of what the frames said. Off by
+  /// default: on real data whose poses disagree by a centimetre or two the fused floor
+  /// reads rough (docs/ALGORITHM.md); false keeps the frames' (the paper's) score only
+  /// and no moments.
+  bool fine_surface = false;
+  /// A voxel's plane counts from this weight (a point at 1.5 m weighs 1; a frame puts
+  /// ~4 points of 1 cm into a 2 cm voxel of floor).
+  double fine_min_weight = 1.0;
+  /// Pixels farther than this add nothing to the fine surface: a depth camera's
+  /// correlation window blurs a few centimetres of texture at a few metres.
+  double fine_max_range_m = 2.5;
+  double fine_window_m = 0.2;   ///< the window rough ground is measured in
+  /// A flat rectangle this wide and this long (a sole, either way round) holds a foot:
+  /// ground on one is not rough ground, whatever lies beside it (a curb, a wall, a stair).
+  double fine_support_m = 0.12;
+  double fine_support_length_m = 0.24;
+};
+
+/// What finalize() found on the fine surface (MapParams::fine_surface).
+struct RoughGroundReport {
+  std::size_t planes = 0;      ///< voxels with a plane (fine_min_weight)
+  std::size_t supported = 0;   ///< of them, on a flat square that holds a foot
+  std::size_t scored = 0;      ///< scored as rough ground
+  std::size_t too_sparse = 0;  ///< neither: too little fine surface around them to tell
+  std::size_t too_noisy = 0;   ///< neither: its relief is within the noise of its points
+};
+
+/// A voxel finalize() scored as rough ground.
+struct RoughVoxel {
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();  ///< map frame
+  double roughness = 1.0;  ///< A/A' of the fine surface in the foot window
+  double slope_deg = 0.0;  ///< of that surface's mean plane
+  double mobility = 0.0;   ///< what the model gives for the two, now the voxel's
+  /// What the frames had fused there before (NaN when they gave it no mobility).
+  double frames_mobility = 0.0;
+};
+
+/// A voxel of the fine surface, for export.
+struct FineSurfacePoint {
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();   ///< the mean of its points (map frame)
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  ///< its plane's, unit, upward where it has an up
+  double weight = 0.0;
+  int views = 0;  ///< frames that saw it (saturating at 65535)
 };
 
 /// Throws std::invalid_argument "MapParams: <field> is <value> (<rule>)".
@@ -158,10 +214,24 @@ class MobilityMap {
                               const perception::DepthImage* depth = nullptr,
                               const perception::PinholeIntrinsics* intrinsics = nullptr);
 
-  /// Recomputes inner nodes (occupancy max, mobility min) and prunes equal children.
+  /// Scores rough ground on the fine surface (MapParams::fine_surface), then recomputes
+  /// inner nodes (occupancy max, mobility min) and prunes equal children.
   /// Frames may be integrated afterwards (and into a loaded map): pruned blocks are
   /// expanded where new data lands, so the result equals fusing without the pruning.
   void finalize();
+  /// The model rough ground is scored with (the perception's, so both score alike);
+  /// unset: gp::MobilityModel's default.
+  void setMobilityModel(std::shared_ptr<const gp::MobilityModel> model) { model_ = std::move(model); }
+  /// What the last finalize() found on the fine surface, and the voxels it scored as
+  /// rough ground (with what the frames had said there).
+  [[nodiscard]] const RoughGroundReport& roughGroundReport() const { return rough_report_; }
+  [[nodiscard]] const std::vector<RoughVoxel>& roughVoxels() const { return rough_voxels_; }
+  /// The fine surface: a point with a normal per voxel whose moments weigh at least
+  /// `min_weight`. Empty without MapParams::fine_surface, and for a map read from a
+  /// file (the .ot keeps no moments).
+  [[nodiscard]] std::vector<FineSurfacePoint> fineSurface(double min_weight = 0.0) const;
+  /// Bytes the fine surface's moments take (0 without them).
+  [[nodiscard]] std::size_t fineSurfaceBytes() const;
 
   /// State of the voxel holding `p_map` (map frame).
   [[nodiscard]] PointQuery query(const Eigen::Vector3d& p_map) const;
@@ -230,6 +300,8 @@ class MobilityMap {
  private:
   void clearSeenThrough(const Eigen::Isometry3d& T_map_camera, const perception::DepthImage& depth,
                         const perception::PinholeIntrinsics& k);
+  void addPixelMoments(const Eigen::Isometry3d& T_map_camera, const perception::DepthImage& depth,
+                       const perception::PinholeIntrinsics& k);
   void castFreeRays(const Eigen::Isometry3d& T_map_camera, const perception::DepthImage& depth,
                     const perception::PinholeIntrinsics& k);
   PointQuery describe(const octomap::OcTreeKey& key, const MobilityOcTreeNode* node, unsigned int depth) const;
@@ -252,6 +324,12 @@ class MobilityMap {
   mutable std::shared_ptr<const SurfaceColumns> columns_;
   /// finalize() has run or the tree was loaded: some voxels may sit in pruned nodes.
   bool may_be_pruned_ = false;
+  /// The fine surface's moments (MapParams::fine_surface; else null), the model rough
+  /// ground is scored with, and what the last finalize() scored.
+  std::shared_ptr<detail::FineSurface> fine_;
+  std::shared_ptr<const gp::MobilityModel> model_;
+  RoughGroundReport rough_report_;
+  std::vector<RoughVoxel> rough_voxels_;
 };
 
 /// Map file errors: the message starts with the path.
