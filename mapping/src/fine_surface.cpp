@@ -61,21 +61,67 @@ constexpr double kBandM = 0.10;          // the surfaces around a voxel lie with
 constexpr double kFlatRmsM = 0.0075, kFlatWorstM = 0.025;
 constexpr double kMinCoverage = 0.6;      // of the window's squares, with surface at all four corners
 constexpr double kReliefOverNoise = 2.5;  // rough ground's relief stands this far above its points' noise
-constexpr double kSlopeReachM = 0.12;     // the mean plane's columns lie within this of the voxel's
+constexpr double kSlopeReachM = 0.12;
+constexpr std::uint64_t kMaxDenseColumns = std::uint64_t{1} << 25;  // 128 MB of column starts at most     // the mean plane's columns lie within this of the voxel's
 
 std::uint32_t columnOf(const octomap::OcTreeKey& k) { return (static_cast<std::uint32_t>(k[0]) << 16) | k[1]; }
 
 // The planes sorted by column, then height, and each column's range among them.
 struct Columns {
   std::vector<VoxelPlane> planes;
+  // Where each column's planes start: over the planes' bounding rectangle, first[c] is
+  // the first plane of column c or after it (column c's planes: [first[c], first[c+1])).
+  // A map too wide for that array looks its columns up in `range` instead.
+  int x0 = 0, y0 = 0, width = 0, height = 0;
+  std::vector<std::uint32_t> first;
   std::unordered_map<std::uint32_t, std::pair<std::uint32_t, std::uint32_t>> range;
+
+  void index() {
+    if (planes.empty()) return;
+    int x1 = planes.front().key[0], y1 = planes.front().key[1];
+    x0 = x1, y0 = y1;
+    for (const VoxelPlane& p : planes) {
+      x0 = std::min<int>(x0, p.key[0]), x1 = std::max<int>(x1, p.key[0]);
+      y0 = std::min<int>(y0, p.key[1]), y1 = std::max<int>(y1, p.key[1]);
+    }
+    width = x1 - x0 + 1, height = y1 - y0 + 1;
+    if (static_cast<std::uint64_t>(width) * static_cast<std::uint64_t>(height) <= kMaxDenseColumns) {
+      first.assign(static_cast<std::size_t>(width) * static_cast<std::size_t>(height) + 1, 0);
+      std::uint32_t i = 0;
+      for (std::size_t c = 0; c + 1 < first.size(); ++c) {
+        first[c] = i;
+        while (i < planes.size() && cell(planes[i].key[0], planes[i].key[1]) == c) ++i;
+      }
+      first.back() = static_cast<std::uint32_t>(planes.size());
+      return;
+    }
+    width = height = 0;
+    for (std::uint32_t i = 0; i < planes.size();) {
+      std::uint32_t j = i;
+      const std::uint32_t c = columnOf(planes[i].key);
+      while (j < planes.size() && columnOf(planes[j].key) == c) ++j;
+      range.emplace(c, std::make_pair(i, j));
+      i = j;
+    }
+  }
+  std::size_t cell(int x, int y) const {
+    return static_cast<std::size_t>(x - x0) * static_cast<std::size_t>(height) + static_cast<std::size_t>(y - y0);
+  }
 
   // The highest plane of column (x, y) whose voxel lies within [z - band, z + band].
   const VoxelPlane* top(int x, int y, int z, int band) const {
-    if (x < 0 || y < 0 || x > 65535 || y > 65535) return nullptr;
-    const auto it = range.find((static_cast<std::uint32_t>(x) << 16) | static_cast<std::uint32_t>(y));
-    if (it == range.end()) return nullptr;
-    for (std::uint32_t i = it->second.second; i > it->second.first; --i) {
+    std::uint32_t begin = 0, end = 0;
+    if (width > 0) {
+      if (x < x0 || y < y0 || x >= x0 + width || y >= y0 + height) return nullptr;
+      const std::size_t c = cell(x, y);
+      begin = first[c], end = first[c + 1];
+    } else {
+      if (x < 0 || y < 0 || x > 65535 || y > 65535) return nullptr;
+      const auto it = range.find((static_cast<std::uint32_t>(x) << 16) | static_cast<std::uint32_t>(y));
+      if (it == range.end()) return nullptr;
+      begin = it->second.first, end = it->second.second;
+    }
+    for (std::uint32_t i = end; i > begin; --i) {
       const VoxelPlane& p = planes[i - 1];
       if (p.key[2] > z + band) continue;
       if (p.key[2] < z - band) return nullptr;
@@ -98,17 +144,61 @@ double heightAt(const VoxelPlane& p, double x, double y, double voxel_bottom, do
 
 namespace {
 
+// The column heights around a voxel, on a grid of side x side columns centred on it,
+// each looked up the first time it is asked for (most ground is decided by the first
+// rectangle tried: a sole's worth of columns, not the whole grid).
+class Window {
+ public:
+  Window(const Columns& cols, const MobilityOcTree& tree, int band, int reach)
+      : cols_(cols), tree_(tree), res_(tree.getResolution()), band_(band), reach_(reach), side_(2 * reach + 1),
+        stamp_(static_cast<std::size_t>(side_ * side_), 0), height_(stamp_.size()), plane_(stamp_.size()) {}
+  void centre(const octomap::OcTreeKey& key) {
+    x0_ = key[0], y0_ = key[1], z0_ = key[2];
+    ++now_;
+  }
+  // Column (i, j) of the grid (0 .. side - 1): its plane, or nullptr for none.
+  const VoxelPlane* plane(int i, int j) {
+    const std::size_t at = static_cast<std::size_t>(j * side_ + i);
+    if (stamp_[at] != now_) {
+      stamp_[at] = now_;
+      const VoxelPlane* p = cols_.top(x0_ + i - reach_, y0_ + j - reach_, z0_, band_);
+      plane_[at] = p;
+      if (p) {
+        const octomap::point3d c = tree_.keyToCoord(p->key);
+        height_[at] = heightAt(*p, c.x(), c.y(), c.z() - res_ / 2, res_);
+      }
+    }
+    return plane_[at];
+  }
+  // Its height at the column's centre (the column must have a plane).
+  double height(int i, int j) {
+    plane(i, j);
+    return height_[static_cast<std::size_t>(j * side_ + i)];
+  }
+
+ private:
+  const Columns& cols_;
+  const MobilityOcTree& tree_;
+  double res_;
+  int band_, reach_, side_;
+  int x0_ = 0, y0_ = 0, z0_ = 0;
+  std::uint32_t now_ = 0;
+  std::vector<std::uint32_t> stamp_;
+  std::vector<double> height_;
+  std::vector<const VoxelPlane*> plane_;
+};
+
 // Whether a rectangle of w x l columns (first column (i0, j0) of the grid) has all its
 // columns and they lie within kFlatRmsM and kFlatWorstM of their least-squares plane
 // z = a + b x + c y (on a regular grid the normal equations separate).
-bool flatRectangle(const std::vector<double>& height, const std::vector<char>& present, int side, int i0, int j0, int w, int l) {
+bool flatRectangle(Window& win, int i0, int j0, int w, int l) {
   double sum = 0, sxz = 0, syz = 0;
   const double mi = (w - 1) / 2.0, mj = (l - 1) / 2.0;
   for (int j = 0; j < l; ++j) {
     for (int i = 0; i < w; ++i) {
-      const std::size_t at = static_cast<std::size_t>((j0 + j) * side + (i0 + i));
-      if (!present[at]) return false;
-      sum += height[at], sxz += (i - mi) * height[at], syz += (j - mj) * height[at];
+      if (!win.plane(i0 + i, j0 + j)) return false;
+      const double h = win.height(i0 + i, j0 + j);
+      sum += h, sxz += (i - mi) * h, syz += (j - mj) * h;
     }
   }
   double sxx = 0, syy = 0;
@@ -118,8 +208,7 @@ bool flatRectangle(const std::vector<double>& height, const std::vector<char>& p
   double squares = 0;
   for (int j = 0; j < l; ++j) {
     for (int i = 0; i < w; ++i) {
-      const std::size_t at = static_cast<std::size_t>((j0 + j) * side + (i0 + i));
-      const double r = height[at] - (a + b * (i - mi) + c * (j - mj));
+      const double r = win.height(i0 + i, j0 + j) - (a + b * (i - mi) + c * (j - mj));
       if (std::abs(r) > kFlatWorstM) return false;
       squares += r * r;
     }
@@ -144,13 +233,7 @@ RoughGroundReport scoreRoughGround(const FineSurface& surface, const std::vector
     const std::uint32_t ca = columnOf(a.key), cb = columnOf(b.key);
     return ca != cb ? ca < cb : a.key[2] < b.key[2];
   });
-  for (std::uint32_t i = 0; i < cols.planes.size();) {
-    std::uint32_t j = i;
-    const std::uint32_t c = columnOf(cols.planes[i].key);
-    while (j < cols.planes.size() && columnOf(cols.planes[j].key) == c) ++j;
-    cols.range.emplace(c, std::make_pair(i, j));
-    i = j;
-  }
+  cols.index();
   report.planes = cols.planes.size();
 
   const int band = std::max(1, static_cast<int>(std::lround(kBandM / res)));
@@ -189,25 +272,14 @@ RoughGroundReport scoreRoughGround(const FineSurface& surface, const std::vector
     return off(a) < off(b);
   });
 
+  Window win(cols, tree, band, reach);
   for (const octomap::OcTreeKey& key : voxels) {
-    const int x0 = key[0], y0 = key[1], z0 = key[2];
     // The column heights around the voxel: the highest plane within the band of it.
-    for (int j = -reach; j <= reach; ++j) {
-      for (int i = -reach; i <= reach; ++i) {
-        const std::size_t at = static_cast<std::size_t>((j + reach) * side + (i + reach));
-        const VoxelPlane* p = cols.top(x0 + i, y0 + j, z0, band);
-        plane_at[at] = p;
-        present[at] = p != nullptr;
-        if (p) {
-          const octomap::point3d c = tree.keyToCoord(p->key);
-          height[at] = heightAt(*p, c.x(), c.y(), c.z() - res / 2, res);
-        }
-      }
-    }
+    win.centre(key);
     // Held by a flat rectangle a sole's size: not rough ground, whatever is beside it.
     bool supported = false;
     for (const Placement& p : placements) {
-      if (flatRectangle(height, present, side, p.i0, p.j0, p.w, p.l)) {
+      if (flatRectangle(win, p.i0, p.j0, p.w, p.l)) {
         supported = true;
         break;
       }
@@ -215,6 +287,14 @@ RoughGroundReport scoreRoughGround(const FineSurface& surface, const std::vector
     if (supported) {
       ++report.supported;
       continue;
+    }
+    for (int j = 0; j < side; ++j) {
+      for (int i = 0; i < side; ++i) {
+        const std::size_t at = static_cast<std::size_t>(j * side + i);
+        plane_at[at] = win.plane(i, j);
+        present[at] = plane_at[at] != nullptr;
+        if (present[at]) height[at] = win.height(i, j);
+      }
     }
     // The window's height field at sub-cell centres, each from its column's plane; a
     // column with no surface takes the window's lowest (what the camera did not see

@@ -15,6 +15,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -164,6 +165,19 @@ int main(int argc, char** argv) {
   std::printf("per frame (medians of %d): fusion %.2f / %.2f ms (%.2fx), read + perception + fusion %.1f / %.1f ms (%.3fx)\n", repeats,
               median(fusion[0]), median(fusion[1]), median(fusion[1]) / median(fusion[0]), median(frame_ms[0]),
               median(frame_ms[1]), median(frame_ms[1]) / median(frame_ms[0]));
+  // finalize() again on copies of each map: what scoring rough ground adds to it.
+  {
+    std::vector<double> took[2];
+    for (int r = 0; r < 3; ++r) {
+      for (int f = 0; f < 2; ++f) {
+        mapping::MobilityMap copy(*last[f].map);
+        const auto start = std::chrono::steady_clock::now();
+        copy.finalize();
+        took[f].push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+      }
+    }
+    std::printf("finalize() (medians of 3): %.1f ms off, %.1f ms on\n", median(took[0]), median(took[1]));
+  }
   // The fine run's map holds its moments; the saved map of either run has the same tree.
   const auto bytes = [](const mapping::MobilityMap& m) { return static_cast<double>(m.tree().memoryUsage()); };
   const double tree = bytes(*last[0].map), moments = static_cast<double>(last[1].map->fineSurfaceBytes());
