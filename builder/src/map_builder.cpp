@@ -95,12 +95,14 @@ Prepared prepare(const BuildOptions& o) {
   p.stem = mapping::mapFileStem(o.out);
   p.paths = {o.out, p.stem + ".bt", p.stem + ".octovis.ot", p.stem + ".json"};
   for (const std::string& path : p.paths) checkWritable(path);  // creates the map's folder
+  if (!o.fine_surface_ply.empty()) checkWritable(o.fine_surface_ply);
   {
     std::vector<NamedPath> inputs{{"the input", o.input}, {"`poses`", o.poses}, {"`config`", o.config}};
     if (fs::is_regular_file(o.intrinsics, ec)) inputs.push_back({"`intrinsics`", o.intrinsics});
-    refuseToOverwriteInputs({{"`out`", p.paths[0]}, {"`out`'s occupancy export", p.paths[1]},
-                             {"`out`'s octovis export", p.paths[2]}, {"`out`'s metadata", p.paths[3]}},
-                            inputs);
+    std::vector<NamedPath> outputs{{"`out`", p.paths[0]}, {"`out`'s occupancy export", p.paths[1]},
+                                   {"`out`'s octovis export", p.paths[2]}, {"`out`'s metadata", p.paths[3]}};
+    if (!o.fine_surface_ply.empty()) outputs.push_back({"`fine_surface_ply`", o.fine_surface_ply});
+    refuseToOverwriteInputs(outputs, inputs);
   }
   p.config = o.config.empty() ? Config{} : loadConfig(o.config);
   perception::PerceptionParams& perception_params = p.config.perception;
@@ -109,6 +111,7 @@ Prepared prepare(const BuildOptions& o) {
   if (o.config.empty() || o.resolution_m) map_params.resolution_m = o.resolution_m.value_or(0.02);
   if (!p.config.mapping_max_range_set || o.max_range_m) map_params.max_range_m = perception_params.max_range_m;
   if (!o.free_space) map_params.free_space_ray_stride_px = 0;
+  if (!o.fine_surface_ply.empty()) map_params.fine_surface = true;
   if (o.voxel_size_m) perception_params = perception::scaledToVoxel(perception_params, *o.voxel_size_m);
   perception::validate(perception_params);
   mapping::validate(map_params);
@@ -793,6 +796,8 @@ BuildReport finish(const BuildOptions& o, const Prepared& p, const Input& in, co
     throw IoError(source, msg.str());
   }
   const mapping::MapMetadata meta = writeMap(o, p, in, g, place, f, map, false, run_s);
+  if (!o.fine_surface_ply.empty()) f.final_map->saveFineSurfacePly(o.fine_surface_ply);
+  report.rough_voxels = f.final_map->roughVoxels().size();
   if (hooks.saved) hooks.saved(f.final_map, meta);
   report.written = true;
   report.frames_fused = f.used;

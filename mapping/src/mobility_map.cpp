@@ -2,6 +2,7 @@
 
 #include "mobmap/mapping/footholds.hpp"
 #include "mobmap/mapping/gravity.hpp"
+#include "atomic_write.hpp"
 #include "fine_surface.hpp"
 #include "param_error.hpp"
 #include "support_plane.hpp"
@@ -695,5 +696,51 @@ std::vector<FineSurfacePoint> MobilityMap::fineSurface(double min_weight) const 
 }
 
 std::size_t MobilityMap::fineSurfaceBytes() const { return fine_ ? fine_->memoryBytes() : 0; }
+
+void MobilityMap::saveFineSurfacePly(const std::string& path, double min_weight) const {
+  static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "the PLY is written as binary_little_endian from memory");
+  struct Vertex {
+    float x, y, z, nx, ny, nz, weight;
+    std::uint16_t views;
+    float roughness, mobility;
+  };
+  std::unordered_map<octomap::OcTreeKey, float, octomap::OcTreeKey::KeyHash> rough;
+  for (const RoughVoxel& v : rough_voxels_) {
+    octomap::OcTreeKey key;
+    if (keyOf(*tree_, v.centre, key)) rough[key] = static_cast<float>(v.roughness);
+  }
+  std::vector<Vertex> vertices;
+  if (fine_) {
+    vertices.reserve(fine_->voxels().size());
+    for (const auto& [key, m] : fine_->voxels()) {
+      if (m.w < min_weight || !(m.w > 0)) continue;
+      const detail::VoxelPlane p = detail::planeOf(*tree_, key, m);
+      const MobilityOcTreeNode* node = tree_->search(key);
+      const auto r = rough.find(key);
+      vertices.push_back({p.mean.x(), p.mean.y(), p.mean.z(), p.normal.x(), p.normal.y(), p.normal.z(), m.w, m.views,
+                          r == rough.end() ? 0.0f : r->second,
+                          node && node->hasMobility() ? static_cast<float>(node->mobility()) : -1.0f});
+    }
+  }
+  // Sorted by key, so the file is the same however the table was filled.
+  std::sort(vertices.begin(), vertices.end(), [](const Vertex& a, const Vertex& b) {
+    return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z);
+  });
+  writeAtomically(path, [&](std::ostream& s) {
+    s << "ply\nformat binary_little_endian 1.0\ncomment mobmap fused fine surface, map frame, metres\n"
+      << "element vertex " << vertices.size() << "\n"
+      << "property float x\nproperty float y\nproperty float z\n"
+      << "property float nx\nproperty float ny\nproperty float nz\n"
+      << "property float weight\nproperty ushort views\nproperty float roughness\nproperty float mobility\nend_header\n";
+    const auto put = [&](const void* data, std::size_t n) {
+      s.write(static_cast<const char*>(data), static_cast<std::streamsize>(n));
+    };
+    for (const Vertex& v : vertices) {
+      put(&v.x, 4), put(&v.y, 4), put(&v.z, 4), put(&v.nx, 4), put(&v.ny, 4), put(&v.nz, 4), put(&v.weight, 4);
+      put(&v.views, 2), put(&v.roughness, 4), put(&v.mobility, 4);
+    }
+    return static_cast<bool>(s);
+  });
+}
 
 }  // namespace mobmap::mapping

@@ -196,6 +196,55 @@ TEST(FineSurface, TheFusedSurfaceLiesOnTheFloorItSaw) {
   EXPECT_EQ(fused(stepAndCurb, false).fineSurfaceBytes(), 0u);
 }
 
+TEST(FineSurface, ThePlyHoldsTheSurfaceAndTheRoughVoxels) {
+  const MobilityMap map = fused(pyramids, true);
+  const std::string path = tempPath("surface.ply");
+  map.saveFineSurfacePly(path);
+  std::ifstream in(path, std::ios::binary);
+  std::string line, header;
+  std::size_t count = 0;
+  while (std::getline(in, line) && line != "end_header") {
+    header += line + "\n";
+    if (line.rfind("element vertex ", 0) == 0) count = std::stoul(line.substr(15));
+  }
+  EXPECT_NE(header.find("format binary_little_endian 1.0"), std::string::npos);
+  EXPECT_NE(header.find("property ushort views\nproperty float roughness\nproperty float mobility"), std::string::npos);
+  // Read back: the same points as fineSurface(), and a roughness on exactly the voxels
+  // finalize() scored, each the one it measured there.
+  std::vector<FineSurfacePoint> expected = map.fineSurface();
+  ASSERT_EQ(count, expected.size());
+  const auto less = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    return std::tie(a.x(), a.y(), a.z()) < std::tie(b.x(), b.y(), b.z());
+  };
+  std::sort(expected.begin(), expected.end(), [&](const FineSurfacePoint& a, const FineSurfacePoint& b) { return less(a.point, b.point); });
+  std::vector<Eigen::Vector3d> read;
+  std::size_t rough = 0;
+  for (std::size_t i = 0; i < count; ++i) {
+    float v[7], roughness = 0, mobility = 0;
+    std::uint16_t views = 0;
+    in.read(reinterpret_cast<char*>(v), sizeof v);
+    in.read(reinterpret_cast<char*>(&views), 2);
+    in.read(reinterpret_cast<char*>(&roughness), 4);
+    in.read(reinterpret_cast<char*>(&mobility), 4);
+    ASSERT_TRUE(in);
+    read.emplace_back(v[0], v[1], v[2]);
+    EXPECT_NEAR(Eigen::Vector3d(v[3], v[4], v[5]).norm(), 1.0, 1e-5);
+    EXPECT_GE(views, 1);
+    EXPECT_TRUE(mobility == -1.0f || (mobility >= 0.0f && mobility <= 1.0f));
+    if (roughness > 0) {
+      ++rough;
+      EXPECT_GE(roughness, 1.0f);
+    }
+  }
+  EXPECT_EQ(in.peek(), EOF);
+  std::sort(read.begin(), read.end(), less);
+  for (std::size_t i = 0; i < count; ++i) EXPECT_LT((read[i] - expected[i].point).norm(), 1e-5);
+  // The voxels scored as rough ground that have points of their own carry their A/A'
+  // (those scored from their neighbours' surface alone have no point here).
+  EXPECT_GT(rough, 1000u);
+  EXPECT_LE(rough, map.roughVoxels().size());
+}
+
 TEST(FineSurface, ItsParametersAreCheckedByName) {
   const auto message = [](const std::function<void(MapParams&)>& set) {
     MapParams p;

@@ -95,6 +95,10 @@ void printSummary(const builder::BuildReport& r, const BuildOptions& o) {
   std::printf(", fusion %.1f\n", r.fusion_ms);
   std::printf("wrote %s, %s.bt, %s.octovis.ot (view: octovis %s.octovis.ot), %s.json\n", o.out.c_str(), r.stem.c_str(),
               r.stem.c_str(), r.stem.c_str(), r.stem.c_str());
+  if (!o.surface_ply.empty()) {
+    std::printf("wrote the fused fine surface to %s (%zu voxels scored as rough ground)\n", o.surface_ply.c_str(),
+                r.rough_voxels);
+  }
 }
 
 }  // namespace
@@ -124,6 +128,7 @@ builder::BuildOptions build::toLibrary(const BuildOptions& o) {
   b.checkpoint_frames = o.checkpoint;
   if (o.given.keyframes->count() > 0) b.keyframes = std::make_pair(o.keyframes[0], o.keyframes[1]);
   b.free_space = !o.no_free_space;
+  b.fine_surface_ply = o.surface_ply;
   b.skip_bad_frames = o.skip_bad_frames;
   b.config = o.config;
   b.intrinsics = o.given.fov->count() > 0 ? fovSpec(o.fov) : o.intrinsics;

@@ -36,6 +36,7 @@ struct BuildOptions {
   std::vector<double> keyframes;  // metres, degrees
   bool quiet = false;
   bool no_free_space = false;
+  std::string surface_ply;
   bool skip_bad_frames = false;
   std::string config;
   std::string intrinsics;

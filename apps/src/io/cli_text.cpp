@@ -34,6 +34,7 @@ std::optional<std::string> flagOf(std::string_view field) {
       {"config", "--config"},
       {"checkpoint_frames", "--checkpoint"},
       {"free_space", "--no-free-space"},
+      {"fine_surface_ply", "--surface-ply"},
       {"skip_bad_frames", "--skip-bad-frames"},
       {"refine_gravity", "--gravity-refine"},
       {"gravity_from_floor", "--gravity floor"},

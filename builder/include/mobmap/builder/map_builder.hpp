@@ -99,6 +99,9 @@ struct BuildOptions {
   std::string extrinsics;
   /// Frames perceived at once.
   int perception_threads = 2;
+  /// Also write the fused fine surface here as PLY (MobilityMap::saveFineSurfacePly);
+  /// turns the configuration's `mapping.fine_surface` on. Empty: none.
+  std::string fine_surface_ply;
 };
 
 /// What the run has to say, as it happens.
@@ -164,6 +167,7 @@ struct BuildReport {
   double read_ms = 0, fusion_ms = 0;        ///< per frame
   std::vector<std::pair<std::string, double>> stage_ms;  ///< per frame, pipeline order
   std::string out, stem;                    ///< the map and its files' stem
+  std::size_t rough_voxels = 0;             ///< voxels the fine surface scored as rough ground (MapParams::fine_surface)
 };
 
 /// Builds (or extends) the map `options` describe; see the file's comment. IoError naming

@@ -232,6 +232,12 @@ class MobilityMap {
   [[nodiscard]] std::vector<FineSurfacePoint> fineSurface(double min_weight = 0.0) const;
   /// Bytes the fine surface's moments take (0 without them).
   [[nodiscard]] std::size_t fineSurfaceBytes() const;
+  /// Writes the fine surface (fineSurface(min_weight)) as a binary little-endian PLY,
+  /// map frame, atomically: per point x y z, its normal nx ny nz, `weight`, `views`,
+  /// `roughness` (the A/A' finalize() measured where it scored the voxel as rough
+  /// ground, else 0) and `mobility` (the voxel's, -1 where it has none). MapIoError
+  /// naming the path if it cannot be written.
+  void saveFineSurfacePly(const std::string& path, double min_weight = 0.0) const;
 
   /// State of the voxel holding `p_map` (map frame).
   [[nodiscard]] PointQuery query(const Eigen::Vector3d& p_map) const;
