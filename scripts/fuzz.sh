@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets with clang (ASan + UBSan) into ./build-fuzz and runs each
-# for SECONDS (default 30) on its corpus in tests/fuzz/corpus/TARGET, which it grows.
+# for SECONDS (default 30) on its seeds in tests/fuzz/corpus/TARGET and the inputs earlier
+# runs grew in build-fuzz/corpus/TARGET (where new ones go: the seeds are tracked files).
 # Exits non-zero if any target finds a crash (the input is saved as build-fuzz/crash-*).
 #   bash scripts/fuzz.sh [SECONDS] [TARGET...]      targets: map_reader config poses pipeline api mcap cdr db3 ros1
 set -euo pipefail
@@ -100,11 +101,12 @@ ceilings() {
 }
 failed=()
 for target in "${targets[@]}"; do
-  mkdir -p "tests/fuzz/corpus/$target"
+  mkdir -p "tests/fuzz/corpus/$target" "build-fuzz/corpus/$target"
   echo "== fuzz_$target for ${seconds}s ($(ceilings "$target"))"
   set +e
+  # libFuzzer adds what it finds to the first folder.
   # shellcheck disable=SC2046  # the ceilings are separate words
-  (cd build-fuzz && "./fuzz_$target" "../tests/fuzz/corpus/$target" -max_total_time="$seconds" -max_len=65536 \
+  (cd build-fuzz && "./fuzz_$target" "corpus/$target" "../tests/fuzz/corpus/$target" -max_total_time="$seconds" -max_len=65536 \
      $(ceilings "$target") -print_final_stats=1 > "fuzz_$target.log" 2>&1)
   status=$?
   set -e
