@@ -59,10 +59,10 @@ constexpr double kBandM = 0.10;          // the surfaces around a voxel lie with
 // noise and the voxels' steps leave on a smooth ramp; rough fields a few centimetres
 // tall lie well outside).
 constexpr double kFlatRmsM = 0.0075, kFlatWorstM = 0.025;
-constexpr double kMinCoverage = 0.6;      // of the window's squares, with surface at all four corners
+constexpr double kMinCoverage = 0.6;      // of the window's columns, with a surface
 constexpr double kReliefOverNoise = 2.5;  // rough ground's relief stands this far above its points' noise
-constexpr double kSlopeReachM = 0.12;
-constexpr std::uint64_t kMaxDenseColumns = std::uint64_t{1} << 25;  // 128 MB of column starts at most     // the mean plane's columns lie within this of the voxel's
+constexpr double kSlopeReachM = 0.12;     // the mean plane's columns lie within this of the voxel's
+constexpr std::uint64_t kMaxDenseColumns = std::uint64_t{1} << 25;  // 128 MB of column starts at most
 
 std::uint32_t columnOf(const octomap::OcTreeKey& k) { return (static_cast<std::uint32_t>(k[0]) << 16) | k[1]; }
 
