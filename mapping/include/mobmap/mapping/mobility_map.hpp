@@ -61,17 +61,18 @@ struct MapParams {
   /// stride 16 on VGA adds ~100 ms and ~10x the nodes per frame (docs/PERFORMANCE.md).
   int free_space_ray_stride_px = 0;
   /// The fused fine surface (docs/ALGORITHM.md, "Rough ground from the fused surface"):
-  /// each surface voxel keeps the moments of the points every frame put in it, a point
-  /// weighted by (1.5 m / its range)^4 as depth noise grows with range squared, so the
-  /// voxel holds a plane finer than itself. finalize() scores ground that no flat sole's
-  /// rectangle (`fine_support_m` x `fine_support_length_m`) holds by the area ratio (A/A') of that surface in a window of
-  /// `fine_window_m` and the model's rule, in place of what the frames said. Off by
-  /// default: on real data whose poses disagree by a centimetre or two the fused floor
-  /// reads rough (docs/ALGORITHM.md); false keeps the frames' (the paper's) score only
-  /// and no moments.
+  /// each surface voxel keeps the moments of the depth pixels (without a depth image,
+  /// the frame's points) every frame put in it, each weighted by (1.5 m / its range)^4
+  /// as depth noise grows with range squared, so the voxel holds a plane finer than
+  /// itself. finalize() scores ground that no flat sole-sized rectangle
+  /// (`fine_support_m` x `fine_support_length_m`) holds by the area ratio (A/A') of that
+  /// surface in a window of `fine_window_m` and the model's rule, in place of what the
+  /// frames said. Off by default: on real data whose poses disagree by a centimetre or
+  /// two the fused floor reads rough (docs/PERCEPTION.md); false keeps the frames' (the
+  /// paper's) score only and no moments.
   bool fine_surface = false;
-  /// A voxel's plane counts from this weight (a point at 1.5 m weighs 1; a frame puts
-  /// ~4 points of 1 cm into a 2 cm voxel of floor).
+  /// A voxel's plane counts from this weight (a pixel at 1.5 m weighs 1; a frame puts
+  /// dozens of pixels into a 2 cm voxel of floor within 2 m).
   double fine_min_weight = 1.0;
   /// Pixels farther than this add nothing to the fine surface: a depth camera's
   /// correlation window blurs a few centimetres of texture at a few metres.
@@ -85,11 +86,12 @@ struct MapParams {
 
 /// What finalize() found on the fine surface (MapParams::fine_surface).
 struct RoughGroundReport {
-  std::size_t planes = 0;      ///< voxels with a plane (fine_min_weight)
-  std::size_t supported = 0;   ///< of them, on a flat square that holds a foot
+  std::size_t planes = 0;      ///< voxels whose moments make a plane (fine_min_weight)
+  // Each surface voxel is at most one of these:
+  std::size_t supported = 0;   ///< on a flat rectangle that holds a sole: the frames' score stays
   std::size_t scored = 0;      ///< scored as rough ground
-  std::size_t too_sparse = 0;  ///< neither: too little fine surface around them to tell
-  std::size_t too_noisy = 0;   ///< neither: its relief is within the noise of its points
+  std::size_t too_sparse = 0;  ///< too little fine surface around it to tell
+  std::size_t too_noisy = 0;   ///< its window's relief is within the noise of its points
 };
 
 /// A voxel finalize() scored as rough ground.
