@@ -246,8 +246,9 @@ RoughGroundReport scoreRoughGround(const FineSurface& surface, const std::vector
   const int slope_reach = std::max(1, static_cast<int>(std::lround(kSlopeReachM / res)));
   const int reach = std::max({length - 1, half, slope_reach});
   const int side = 2 * reach + 1;
-  // Sub-cells of about 1 cm per column for the window's height field.
-  const int sub = std::max(1, static_cast<int>(std::lround(res / 0.01)));
+  // Sub-cells of about 1 cm per column for the window's height field (at most 8 a side:
+  // a coarse map's window stays a few hundred cells).
+  const int sub = std::clamp(static_cast<int>(std::lround(res / 0.01)), 1, 8);
   const double cell = res / sub;
   std::vector<double> height(static_cast<std::size_t>(side * side));
   std::vector<char> present(static_cast<std::size_t>(side * side));
@@ -372,6 +373,10 @@ RoughGroundReport scoreRoughGround(const FineSurface& surface, const std::vector
     // A' is the footprint on that plane: the horizontal one over cos(tilt) (a smooth ramp
     // reads 1).
     const double ratio = std::max(1.0, area * std::cos(tilt) / ((fine_side - 1) * (fine_side - 1) * cell * cell));
+    if (!std::isfinite(slope) || !std::isfinite(ratio)) {  // no plane through the columns seen
+      ++report.too_sparse;
+      continue;
+    }
     const gp::MobilityEstimate e = model.predict(slope, ratio);
     const double mobility = std::clamp(e.mobility, 0.0, 1.0);
     MobilityOcTreeNode* node = node_of(key);
