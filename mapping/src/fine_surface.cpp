@@ -245,14 +245,10 @@ RoughGroundReport scoreRoughGround(const FineSurface& surface, const std::vector
   // a window over one block's top and the floor beside it does not lean).
   const int slope_reach = std::max(1, static_cast<int>(std::lround(kSlopeReachM / res)));
   const int reach = std::max({length - 1, half, slope_reach});
-  const int side = 2 * reach + 1;
   // Sub-cells of about 1 cm per column for the window's height field (at most 8 a side:
   // a coarse map's window stays a few hundred cells).
   const int sub = std::clamp(static_cast<int>(std::lround(res / 0.01)), 1, 8);
   const double cell = res / sub;
-  std::vector<double> height(static_cast<std::size_t>(side * side));
-  std::vector<char> present(static_cast<std::size_t>(side * side));
-  std::vector<const VoxelPlane*> plane_at(static_cast<std::size_t>(side * side));
   const int fine_side = (2 * half + 1) * sub;
   std::vector<double> fine(static_cast<std::size_t>(fine_side * fine_side));
   // The rectangles holding the grid's centre, the centred ones first (most ground is
@@ -289,14 +285,9 @@ RoughGroundReport scoreRoughGround(const FineSurface& surface, const std::vector
       ++report.supported;
       continue;
     }
-    for (int j = 0; j < side; ++j) {
-      for (int i = 0; i < side; ++i) {
-        const std::size_t at = static_cast<std::size_t>(j * side + i);
-        plane_at[at] = win.plane(i, j);
-        present[at] = plane_at[at] != nullptr;
-        if (present[at]) height[at] = win.height(i, j);
-      }
-    }
+    // Columns by their offset from the voxel's.
+    const auto plane = [&](int i, int j) { return win.plane(i + reach, j + reach); };
+    const auto height = [&](int i, int j) { return win.height(i + reach, j + reach); };
     // The window's height field at sub-cell centres, each from its column's plane; a
     // column with no surface takes the window's lowest (what the camera did not see
     // there lay behind something higher, or level with the rest).
@@ -304,8 +295,7 @@ RoughGroundReport scoreRoughGround(const FineSurface& surface, const std::vector
     double lowest = std::numeric_limits<double>::infinity();
     for (int j = -half; j <= half; ++j) {
       for (int i = -half; i <= half; ++i) {
-        const std::size_t at = static_cast<std::size_t>((j + reach) * side + (i + reach));
-        if (present[at]) ++seen, lowest = std::min(lowest, height[at]);
+        if (plane(i, j)) ++seen, lowest = std::min(lowest, height(i, j));
       }
     }
     if (seen < kMinCoverage * (2 * half + 1) * (2 * half + 1)) {
@@ -314,14 +304,13 @@ RoughGroundReport scoreRoughGround(const FineSurface& surface, const std::vector
     }
     for (int j = 0; j < fine_side; ++j) {
       for (int i = 0; i < fine_side; ++i) {
-        const int ci = i / sub - half, cj = j / sub - half;
-        const std::size_t at = static_cast<std::size_t>((cj + reach) * side + (ci + reach));
         double& f = fine[static_cast<std::size_t>(j * fine_side + i)];
-        if (!present[at]) {
+        const VoxelPlane* column = plane(i / sub - half, j / sub - half);
+        if (!column) {
           f = lowest;
           continue;
         }
-        const VoxelPlane& p = *plane_at[at];
+        const VoxelPlane& p = *column;
         const octomap::point3d c = tree.keyToCoord(p.key);
         const double x = c.x() - res / 2 + (i % sub + 0.5) * cell, y = c.y() - res / 2 + (j % sub + 0.5) * cell;
         f = heightAt(p, x, y, c.z() - res / 2, res);
@@ -341,11 +330,11 @@ RoughGroundReport scoreRoughGround(const FineSurface& surface, const std::vector
     double n = 0, sx = 0, sy = 0, sz = 0, sxx = 0, syy = 0, sxy = 0, sxz = 0, syz = 0, thick2 = 0;
     for (int j = -slope_reach; j <= slope_reach; ++j) {
       for (int i = -slope_reach; i <= slope_reach; ++i) {
-        const std::size_t at = static_cast<std::size_t>((j + reach) * side + (i + reach));
-        if (!present[at]) continue;
-        const double x = i * res, y = j * res, z = height[at];
+        const VoxelPlane* column = plane(i, j);
+        if (!column) continue;
+        const double x = i * res, y = j * res, z = height(i, j);
         n += 1, sx += x, sy += y, sz += z, sxx += x * x, syy += y * y, sxy += x * y, sxz += x * z, syz += y * z;
-        thick2 += static_cast<double>(plane_at[at]->thickness) * plane_at[at]->thickness;
+        thick2 += static_cast<double>(column->thickness) * column->thickness;
       }
     }
     Eigen::Matrix3d A;
@@ -358,9 +347,8 @@ RoughGroundReport scoreRoughGround(const FineSurface& surface, const std::vector
     double relief2 = 0;
     for (int j = -slope_reach; j <= slope_reach; ++j) {
       for (int i = -slope_reach; i <= slope_reach; ++i) {
-        const std::size_t at = static_cast<std::size_t>((j + reach) * side + (i + reach));
-        if (!present[at]) continue;
-        const double r = height[at] - (coef[0] + coef[1] * i * res + coef[2] * j * res);
+        if (!plane(i, j)) continue;
+        const double r = height(i, j) - (coef[0] + coef[1] * i * res + coef[2] * j * res);
         relief2 += r * r;
       }
     }
