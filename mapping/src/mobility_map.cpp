@@ -56,6 +56,58 @@ bool keyOf(const MobilityOcTree& tree, const Eigen::Vector3d& p, octomap::OcTree
   return tree.coordToKeyChecked(toOcto(p), key);
 }
 
+// The distinct voxels one frame reaches, in the order it first reaches them, found
+// through an open-addressing table of indices into that list (a node-based map
+// allocated a node per voxel). The caller keeps what it gathers per voxel in lists
+// parallel to keys().
+class FrameVoxels {
+ public:
+  // Empty, with room for `n` distinct voxels.
+  void reset(std::size_t n) {
+    std::size_t capacity = 1024;
+    while (capacity < 2 * n) capacity <<= 1;
+    slots_.assign(capacity, -1);
+    keys_.clear();
+  }
+  // The index of `key` in keys(), and whether this call added it.
+  std::pair<std::size_t, bool> insert(const octomap::OcTreeKey& key) {
+    const std::size_t mask = slots_.size() - 1;
+    const std::uint64_t packed = (static_cast<std::uint64_t>(key[0]) << 32) | (static_cast<std::uint64_t>(key[1]) << 16) | key[2];
+    std::size_t slot = static_cast<std::size_t>((packed * 0x9E3779B97F4A7C15ULL) >> 40) & mask;
+    while (slots_[slot] >= 0 && keys_[static_cast<std::size_t>(slots_[slot])] != key) slot = (slot + 1) & mask;
+    if (slots_[slot] >= 0) return {static_cast<std::size_t>(slots_[slot]), false};
+    slots_[slot] = static_cast<int>(keys_.size());
+    keys_.push_back(key);
+    return {keys_.size() - 1, true};
+  }
+  [[nodiscard]] const std::vector<octomap::OcTreeKey>& keys() const { return keys_; }
+
+ private:
+  std::vector<int> slots_;
+  std::vector<octomap::OcTreeKey> keys_;
+};
+
+// A point (map frame) into the moments of its voxel `key`, as an offset from the
+// voxel's centre, weighted as depth noise allows: its variance grows with range
+// squared, so (1.5 m / range)^4 (a point at 1.5 m weighs 1).
+void addToMoments(detail::PointMoments& m, const MobilityOcTree& tree, const octomap::OcTreeKey& key, const Eigen::Vector3d& p,
+                  double range2) {
+  const octomap::point3d c = tree.keyToCoord(key);
+  const double q = kFineReferenceRangeM * kFineReferenceRangeM / std::max(range2, 1e-6);
+  m.add(Eigen::Vector3f(static_cast<float>(p.x() - c.x()), static_cast<float>(p.y() - c.y()), static_cast<float>(p.z() - c.z())),
+        static_cast<float>(q * q));
+}
+
+// Each voxel of the fine surface whose moments weigh at least `min_weight` (and more
+// than nothing), with its plane.
+template <class Visit>
+void forEachFinePlane(const detail::FineSurface& fine, const MobilityOcTree& tree, double min_weight, Visit visit) {
+  for (const auto& [key, m] : fine.voxels()) {
+    if (m.w < min_weight || !(m.w > 0)) continue;
+    visit(key, detail::planeOf(tree, key, m));
+  }
+}
+
 }  // namespace
 
 void validate(const MapParams& p) {
@@ -215,76 +267,54 @@ IntegrationReport MobilityMap::integrate(const perception::FrameResult& frame, c
 
   // One update per voxel per frame. Where several segments share a voxel the least
   // mobile one wins: the conservative reading of an edge between floor and obstacle.
-  // The voxels in the order the frame's points first reach them, found through an
-  // open-addressing table of indices into that list (a node-based map allocated a
-  // node per voxel).
   struct Hit {
-    octomap::OcTreeKey key;
     int segment = -1;
     double range = 0.0;
   };
+  thread_local FrameVoxels voxels;
   thread_local std::vector<Hit> hits;
-  thread_local std::vector<int> slots;
   // Each voxel's points this frame, for the fine surface.
   thread_local std::vector<detail::PointMoments> moments;
+  voxels.reset(frame.points.size());
   hits.clear();
   moments.clear();
   // With the depth image the fine surface takes every pixel (addPixelMoments); without
   // it, the frame's points.
   const bool fine = fine_ != nullptr && !(depth && k);
-  std::size_t capacity = 1024;
-  while (capacity < 2 * frame.points.size()) capacity <<= 1;
-  slots.assign(capacity, -1);
-  const std::size_t mask = capacity - 1;
   const double max_range2 = params_.max_range_m * params_.max_range_m;
   for (std::size_t i = 0; i < frame.points.size(); ++i) {
     const Eigen::Vector3d pc = frame.points[i].cast<double>();
     const double r2 = pc.squaredNorm();
     if (r2 > max_range2) continue;
+    const Eigen::Vector3d p = T_map_camera * pc;
     octomap::OcTreeKey key;
-    if (!keyOf(*tree_, T_map_camera * pc, key)) {
+    if (!keyOf(*tree_, p, key)) {
       ++report.points_outside_map;
       continue;
     }
     ++report.points_fused;
     const int seg = frame.segment_of_point.empty() ? -1 : frame.segment_of_point[i];
     const double range = std::sqrt(r2);
-    // The point as an offset from its voxel's centre, weighted as depth noise allows:
-    // its variance grows with range squared, so (1.5 m / range)^4 (one at 1.5 m weighs 1).
-    const auto addMoment = [&](detail::PointMoments& m) {
-      if (!fine) return;
-      const octomap::point3d c = tree_->keyToCoord(key);
-      const Eigen::Vector3d p = T_map_camera * pc;
-      const double q = kFineReferenceRangeM * kFineReferenceRangeM / std::max(r2, 1e-6);
-      m.add(Eigen::Vector3f(static_cast<float>(p.x() - c.x()), static_cast<float>(p.y() - c.y()), static_cast<float>(p.z() - c.z())),
-            static_cast<float>(q * q));
-    };
-    const std::uint64_t packed = (static_cast<std::uint64_t>(key[0]) << 32) | (static_cast<std::uint64_t>(key[1]) << 16) | key[2];
-    std::size_t slot = static_cast<std::size_t>((packed * 0x9E3779B97F4A7C15ULL) >> 40) & mask;
-    while (slots[slot] >= 0 && hits[static_cast<std::size_t>(slots[slot])].key != key) slot = (slot + 1) & mask;
-    if (slots[slot] < 0) {
-      slots[slot] = static_cast<int>(hits.size());
-      hits.push_back({key, seg, range});
-      if (fine) {
-        moments.emplace_back();
-        addMoment(moments.back());
+    const auto [at, added] = voxels.insert(key);
+    if (added) {
+      hits.push_back({seg, range});
+      if (fine) moments.emplace_back();
+    } else {
+      Hit& h = hits[at];
+      if (seg >= 0 && (h.segment < 0 || frame.segments[static_cast<std::size_t>(seg)].mobility <
+                                            frame.segments[static_cast<std::size_t>(h.segment)].mobility)) {
+        h.segment = seg;
       }
-      continue;
+      h.range = std::min(h.range, range);
     }
-    if (fine) addMoment(moments[static_cast<std::size_t>(slots[slot])]);
-    Hit& h = hits[static_cast<std::size_t>(slots[slot])];
-    if (seg >= 0 && (h.segment < 0 || frame.segments[static_cast<std::size_t>(seg)].mobility <
-                                          frame.segments[static_cast<std::size_t>(h.segment)].mobility)) {
-      h.segment = seg;
-    }
-    h.range = std::min(h.range, range);
+    if (fine) addToMoments(moments[at], *tree_, key, p, r2);
   }
   // Consecutive voxels share most of their path from the root (the points come in
   // image order): each descent starts where it parts from the previous one.
   MobilityOcTree::UpdatePath path;
   for (std::size_t i = 0; i < hits.size(); ++i) {
     const Hit& h = hits[i];
-    const octomap::OcTreeKey& key = h.key;
+    const octomap::OcTreeKey& key = voxels.keys()[i];
     if (may_be_pruned_) expandPrunedAncestors(key);
     bool was_occupied = false;
     MobilityOcTreeNode* node = tree_->updateLeaf(key, true, &was_occupied, &path);
@@ -346,25 +376,18 @@ void MobilityMap::removeOccupied(const octomap::OcTreeKey& key) {
 // centimetres tall that the fine surface is there to keep.
 void MobilityMap::addPixelMoments(const Eigen::Isometry3d& T_map_camera, const perception::DepthImage& depth,
                                   const perception::PinholeIntrinsics& k) {
-  struct Slot {
-    std::uint64_t packed = ~std::uint64_t{0};
-    detail::PointMoments m;
-  };
-  thread_local std::vector<Slot> table;
-  thread_local std::vector<std::uint32_t> used;
-  std::size_t capacity = 1u << 15;
-  while (capacity < occupied_.size() / 4) capacity <<= 1;
-  if (table.size() != capacity) table.assign(capacity, Slot{});
-  used.clear();
-  const std::size_t mask = capacity - 1;
+  thread_local FrameVoxels voxels;
+  thread_local std::vector<detail::PointMoments> moments;
+  const int w = std::min(depth.width, k.width), h = std::min(depth.height, k.height);
+  voxels.reset(static_cast<std::size_t>((w + kFinePixelStride - 1) / kFinePixelStride) *
+               static_cast<std::size_t>((h + kFinePixelStride - 1) / kFinePixelStride));
+  moments.clear();
   const Eigen::Matrix3f R = T_map_camera.linear().cast<float>();
   const Eigen::Vector3f t = T_map_camera.translation().cast<float>();
   const double fine_range = std::min(params_.max_range_m, params_.fine_max_range_m);
   const float max_range2 = static_cast<float>(fine_range * fine_range);
   const float fx = static_cast<float>(k.fx), fy = static_cast<float>(k.fy);
   const float cx = static_cast<float>(k.cx), cy = static_cast<float>(k.cy);
-  const float ref2 = static_cast<float>(kFineReferenceRangeM * kFineReferenceRangeM);
-  const int w = std::min(depth.width, k.width), h = std::min(depth.height, k.height);
   for (int v = 0; v < h; v += kFinePixelStride) {
     const float yv = (static_cast<float>(v) - cy) / fy;
     for (int u = 0; u < w; u += kFinePixelStride) {
@@ -373,28 +396,17 @@ void MobilityMap::addPixelMoments(const Eigen::Isometry3d& T_map_camera, const p
       const Eigen::Vector3f pc((static_cast<float>(u) - cx) / fx * d, yv * d, d);
       const float r2 = pc.squaredNorm();
       if (r2 > max_range2) continue;
-      const Eigen::Vector3f p = R * pc + t;
+      const Eigen::Vector3d p = (R * pc + t).cast<double>();
       octomap::OcTreeKey key;
-      if (!keyOf(*tree_, p.cast<double>(), key)) continue;
-      const std::uint64_t packed = (static_cast<std::uint64_t>(key[0]) << 32) | (static_cast<std::uint64_t>(key[1]) << 16) | key[2];
-      std::size_t slot = static_cast<std::size_t>((packed * 0x9E3779B97F4A7C15ULL) >> 40) & mask;
-      while (table[slot].packed != packed && table[slot].packed != ~std::uint64_t{0}) slot = (slot + 1) & mask;
-      if (table[slot].packed != packed) {
-        if (used.size() * 2 >= capacity) continue;  // full enough: the rest of this frame's new voxels wait
-        table[slot].packed = packed;
-        used.push_back(static_cast<std::uint32_t>(slot));
-      }
-      const octomap::point3d c = tree_->keyToCoord(key);
-      const float q = ref2 / std::max(r2, 1e-6f);
-      table[slot].m.add(p - Eigen::Vector3f(c.x(), c.y(), c.z()), q * q);
+      if (!keyOf(*tree_, p, key)) continue;
+      const auto [at, added] = voxels.insert(key);
+      if (added) moments.emplace_back();
+      addToMoments(moments[at], *tree_, key, p, r2);
     }
   }
-  for (const std::uint32_t slot : used) {
-    Slot& s = table[slot];
-    const octomap::OcTreeKey key(static_cast<octomap::key_type>(s.packed >> 32), static_cast<octomap::key_type>(s.packed >> 16),
-                                 static_cast<octomap::key_type>(s.packed));
-    if (occupied_.count(key)) fine_->add(key, s.m, kFineMaxWeight);
-    s = Slot{};
+  for (std::size_t i = 0; i < moments.size(); ++i) {
+    const octomap::OcTreeKey& key = voxels.keys()[i];
+    if (occupied_.count(key)) fine_->add(key, moments[i], kFineMaxWeight);
   }
 }
 
@@ -682,16 +694,14 @@ std::vector<FineSurfacePoint> MobilityMap::fineSurface(double min_weight) const 
   std::vector<FineSurfacePoint> out;
   if (!fine_) return out;
   out.reserve(fine_->voxels().size());
-  for (const auto& [key, m] : fine_->voxels()) {
-    if (m.w < min_weight || !(m.w > 0)) continue;
-    const detail::VoxelPlane p = detail::planeOf(*tree_, key, m);
+  forEachFinePlane(*fine_, *tree_, min_weight, [&](const octomap::OcTreeKey&, const detail::VoxelPlane& p) {
     FineSurfacePoint f;
     f.point = p.mean.cast<double>();
     f.normal = p.normal.cast<double>();
-    f.weight = m.w;
-    f.views = m.views;
+    f.weight = p.weight;
+    f.views = p.views;
     out.push_back(f);
-  }
+  });
   return out;
 }
 
@@ -712,17 +722,15 @@ void MobilityMap::saveFineSurfacePly(const std::string& path, double min_weight)
   std::vector<Vertex> vertices;
   if (fine_) {
     vertices.reserve(fine_->voxels().size());
-    for (const auto& [key, m] : fine_->voxels()) {
-      if (m.w < min_weight || !(m.w > 0)) continue;
-      const detail::VoxelPlane p = detail::planeOf(*tree_, key, m);
+    forEachFinePlane(*fine_, *tree_, min_weight, [&](const octomap::OcTreeKey& key, const detail::VoxelPlane& p) {
       const MobilityOcTreeNode* node = tree_->search(key);
       const auto r = rough.find(key);
-      vertices.push_back({p.mean.x(), p.mean.y(), p.mean.z(), p.normal.x(), p.normal.y(), p.normal.z(), m.w, m.views,
+      vertices.push_back({p.mean.x(), p.mean.y(), p.mean.z(), p.normal.x(), p.normal.y(), p.normal.z(), p.weight, p.views,
                           r == rough.end() ? 0.0f : r->second,
                           node && node->hasMobility() ? static_cast<float>(node->mobility()) : -1.0f});
-    }
+    });
   }
-  // Sorted by key, so the file is the same however the table was filled.
+  // Sorted by position, so the file is the same however the table was filled.
   std::sort(vertices.begin(), vertices.end(), [](const Vertex& a, const Vertex& b) {
     return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z);
   });
