@@ -95,7 +95,12 @@ Prepared prepare(const BuildOptions& o) {
   p.stem = mapping::mapFileStem(o.out);
   p.paths = {o.out, p.stem + ".bt", p.stem + ".octovis.ot", p.stem + ".json"};
   for (const std::string& path : p.paths) checkWritable(path);  // creates the map's folder
-  if (!o.fine_surface_ply.empty()) checkWritable(o.fine_surface_ply);
+  if (!o.fine_surface_ply.empty()) {
+    if (!o.force && fs::exists(o.fine_surface_ply, ec)) {
+      throw util::FieldError("fine_surface_ply", o.fine_surface_ply + " exists; `force` overwrites it");
+    }
+    checkWritable(o.fine_surface_ply);
+  }
   {
     std::vector<NamedPath> inputs{{"the input", o.input}, {"`poses`", o.poses}, {"`config`", o.config}};
     if (fs::is_regular_file(o.intrinsics, ec)) inputs.push_back({"`intrinsics`", o.intrinsics});

@@ -15,6 +15,14 @@ TEST(Cli, BuildQueryInfoEvaluateExportOverlayOnASimulatedSequence) {
   const Result again = run("build " + dir + "/seq --out " + map + " --quiet");
   EXPECT_EQ(again.code, 2);
   EXPECT_NE(again.out.find("--force"), std::string::npos);
+  // The fused surface's PLY is not replaced without --force either, and nothing is written.
+  const std::string ply = dir + "/keep.ply";
+  { std::ofstream(ply) << "mine"; }
+  const Result ply_again = run("build " + dir + "/seq --out " + dir + "/m2.ot --surface-ply " + ply + " --quiet");
+  EXPECT_EQ(ply_again.code, 2) << ply_again.out;
+  EXPECT_NE(ply_again.out.find(ply + " exists; --force overwrites it"), std::string::npos) << ply_again.out;
+  EXPECT_FALSE(fs::exists(dir + "/m2.ot"));
+  EXPECT_EQ(fileBytes(ply), "mine");
   // The floor 2 m ahead of the first camera position: walkable.
   const Result q = run("query " + map + " 2.0 0.0 0.3 --snap 0.5 --json");
   ASSERT_EQ(q.code, 0) << q.out;

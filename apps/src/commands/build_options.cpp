@@ -78,7 +78,7 @@ void addBuildRunOptions(CLI::App& cmd_ref, BuildOptions& o_ref) {
   cmd->add_option("--surface-ply", o->surface_ply,
                   "Also write the fused fine surface as a PLY (points with normals, weight, views, roughness and "
                   "mobility; map frame); turns the configuration's mapping.fine_surface on, which scores rough ground "
-                  "on it (docs/ALGORITHM.md)");
+                  "on it (docs/ALGORITHM.md); an existing FILE is replaced only with --force");
   cmd->add_flag("--no-free-space", o->no_free_space, "Skip free-space updates: neither clear voxels a frame sees through nor cast free-space rays (faster; obstacles that moved stay in the map)");
   cmd->add_flag("--skip-bad-frames", o->skip_bad_frames,
                 "Leave out, with a warning naming the file, a frame that cannot be read (a depth image that is "
