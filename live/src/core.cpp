@@ -291,6 +291,14 @@ bool Core::chooseWorldFrame(const std::string& camera_frame) {
   if (chosen.empty()) {
     const std::optional<std::string> root = tf_.root(camera_frame);
     if (!root) return false;
+    // /tf_static may arrive before /tf (its publisher latches; odometry starts later, or
+    // its subscription connects later): a root chosen then would be the robot's base for
+    // good. The root is taken only once kRootAfterFrames frames found neither map nor odom.
+    if (++frames_without_world_ < kRootAfterFrames) {
+      warn("world", "TF names neither map nor odom yet: the camera's root " + *root + " becomes the world frame if " +
+                        std::to_string(kRootAfterFrames) + " frames find neither");
+      return false;
+    }
     chosen = *root;
   }
   {

@@ -184,7 +184,11 @@ class Core {
 
   void offer(Pending&& p);
   void feed();
+  /// The world frame, once: map, else odom, else (after kRootAfterFrames frames that
+  /// found neither) the camera's root. False while there is none yet.
   bool chooseWorldFrame(const std::string& camera_frame);
+  static constexpr int kRootAfterFrames = 10;
+  int frames_without_world_ = 0;  // the feeder's
   std::optional<Eigen::Vector3d> gravityDown();
   static mapping::LiveMapper::Config mapperConfig(const Params& p);
   void startMapper(const Eigen::Vector3d& down);
