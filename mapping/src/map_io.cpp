@@ -159,14 +159,43 @@ void saveOccupancyBt(const MobilityOcTree& tree, const std::string& path) {
   });
 }
 
-VoxelRgb mobilityRgb(double m) {
-  m = std::clamp(m, 0.0, 1.0);
-  return {static_cast<std::uint8_t>(std::lround(255 * std::min(1.0, 2.0 * (1.0 - m)))),
-          static_cast<std::uint8_t>(std::lround(220 * std::min(1.0, 2.0 * m))), 0};
+const std::vector<VoxelRgb>& colourStops(ColourScale scale) {
+  // viridis at 0, 1/8, ..., 1 (matplotlib's colour map by van der Walt and Smith, as
+  // 8-bit sRGB).
+  static const std::vector<VoxelRgb> kViridis{{68, 1, 84},    {72, 40, 120},  {62, 73, 137},
+                                              {49, 104, 142}, {38, 130, 142}, {31, 158, 137},
+                                              {53, 183, 121}, {110, 206, 88}, {253, 231, 37}};
+  static const std::vector<VoxelRgb> kRedGreen{{255, 0, 0}, {255, 220, 0}, {0, 220, 0}};
+  return scale == ColourScale::kRedGreen ? kRedGreen : kViridis;
 }
 
-VoxelRgb mobilityRgb(const MobilityOcTreeNode& node) {
-  return node.hasMobility() ? mobilityRgb(node.mobility()) : VoxelRgb{140, 140, 140};
+const char* toString(ColourScale scale) { return scale == ColourScale::kRedGreen ? "red-green" : "viridis"; }
+
+std::optional<ColourScale> colourScaleNamed(const std::string& name) {
+  if (name == "viridis") return ColourScale::kViridis;
+  if (name == "red-green") return ColourScale::kRedGreen;
+  return std::nullopt;
+}
+
+VoxelRgb unknownRgb(ColourScale scale) {
+  return scale == ColourScale::kRedGreen ? VoxelRgb{140, 140, 140} : VoxelRgb{190, 190, 190};
+}
+
+VoxelRgb mobilityRgb(double m, ColourScale scale) {
+  if (std::isnan(m)) return unknownRgb(scale);
+  const std::vector<VoxelRgb>& stops = colourStops(scale);
+  const double at = std::clamp(m, 0.0, 1.0) * static_cast<double>(stops.size() - 1);
+  const std::size_t i = std::min(static_cast<std::size_t>(at), stops.size() - 2);
+  const double f = at - static_cast<double>(i);
+  VoxelRgb out{};
+  for (std::size_t c = 0; c < 3; ++c) {
+    out[c] = static_cast<std::uint8_t>(std::lround((1 - f) * stops[i][c] + f * stops[i + 1][c]));
+  }
+  return out;
+}
+
+VoxelRgb mobilityRgb(const MobilityOcTreeNode& node, ColourScale scale) {
+  return node.hasMobility() ? mobilityRgb(node.mobility(), scale) : unknownRgb(scale);
 }
 
 void saveOctovisColorTree(const MobilityOcTree& tree, const std::string& path) {

@@ -259,12 +259,16 @@ TEST(MapFiles, BtAndOctovisExportLoadInStockOctomapWithTheSameOccupiedVoxels) {
     ASSERT_TRUE(ours.count(it.getKey()));
     const auto q = map.query(Eigen::Vector3d(it.getX(), it.getY(), it.getZ()));
     const auto c = it->getColor();
+    const VoxelRgb want = mobilityRgb(q.mobility);
     if (q.mobility > 0.99) {
-      EXPECT_GT(c.g, 200);  // green
+      EXPECT_GT(c.r, 200);  // viridis yellow
+      EXPECT_GT(c.g, 200);
     }
     if (q.mobility < 0.01) {
-      EXPECT_EQ(c.g, 0);  // red
+      EXPECT_LT(c.g, 10);  // viridis dark purple
+      EXPECT_GT(c.b, 60);
     }
+    if (q.has_mobility) EXPECT_EQ((VoxelRgb{c.r, c.g, c.b}), want);
   }
   EXPECT_EQ(coloured, ours.size());
 }
@@ -320,10 +324,15 @@ TEST(MapFiles, OctovisExportColoursEachVoxelByItsKeyAlsoInsidePrunedBlocks) {
     EXPECT_EQ(it->getColor(), octomap::ColorOcTreeNode::Color(code(k)[0], code(k)[1], code(k)[2]));
   }
   EXPECT_EQ(read, voxels);
-  // The one-argument export is this with the mobility colours.
-  EXPECT_EQ(mobilityRgb(*t.search(octomap::OcTreeKey(32800, 32800, 32800))), (VoxelRgb{255, 44, 0}));
+  // The one-argument export is this with the mobility colours: viridis, 0.1 lies 0.8 of
+  // the way from its first stop (68, 1, 84) to its second (72, 40, 120); on the red-green
+  // scale, 255 red and 220 x 0.2 green.
+  const MobilityOcTreeNode& lone_node = *t.search(octomap::OcTreeKey(32800, 32800, 32800));
+  EXPECT_EQ(mobilityRgb(lone_node), (VoxelRgb{71, 32, 113}));
+  EXPECT_EQ(mobilityRgb(lone_node, ColourScale::kRedGreen), (VoxelRgb{255, 44, 0}));
   MobilityOcTreeNode unknown;
-  EXPECT_EQ(mobilityRgb(unknown), (VoxelRgb{140, 140, 140}));
+  EXPECT_EQ(mobilityRgb(unknown), (VoxelRgb{190, 190, 190}));
+  EXPECT_EQ(mobilityRgb(unknown, ColourScale::kRedGreen), (VoxelRgb{140, 140, 140}));
   std::remove(ov.c_str());
 }
 

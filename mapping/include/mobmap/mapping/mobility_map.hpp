@@ -358,11 +358,27 @@ std::unique_ptr<MobilityOcTree> loadMobilityMap(const std::string& path);
 void saveOccupancyBt(const MobilityOcTree& tree, const std::string& path);
 /// A voxel's colour in a ColorOcTree export: red, green, blue.
 using VoxelRgb = std::array<std::uint8_t, 3>;
-/// Mobility red (0) through yellow (0.5) to green (1), clamped to [0, 1]: the colours of
-/// the octovis export and of the tool's pictures.
-[[nodiscard]] VoxelRgb mobilityRgb(double mobility);
-/// mobilityRgb(node.mobility()); grey (140) for a voxel without a mobility estimate.
-[[nodiscard]] VoxelRgb mobilityRgb(const MobilityOcTreeNode& node);
+/// The colour scales of mobility. kViridis (the default): dark purple (0) through teal
+/// (0.5) to yellow (1), matplotlib's viridis, which stays ordered and apart under the
+/// common colour-vision deficiencies; unknown is a light grey no mobility takes.
+/// kRedGreen: red (0) through yellow (0.5) to green (1), as the paper's figures; unknown
+/// a mid grey. docs/MAPPING.md has the distances between them, with and without a
+/// simulated deuteranopia and protanopia.
+enum class ColourScale { kViridis, kRedGreen };
+/// The colours a scale passes through at evenly spaced mobilities from 0 to 1 (9 for
+/// viridis, 3 for red-green); between them it is linear in sRGB.
+[[nodiscard]] const std::vector<VoxelRgb>& colourStops(ColourScale scale);
+/// "viridis" or "red-green".
+[[nodiscard]] const char* toString(ColourScale scale);
+/// The scale named `name` ("viridis", "red-green"); nullopt for any other name.
+[[nodiscard]] std::optional<ColourScale> colourScaleNamed(const std::string& name);
+/// A mobility's colour on `scale`, clamped to [0, 1]; the unknown colour for NaN: the
+/// colours of the octovis export, the pictures and the viewer.
+[[nodiscard]] VoxelRgb mobilityRgb(double mobility, ColourScale scale = ColourScale::kViridis);
+/// The colour of a surface with no mobility estimate on `scale`.
+[[nodiscard]] VoxelRgb unknownRgb(ColourScale scale = ColourScale::kViridis);
+/// mobilityRgb(node.mobility()), or unknownRgb() for a voxel without a mobility estimate.
+[[nodiscard]] VoxelRgb mobilityRgb(const MobilityOcTreeNode& node, ColourScale scale = ColourScale::kViridis);
 /// A ColorOcTree .ot for stock octovis: every occupied voxel in mobilityRgb() colours.
 /// Free space is not exported. Written atomically.
 void saveOctovisColorTree(const MobilityOcTree& tree, const std::string& path);
