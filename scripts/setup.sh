@@ -9,6 +9,8 @@ packages=(
   libeigen3-dev liboctomap-dev libpcl-dev libopenni2-dev libcgal-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev libpng-dev nlohmann-json3-dev libyaml-cpp-dev
+  # the pictures: Cairo draws them (PNG, SVG, PDF) with the fonts fontconfig finds
+  libcairo2-dev fonts-dejavu-core
   pybind11-dev python3-dev python3-numpy python3-pytest
   libcpp-httplib-dev libjs-three
   # `export --layers` writes GeoTIFF through GDAL; the tests read it back with gdalinfo

@@ -15,12 +15,23 @@
   const levelsEl = document.getElementById('levels');
   const elevationLegendEl = document.getElementById('elevation-legend');
 
-  // mobmap's colour scale (as the octovis export and the pictures): red 0, yellow 0.5,
-  // green 1; unknown grey.
+  // The mobility colours, as the server's pictures draw them (GET /api/colours): evenly
+  // spaced stops from mobility 0 to 1, linear between them; unknown in its own colour.
+  let colourScale = { stops: [[68, 1, 84], [253, 231, 37]], unknown: [190, 190, 190] };
   function mobilityRgb(m) {
-    if (m === null || !isFinite(m)) return [140, 140, 140];
-    m = Math.min(1, Math.max(0, m));
-    return [Math.round(255 * Math.min(1, 2 * (1 - m))), Math.round(220 * Math.min(1, 2 * m)), 0];
+    if (m === null || !isFinite(m)) return colourScale.unknown;
+    const stops = colourScale.stops;
+    const at = Math.min(1, Math.max(0, m)) * (stops.length - 1);
+    const i = Math.min(Math.floor(at), stops.length - 2);
+    const f = at - i;
+    return [0, 1, 2].map(function (c) { return Math.round((1 - f) * stops[i][c] + f * stops[i + 1][c]); });
+  }
+  function setColours(scale) {
+    colourScale = scale;
+    const css = function (c) { return 'rgb(' + c[0] + ',' + c[1] + ',' + c[2] + ')'; };
+    document.getElementById('mobility-bar').style.background =
+      'linear-gradient(to right, ' + scale.stops.map(css).join(', ') + ')';
+    document.getElementById('unknown-swatch').style.background = css(scale.unknown);
   }
 
   // --- scene --------------------------------------------------------------------------
@@ -277,7 +288,8 @@
   function refresh() {
     if (loading) return;
     loading = true;
-    getJson('api/info').then(function (info) {
+    const coloured = colourScale.scale ? Promise.resolve() : getJson('api/colours').then(setColours);
+    coloured.then(function () { return getJson('api/info'); }).then(function (info) {
       titleEl.textContent = info.map;
       document.title = 'mobmap: ' + info.map;
       if (info.frames === shownFrames && info.building === shownBuilding) return null;

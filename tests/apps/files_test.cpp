@@ -26,7 +26,7 @@ TEST(Png, RgbRoundTripIsExact) {
 }
 
 // Overlays show their frame in grey (BT.601 luma) under the mobility colours.
-TEST(Canvas, FramePictureShowsTheColourImageInGreyAndDepthShaded) {
+TEST(Picture, FramePictureShowsTheColourImageInGreyAndDepthShaded) {
   EXPECT_EQ(greyOf({255, 0, 0}), (Rgb{76, 76, 76}));
   EXPECT_EQ(greyOf({0, 255, 0}), (Rgb{150, 150, 150}));
   EXPECT_EQ(greyOf({0, 0, 255}), (Rgb{29, 29, 29}));
@@ -34,14 +34,14 @@ TEST(Canvas, FramePictureShowsTheColourImageInGreyAndDepthShaded) {
   EXPECT_EQ(greyOf({192, 0, 0}), (Rgb{57, 57, 57}));  // a stereo camera's fill where it measured nothing
   const ImageRgb colour{2, 1, {{192, 0, 0}, {10, 200, 30}}};
   const std::vector<float> depth{1.0f, 0.0f};
-  const Canvas c = framePicture(2, 1, &colour, depth);
-  EXPECT_EQ(c.get(0, 0), greyOf(colour.pixels[0]));
-  EXPECT_EQ(c.get(1, 0), greyOf(colour.pixels[1]));
+  const ImageRgb c = framePicture(2, 1, &colour, depth);
+  EXPECT_EQ(c.pixels[0], greyOf(colour.pixels[0]));
+  EXPECT_EQ(c.pixels[1], greyOf(colour.pixels[1]));
   // Without a colour image of the frame's size: depth, nearer lighter, black where none.
   const ImageRgb small{1, 1, {{255, 0, 0}}};
-  const Canvas d = framePicture(2, 1, &small, depth);
-  EXPECT_EQ(d.get(0, 0), (Rgb{210, 210, 210}));
-  EXPECT_EQ(d.get(1, 0), (Rgb{0, 0, 0}));
+  const ImageRgb d = framePicture(2, 1, &small, depth);
+  EXPECT_EQ(d.pixels[0], (Rgb{210, 210, 210}));
+  EXPECT_EQ(d.pixels[1], (Rgb{0, 0, 0}));
 }
 
 TEST(Png, HostileFilesGiveErrorsNamingTheFile) {

@@ -7,7 +7,7 @@
 #include "mobmap/sources/pcd.hpp"
 #include "io/io_error.hpp"
 #include "io/map_files.hpp"
-#include "pictures/canvas.hpp"
+#include "pictures/picture.hpp"
 #include "io/png_io.hpp"
 #include "io/simulation_writer.hpp"
 #include "pictures/top_view.hpp"

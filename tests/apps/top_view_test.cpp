@@ -45,7 +45,7 @@ TEST(TopView, EveryColumnHasItsOwnCellWhereverTheCameraIs) {
         ASSERT_TRUE(cx >= 0 && cy >= 0 && cx < v.columns && cy < v.rows);
         const bool box = j == 0 && i >= 2 && i < 5;
         EXPECT_NEAR(v.top[v.cell(cx, cy)], box ? 0.3 : 0.0, 1e-9) << i << " " << j;
-        const Rgb want = box ? mobilityColour(0.0) : (i == 11 && j == 7 ? kUnknownGrey : mobilityColour(1.0));
+        const Rgb want = box ? mobilityColour(0.0) : (i == 11 && j == 7 ? unknownColour() : mobilityColour(1.0));
         EXPECT_EQ(v.colour[v.cell(cx, cy)], want) << i << " " << j;
       }
     }
@@ -242,15 +242,82 @@ TEST(TopView, ContoursAndLabelsTellStairTreadsApartAndIgnoreFloorNoise) {
   // Drawn: the cells just right of each riser are dark along their left edge; a floor
   // cell's interior keeps its colour.
   TopViewPicture pic;
-  const Canvas canvas = drawTopView(view, pic, 400);
+  const Picture canvas = drawTopView(view, pic, 400);
   const int ppv = 4;  // 100 columns in 400 pixels
   ASSERT_EQ(describeTopView(view, canvas, 400).find("4 px per 2 cm voxel") != std::string::npos, true);
+  const ImageRgb image = canvas.toImage();
+  const auto get = [&](int x, int y) {
+    return image.pixels[static_cast<std::size_t>(y) * static_cast<std::size_t>(image.width) + static_cast<std::size_t>(x)];
+  };
+  const int mx = static_cast<int>(kTopViewMapX), my = static_cast<int>(kTopViewMapY);
   for (const int riser : {40, 55, 70, 85}) {
-    const Rgb edge = canvas.get(50 + riser * ppv, 50 + 20 * ppv + 1);
+    const Rgb edge = get(mx + riser * ppv, my + 20 * ppv + 1);
     EXPECT_LT(static_cast<int>(edge[0]) + edge[1] + edge[2], 3 * 100) << riser;
   }
-  const Rgb inside = canvas.get(50 + 10 * ppv + 1, 50 + 20 * ppv + 1);
+  const Rgb inside = get(mx + 10 * ppv + 1, my + 20 * ppv + 1);
   EXPECT_EQ(inside, view.colour[view.cell(10, view.rows - 1 - 20)]);
+}
+
+// Labels on levels, not slopes: a floor, a 5 degree ramp (2 cm voxels make it a
+// staircase of 23 cm plateaus), a landing, a 15 degree ramp and a top landing. Each of
+// the three level areas gets one label at its height; no label lands on a ramp; and in
+// the drawn picture no two texts (labels, legend, title, scale) overlap.
+TEST(TopView, HeightLabelsMarkLevelsNotRampsAndNoTwoTextsOverlap) {
+  const double res = 0.02;
+  mapping::MobilityOcTree tree(res);
+  // Columns i in [0, 150) along x: floor, ramp, landing, ramp, landing, 30 columns each.
+  const double rise5 = 0.6 * std::tan(5 * M_PI / 180), rise15 = 0.6 * std::tan(15 * M_PI / 180);
+  const auto height = [&](int i) {
+    const double x = (i + 0.5) * res;
+    if (i < 30) return 0.0;
+    if (i < 60) return (x - 0.6) * std::tan(5 * M_PI / 180);
+    if (i < 90) return rise5;
+    if (i < 120) return rise5 + (x - 1.8) * std::tan(15 * M_PI / 180);
+    return rise5 + rise15;
+  };
+  const auto flat = [](int i) { return i < 30 || (i >= 60 && i < 90) || i >= 120; };
+  for (int i = 0; i < 150; ++i) {
+    for (int j = 0; j < 40; ++j) {
+      const int top_k = static_cast<int>(std::floor(height(i) / res + 1e-9));
+      for (int k = 0; k <= top_k; ++k) {
+        tree.updateNode(octomap::point3d((i + 0.5) * res, (j + 0.5) * res, (k + 0.5) * res), true)->fuse(1.0, 0.01, 100.0);
+      }
+    }
+  }
+  const TopView view = computeTopView(tree);
+  ASSERT_EQ(view.columns, 150);
+  const Contours c = computeContours(view, res, 100);
+  int floor_labels = 0, landing_labels = 0, top_labels = 0;
+  for (const Contours::Label& l : c.labels) {
+    EXPECT_TRUE(flat(l.cx)) << "a label on a ramp, at column " << l.cx << ", z " << l.z_m;
+    if (!flat(l.cx)) continue;
+    // The label's height: the top face of its level's voxels.
+    const double top = (std::floor(height(l.cx) / res + 1e-9) + 1) * res;
+    EXPECT_NEAR(l.z_m, top, 1e-9) << l.cx;
+    (l.cx < 30 ? floor_labels : l.cx < 90 ? landing_labels : top_labels) += 1;
+  }
+  EXPECT_EQ(floor_labels, 1);
+  EXPECT_EQ(landing_labels, 1);
+  EXPECT_EQ(top_labels, 1);
+  TopViewPicture pic;
+  pic.title = "Ramps between landings";
+  pic.path = {{0.1, 0.1}, {2.9, 0.7}};
+  pic.mark = Eigen::Vector2d(1.5, 0.4);
+  pic.mark_label = "goal";
+  for (const int max_pixels : {200, 600, 1400}) {
+    const Picture picture = drawTopView(view, pic, max_pixels);
+    const auto& texts = picture.texts();
+    std::size_t labels = 0;
+    for (const PlacedText& t : texts) labels += t.text.size() > 2 && t.text.substr(t.text.size() - 2) == " m" && t.text[0] != 'h';
+    EXPECT_GE(labels, 1u) << max_pixels;
+    for (std::size_t a = 0; a < texts.size(); ++a) {
+      EXPECT_TRUE(texts[a].box.inside({0, 0, static_cast<double>(picture.width()), static_cast<double>(picture.height())}))
+          << texts[a].text;
+      for (std::size_t b = a + 1; b < texts.size(); ++b) {
+        EXPECT_FALSE(texts[a].box.intersects(texts[b].box)) << max_pixels << ": '" << texts[a].text << "' and '" << texts[b].text << "'";
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -1,6 +1,6 @@
 #pragma once
 // What the TUM and .pcd-sequence tests share: simulated sequences written in those layouts.
-#include "pictures/canvas.hpp"
+#include "pictures/picture.hpp"
 #include "io/dataset.hpp"
 #include "io/frame_source.hpp"
 #include "io/io_error.hpp"

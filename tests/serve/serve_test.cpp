@@ -28,6 +28,11 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// A screenshot's pixel in the colour of mobility 1 on viridis (yellow) or of mobility 0
+// (dark purple), as the viewer's face shading leaves them.
+bool isViridisYellow(const std::array<std::uint8_t, 3>& p) { return p[0] > 150 && p[1] > 150 && p[2] < 100; }
+bool isViridisPurple(const std::array<std::uint8_t, 3>& p) { return p[1] < 60 && p[2] > p[1] + 30 && p[0] > p[1] + 20; }
+
 // Points over the corridor and around it: on the floor, above it, in the walls, outside.
 std::vector<std::array<double, 3>> probePoints(double step) {
   std::vector<std::array<double, 3>> points;
@@ -520,9 +525,10 @@ Result chromiumUntil(const std::string& command, const std::string& marker, cons
 }
 
 // Headless Chromium loads the viewer from the server and draws it with WebGL (SwiftShader):
-// the page says it drew the map's 40 frames, the screenshot shows the corridor's green
-// floor and its red walls, and a click shows the server's answer for the voxel hit.
-TEST_F(ServedCorridor, ViewerDrawsTheGreenFloorAndRedWallsInChromium) {
+// the page says it drew the map's 40 frames, the screenshot shows the corridor's floor in
+// the colour of mobility 1 (viridis yellow) and its walls in that of 0 (dark purple), and
+// a click shows the server's answer for the voxel hit.
+TEST_F(ServedCorridor, ViewerDrawsTheFloorAndWallsInMobilityColoursInChromium) {
   if (runShell("command -v chromium").code != 0) {
     GTEST_SKIP() << "chromium is not installed (scripts/setup.sh installs it): the viewer is not drawn";
   }
@@ -557,19 +563,23 @@ TEST_F(ServedCorridor, ViewerDrawsTheGreenFloorAndRedWallsInChromium) {
   ASSERT_EQ(image.width, 800);
   ASSERT_EQ(image.height, 600);
   // Below the panels (the legend's colour bar would count): the scene only.
-  std::size_t green = 0, red = 0, scene = 0;
+  std::size_t yellow = 0, purple = 0, scene = 0;
   for (int y = 120; y < image.height; ++y) {
     for (int x = 0; x < image.width; ++x) {
       const auto& p = image.pixels[static_cast<std::size_t>(y) * static_cast<std::size_t>(image.width) + static_cast<std::size_t>(x)];
       ++scene;
-      green += p[1] > 150 && p[0] < 90 && p[2] < 90;
-      red += p[0] > 150 && p[1] < 70 && p[2] < 70;
+      yellow += isViridisYellow(p);
+      purple += isViridisPurple(p);
     }
   }
-  const double green_share = static_cast<double>(green) / scene, red_share = static_cast<double>(red) / scene;
-  EXPECT_GT(green_share, 0.10) << "green (walkable floor) share of the scene";
-  EXPECT_GT(red_share, 0.005) << "red (walls) share of the scene";
-  EXPECT_GT(green_share, 3 * red_share) << "the floor is most of what is seen";
+  const double yellow_share = static_cast<double>(yellow) / scene, purple_share = static_cast<double>(purple) / scene;
+  EXPECT_GT(yellow_share, 0.10) << "yellow (walkable floor) share of the scene";
+  EXPECT_GT(purple_share, 0.005) << "dark purple (walls) share of the scene";
+  EXPECT_GT(yellow_share, 3 * purple_share) << "the floor is most of what is seen";
+  // The page took the scale from the server: the one the pictures draw with.
+  const Reply scale = get(*c, "/api/colours");
+  EXPECT_EQ(scale.body["scale"], "viridis");
+  EXPECT_EQ(scale.body["stops"].size(), mapping::colourStops(mapping::ColourScale::kViridis).size());
 
   // A click in the middle of the view (the page clicks itself: ?click=0.5,0.5) lands on
   // the floor below the map's centre, and the page shows the server's answer for that voxel.
@@ -652,17 +662,17 @@ TEST_F(ServedCorridor, ALevelsElevationIsTheLibrarysAndTheViewerDrawsIt) {
   const Result shot = chromiumUntil(chromium + "--screenshot=" + png + " '" + url + "'", "", png);
   ASSERT_TRUE(fs::exists(png)) << shot.out;
   const app::ImageRgb image = app::readPngRgb(png);
-  std::size_t blue = 0, green = 0, scene = 0;
+  std::size_t blue = 0, purple = 0, scene = 0;
   for (int y = 160; y < image.height; ++y) {  // below the panels
     for (int x = 0; x < image.width; ++x) {
       const auto& p = image.pixels[static_cast<std::size_t>(y) * static_cast<std::size_t>(image.width) + static_cast<std::size_t>(x)];
       ++scene;
       blue += p[2] > 150 && p[0] < 110 && p[1] < 140;
-      green += p[1] > 150 && p[0] < 90 && p[2] < 90;
+      purple += isViridisPurple(p);
     }
   }
   EXPECT_GT(static_cast<double>(blue) / scene, 0.10) << "the floor in the level's lowest colour";
-  EXPECT_LT(static_cast<double>(green) / scene, 0.005) << "the voxels are hidden";
+  EXPECT_LT(static_cast<double>(purple) / scene, 0.002) << "the voxels (the walls' dark purple) are hidden";
   EXPECT_EQ(server.stop(), 0);
 }
 

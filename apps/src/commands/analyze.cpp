@@ -5,7 +5,8 @@
 #include "io/files.hpp"
 #include "io/frame_source.hpp"
 #include "io/io_error.hpp"
-#include "pictures/canvas.hpp"
+#include "commands/picture_options.hpp"
+#include "pictures/picture.hpp"
 
 #include "mobmap/perception/pipeline.hpp"
 
@@ -72,11 +73,11 @@ nlohmann::json frameResultJson(const perception::FrameResult& r) {
 
 namespace {
 
-void writeSegmentsPcd(const std::string& path, const perception::FrameResult& r) {
+void writeSegmentsPcd(const std::string& path, const perception::FrameResult& r, ColourScale scale) {
   std::size_t n = 0;
   for (int s : r.segment_of_point) n += s >= 0;
   std::string text;
-  text += "# .PCD v0.7 - mobmap segments: rgb = mobility colour (red 0, green 1)\n";
+  text += std::string("# .PCD v0.7 - mobmap segments: rgb = mobility colour (") + mapping::toString(scale) + ")\n";
   text += "VERSION 0.7\nFIELDS x y z rgb segment mobility\nSIZE 4 4 4 4 4 4\nTYPE F F F F I F\nCOUNT 1 1 1 1 1 1\n";
   text += "WIDTH " + std::to_string(n) + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + std::to_string(n) + "\nDATA ascii\n";
   char line[160];
@@ -84,7 +85,7 @@ void writeSegmentsPcd(const std::string& path, const perception::FrameResult& r)
     const int s = r.segment_of_point[i];
     if (s < 0) continue;
     const double m = r.segments[static_cast<std::size_t>(s)].mobility;
-    const Rgb c = mobilityColour(m);
+    const Rgb c = mobilityColour(m, scale);
     const std::uint32_t packed = (static_cast<std::uint32_t>(c[0]) << 16) | (static_cast<std::uint32_t>(c[1]) << 8) | c[2];
     float rgb = 0.f;
     std::memcpy(&rgb, &packed, sizeof(rgb));
@@ -95,7 +96,8 @@ void writeSegmentsPcd(const std::string& path, const perception::FrameResult& r)
   writeTextFileAtomically(path, text);
 }
 
-Canvas overlay(const Frame& f, const perception::FrameResult& r, int width, int height, bool colour) {
+Picture overlay(const Frame& f, const perception::FrameResult& r, int width, int height, bool colour, ColourScale scale,
+                const std::string& caption) {
   // Depth for the shaded background: the depth image, or an organized cloud's z.
   std::vector<float> cloud_z;
   if (!f.depth) {
@@ -105,16 +107,15 @@ Canvas overlay(const Frame& f, const perception::FrameResult& r, int width, int 
       cloud_z[i] = std::isfinite(f.points[i].z()) ? f.points[i].z() : 0.f;
     }
   }
-  Canvas c = framePicture(width, height, colour && f.colour ? &*f.colour : nullptr, f.depth ? f.depth->depth_m : cloud_z);
-  if (r.point_of_pixel.empty()) return c;
-  for (int v = 0; v < height; ++v) {
+  ImageRgb c = framePicture(width, height, colour && f.colour ? &*f.colour : nullptr, f.depth ? f.depth->depth_m : cloud_z);
+  for (int v = 0; v < height && !r.point_of_pixel.empty(); ++v) {
     for (int u = 0; u < width; ++u) {
       const int p = r.point_of_pixel[static_cast<std::size_t>(v) * width + u];
       const int s = p >= 0 ? r.segment_of_point[static_cast<std::size_t>(p)] : -1;
-      if (s >= 0) paintOver(c, u, v, mobilityColour(r.segments[static_cast<std::size_t>(s)].mobility));
+      if (s >= 0) paintOver(c, u, v, mobilityColour(r.segments[static_cast<std::size_t>(s)].mobility, scale));
     }
   }
-  return c;
+  return framePictureWithLegend(c, caption, scale);
 }
 
 }  // namespace
@@ -131,6 +132,7 @@ Command addAnalyzeCommand(CLI::App& app) {
     std::string segments;
     std::string overlay;
     std::string background = "colour";
+    ColourScale colours = ColourScale::kViridis;
     double max_range = -1;
     double depth_scale = 0;
     std::string depth_format;
@@ -152,7 +154,10 @@ Command addAnalyzeCommand(CLI::App& app) {
   auto* voxel = cmd->add_option("--voxel", o->voxel, kVoxelHelp);
   cmd->add_flag("--json", o->json, "Print one JSON object instead of tables");
   cmd->add_option("--segments", o->segments, "Write the segmented points as PCD (x y z rgb segment mobility)");
-  cmd->add_option("--overlay", o->overlay, "Write a PNG of the frame coloured by mobility (red 0, green 1)");
+  cmd->add_option("--overlay", o->overlay,
+                  "Write a picture (.png, .svg or .pdf) of the frame coloured by its segments' mobility, with a legend")
+      ->check(pictureFile());
+  addColoursOption(*cmd, o->colours);
   cmd->add_option("--background", o->background, kBackgroundHelp)
       ->check(CLI::IsMember({"colour", "depth"}))
       ->capture_default_str();
@@ -213,10 +218,12 @@ Command addAnalyzeCommand(CLI::App& app) {
     // The ground's distance from the camera, before the results go to the input's frame.
     const double camera_ground = r.ground_plane ? static_cast<double>((*r.ground_plane)(3)) : 0.0;
     toInputFrame(r, f);  // points, normals and planes as the input gave them
-    if (!o->segments.empty()) writeSegmentsPcd(o->segments, r);
+    if (!o->segments.empty()) writeSegmentsPcd(o->segments, r, o->colours);
     if (!o->overlay.empty()) {
       if (width == 0) throw UsageError("--overlay needs an organized input (depth image or organized PCD)");
-      overlay(f, r, width, height, o->background == "colour").save(o->overlay);
+      const std::string caption = "The frame's segments by mobility" +
+                                  (o->frame >= 0 ? " (frame " + std::to_string(o->frame) + ", camera frame)" : std::string(" (camera frame)"));
+      overlay(f, r, width, height, o->background == "colour", o->colours, caption).save(o->overlay);
     }
     if (o->json) {
       auto j = frameResultJson(r);

@@ -79,7 +79,7 @@ nlohmann::json settingsJson(const LayersOptions& o, double cell_m) {
 
 // A level seen from above: the mobility colour of each cell shaded by the elevation's
 // relief (light from the upper left, 45 degrees up), with contours and height labels.
-Canvas levelPicture(const mapping::LevelLayers& l, std::size_t index, int max_pixels) {
+Picture levelPicture(const mapping::LevelLayers& l, std::size_t index, int max_pixels, ColourScale scale) {
   TopView view;
   view.resolution = l.cell_m;
   view.columns = l.cols;
@@ -106,7 +106,7 @@ Canvas levelPicture(const mapping::LevelLayers& l, std::size_t index, int max_pi
       const double gx = (elevationAt(col + 1, row_up, e) - elevationAt(col - 1, row_up, e)) / (2 * l.cell_m);
       const double gy = (elevationAt(col, row_up + 1, e) - elevationAt(col, row_up - 1, e)) / (2 * l.cell_m);
       const double shade = std::max(0.0, Eigen::Vector3d(-gx, -gy, 1).normalized().dot(light));
-      const Rgb base = std::isnan(l.mobility[at]) ? kUnknownGrey : mobilityColour(l.mobility[at]);
+      const Rgb base = mobilityColour(l.mobility[at], scale);
       const double k = 0.35 + 0.65 * shade / light.z();  // flat ground keeps its colour
       for (std::size_t c = 0; c < 3; ++c) {
         view.colour[cell][c] = static_cast<std::uint8_t>(std::clamp(base[c] * k, 0.0, 255.0));
@@ -115,9 +115,9 @@ Canvas levelPicture(const mapping::LevelLayers& l, std::size_t index, int max_pi
   }
   TopViewPicture picture;
   char title[160];
-  std::snprintf(title, sizeof title, "LEVEL %zu AT Z = %.2f M: MOBILITY, SHADED BY ELEVATION (X RIGHT, Y UP, MAP FRAME)", index,
-                l.level.z_m);
+  std::snprintf(title, sizeof title, "Level %zu at z = %.2f m: mobility, shaded by the elevation's relief", index, l.level.z_m);
   picture.title = title;
+  picture.colours = scale;
   return drawTopView(view, picture, max_pixels);
 }
 
@@ -140,6 +140,10 @@ void addLayersOptions(CLI::App& cmd, LayersOptions& o) {
   o.options.push_back(cmd.add_flag("--layer-pictures", o.pictures,
                                    "Layers: also level_K_view.png, each level from above: mobility colours shaded by the "
                                    "elevation's relief, with height contours"));
+  o.options.push_back(cmd.add_option("--layer-picture-format", o.picture_format,
+                                     "Layers: the format of the level pictures, png, svg or pdf (level_K_view.svg ...)")
+                          ->check(CLI::IsMember({"png", "svg", "pdf"}))
+                          ->capture_default_str());
   addReachOptions(cmd, o.reach, "the map frame");
   for (CLI::Option* opt : o.reach.options) o.options.push_back(opt);
 }
@@ -224,10 +228,12 @@ void exportLayers(const LayersOptions& o, const OpenedMap& opened, const std::st
     files.push_back({yaml, [&l, stem](const std::string& tmp) { writeTextFileAtomically(tmp, nav2Yaml(stem + ".png", l)); }});
     if (o.pictures) {
       const std::size_t k = chosen[i];
-      entry["files"]["picture"] = stem + "_view.png";
+      const std::string picture = stem + "_view." + o.picture_format;
+      entry["files"]["picture"] = picture;
       index["levels"].back() = entry;
-      files.push_back({(dir / (stem + "_view.png")).string(), [&l, k, &o](const std::string& tmp) {
-                         levelPicture(l, k, o.max_pixels).save(tmp);
+      const std::string path = (dir / picture).string();
+      files.push_back({path, [&l, k, &o, path](const std::string& tmp) {
+                         levelPicture(l, k, o.max_pixels, o.colours).save(tmp, pictureFormat(path), path);
                        }});
     }
   }

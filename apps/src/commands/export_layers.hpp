@@ -4,6 +4,7 @@
 
 #include "commands/reach_options.hpp"
 #include "io/map_files.hpp"
+#include "pictures/picture.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -18,6 +19,8 @@ struct LayersOptions {
   std::string level = "floor";
   double clearance_m = 1.0;
   bool pictures = false;  ///< also level_K_view.png
+  std::string picture_format = "png";  ///< png, svg or pdf
+  ColourScale colours = ColourScale::kViridis;  ///< of the pictures
   int max_pixels = 1400;
   ReachOptions reach;
   std::vector<CLI::Option*> options;  ///< every option but --layers, which needs it

@@ -1,7 +1,7 @@
 // Pictures of a map: a top view (`export --png`) and the map projected into a frame
 // of the input (`overlay`, paper eq. 13 and Figs. 4 and 6).
-#include "pictures/canvas.hpp"
 #include "commands/commands.hpp"
+#include "commands/picture_options.hpp"
 #include "commands/export_layers.hpp"
 #include "io/extrinsics.hpp"
 #include "io/files.hpp"
@@ -27,12 +27,16 @@ Command addExportCommand(CLI::App& app) {
   struct Options {
     std::string map, png, pcd;
     int max_pixels = 1400;
+    ColourScale colours = ColourScale::kViridis;
     double max_z = std::numeric_limits<double>::infinity();
     LayersOptions layers;
   };
   auto o = std::make_shared<Options>();
   cmd->add_option("MAP", o->map, "A .ot map")->required();
-  cmd->add_option("--png", o->png, "Top view of the highest surface per column, coloured by mobility, with the camera path");
+  cmd->add_option("--png", o->png,
+                  "Top view of the highest surface per column, coloured by mobility, with the camera path; a .svg or .pdf "
+                  "name draws it in that format")
+      ->check(pictureFile());
   cmd->add_option("--pcd", o->pcd, "Surface voxel centres with mobility, variance and count");
   cmd->add_option("--max-pixels", o->max_pixels,
                   "Longest side of the picture's map area; a map with more columns than this is drawn with one "
@@ -42,6 +46,7 @@ Command addExportCommand(CLI::App& app) {
   auto* max_z = cmd->add_option("--max-z", o->max_z,
                                 "Top view: draw the highest surface at or below this height (map frame, z up, metres; "
                                 "`info` gives the bounds) to see the floor under tables or a room under its ceiling");
+  addColoursOption(*cmd, o->colours);
   addLayersOptions(*cmd, o->layers);
   return [o, max_z]() {
     if (o->png.empty() && o->pcd.empty() && o->layers.dir.empty()) {
@@ -63,6 +68,7 @@ Command addExportCommand(CLI::App& app) {
       refuseToOverwriteInputs({{"--layers", (std::filesystem::path(o->layers.dir) / "layers.json").string()}},
                               mapFilesAsInputs(o->map));
       o->layers.max_pixels = o->max_pixels;
+      o->layers.colours = o->colours;
       exportLayers(o->layers, opened, o->map);
     }
     if (o->png.empty()) return 0;
@@ -72,22 +78,22 @@ Command addExportCommand(CLI::App& app) {
     std::vector<Eigen::Vector2d> path = camera.xy();
     TopView view;
     try {
-      view = computeTopView(t, path, o->max_pixels, o->max_z);
+      view = computeTopView(t, path, o->max_pixels, o->max_z, o->colours);
     } catch (const std::invalid_argument& e) {
       throw IoError(o->map, std::string("cannot draw a top view: ") + e.what());
     }
     requireSurfaceBelowCut(view, t, o->max_z);
     TopViewPicture picture;
-    picture.title = "TOP VIEW: HIGHEST SURFACE PER COLUMN (X RIGHT, Y UP, MAP FRAME)";
+    picture.title = "Top view of " + std::filesystem::path(o->map).filename().string() + ": the highest surface per column";
     if (max_z->count() > 0) {
-      char cut[96];
-      std::snprintf(cut, sizeof cut, "TOP VIEW: HIGHEST SURFACE PER COLUMN AT OR BELOW Z = %.2f M (X RIGHT, Y UP, MAP FRAME)",
-                    o->max_z);
-      picture.title = cut;
+      char cut[64];
+      std::snprintf(cut, sizeof cut, " at or below z = %.2f m", o->max_z);
+      picture.title += cut;
     }
+    picture.colours = o->colours;
     picture.path = std::move(path);
     picture.run_starts = camera.run_starts;
-    const Canvas c = drawTopView(view, picture, o->max_pixels);
+    const Picture c = drawTopView(view, picture, o->max_pixels);
     c.save(o->png);
     std::printf("wrote %s (%s)\n", o->png.c_str(), describeTopView(view, c, o->max_pixels).c_str());
     return 0;
@@ -124,6 +130,7 @@ Command addOverlayCommand(CLI::App& app) {
     RecordingChoice choice;
     double max_pose_gap = 0.05;
     std::string background = "colour";
+    ColourScale colours = ColourScale::kViridis;
   };
   auto o = std::make_shared<Options>();
   cmd->add_option("MAP", o->map, "A .ot map")->required();
@@ -132,7 +139,8 @@ Command addOverlayCommand(CLI::App& app) {
                   "3DMatch directory, a TUM RGB-D directory, .pcd frames with --poses, an .oni recording, a ROS 2 bag); N alone: "
                   "of the input the map was built from")
       ->required();
-  cmd->add_option("--out", o->out, "PNG to write")->required();
+  cmd->add_option("--out", o->out, "Picture to write: .png, .svg or .pdf")->required()->check(pictureFile());
+  addColoursOption(*cmd, o->colours);
   cmd->add_option("--poses", o->poses, "For .pcd frames and .oni recordings: their trajectory (default: the one the map was built with)");
   cmd->add_option("--intrinsics", o->intrinsics,
                   "fx,fy,cx,cy or a camera-intrinsics.txt file (default: those the map was built with, else the input's own)");
@@ -253,7 +261,7 @@ Command addOverlayCommand(CLI::App& app) {
     const auto& k = f.intrinsics;
     // Base image: the frame's colour image in grey when the input has one, else shaded depth.
     const bool colour = f.colour && o->background == "colour";
-    Canvas c = framePicture(k.width, k.height, colour ? &*f.colour : nullptr, f.depth->depth_m);
+    ImageRgb c = framePicture(k.width, k.height, colour ? &*f.colour : nullptr, f.depth->depth_m);
     // Project voxels (eq. 13) with a z-buffer; a voxel covers ~fx * size / z pixels.
     Eigen::Isometry3d T_world_camera(f.T_world_camera->matrix());
     const Eigen::Isometry3d T_camera_world = T_world_camera.inverse();
@@ -276,7 +284,7 @@ Command addOverlayCommand(CLI::App& app) {
           if (d > 0 && pc.z() > d + 0.05) continue;
           if (pc.z() < zbuf[i]) {
             zbuf[i] = static_cast<float>(pc.z());
-            paint[i] = voxelColour(*it);
+            paint[i] = voxelColour(*it, o->colours);
           }
         }
       }
@@ -287,7 +295,8 @@ Command addOverlayCommand(CLI::App& app) {
         if (std::isfinite(zbuf[i])) paintOver(c, u, v, paint[i]);
       }
     }
-    c.save(o->out);
+    const std::string caption = "The map's surfaces seen in frame " + std::to_string(n) + " (camera frame)";
+    framePictureWithLegend(c, caption, o->colours).save(o->out);
     std::printf("wrote %s\n", o->out.c_str());
     return 0;
   };

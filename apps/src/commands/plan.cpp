@@ -1,6 +1,7 @@
 // `mobmap plan`: footsteps from a start to a goal over a map (mapping::planFootsteps).
 #include "answers/answers.hpp"
 #include "commands/commands.hpp"
+#include "commands/picture_options.hpp"
 #include "commands/reach_options.hpp"
 #include "io/cli_text.hpp"
 #include "io/files.hpp"
@@ -14,13 +15,16 @@
 #include <filesystem>
 #include <cstdio>
 #include <iostream>
+#include <limits>
 #include <memory>
 
 namespace mobmap::app {
 namespace {
 
-constexpr Rgb kLeftSole{30, 60, 220};
-constexpr Rgb kRightSole{230, 120, 0};
+// Blue and vermilion (Okabe and Ito's pair): apart with the common colour-vision
+// deficiencies and from every mobility colour.
+constexpr Rgb kLeftSole{0, 114, 178};
+constexpr Rgb kRightSole{213, 94, 0};
 
 /// Exit code of a run that found no plan (the answer is still printed).
 constexpr int kNoPlan = 3;
@@ -35,6 +39,7 @@ Command addPlanCommand(CLI::App& app) {
     mapping::PlanParams params;
     int max_pixels = 1400;
     bool json = false;
+    ColourScale colours = ColourScale::kViridis;
   };
   auto o = std::make_shared<Options>();
   cmd->add_option("MAP", o->map, "A .ot map written by `mobmap build`")->required();
@@ -58,7 +63,11 @@ Command addPlanCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--time-limit", o->params.time_limit_s, "Give up after this many seconds of search")->capture_default_str();
   cmd->add_flag("--json", o->json, "One JSON object instead of the text");
-  cmd->add_option("--png", o->png, "Top view with the footsteps (left blue, right orange) over the mobility map");
+  cmd->add_option("--png", o->png,
+                  "Top view with the footsteps (left blue, right vermilion) over the mobility map; a .svg or .pdf name draws "
+                  "it in that format")
+      ->check(pictureFile());
+  addColoursOption(*cmd, o->colours);
   cmd->add_option("--max-pixels", o->max_pixels, "Longest side of the picture's map area")
       ->check(CLI::Range(64, 16384))
       ->capture_default_str();
@@ -112,12 +121,14 @@ Command addPlanCommand(CLI::App& app) {
       TopView view;
       std::vector<Eigen::Vector2d> cover{from.head<2>(), to.head<2>()};
       try {
-        view = computeTopView(map.tree(), cover, o->max_pixels);
+        view = computeTopView(map.tree(), cover, o->max_pixels, std::numeric_limits<double>::infinity(), o->colours);
       } catch (const std::invalid_argument& e) {
         throw IoError(o->map, std::string("cannot draw a top view: ") + e.what());
       }
       TopViewPicture picture;
-      picture.title = plan.found ? "FOOTSTEP PLAN" : "NO PLAN: " + cliText(plan.reason).substr(0, 120);
+      picture.title = plan.found ? "Footstep plan on " + std::filesystem::path(o->map).filename().string()
+                                 : "No plan: " + cliText(plan.reason).substr(0, 120);
+      picture.colours = o->colours;
       const double l = o->params.robot.sole_length_m / 2, w = o->params.robot.sole_width_m / 2;
       for (const auto& f : plan.footsteps) {
         TopViewPicture::Outline sole;
@@ -126,12 +137,12 @@ Command addPlanCommand(CLI::App& app) {
           sole.corners.emplace_back(f.x + c * a - s * b, f.y + s * a + c * b);
         }
         sole.colour = f.side == mapping::Side::kLeft ? kLeftSole : kRightSole;
-        sole.label = f.side == mapping::Side::kLeft ? "LEFT FOOT" : "RIGHT FOOT";
+        sole.label = f.side == mapping::Side::kLeft ? "left foot" : "right foot";
         picture.outlines.push_back(std::move(sole));
       }
       picture.mark = to.head<2>();
-      picture.mark_label = "GOAL";
-      const Canvas canvas = drawTopView(view, picture, o->max_pixels);
+      picture.mark_label = "goal";
+      const Picture canvas = drawTopView(view, picture, o->max_pixels);
       canvas.save(o->png);
       if (!o->json) std::printf("wrote %s (%s)\n", o->png.c_str(), describeTopView(view, canvas, o->max_pixels).c_str());
     }

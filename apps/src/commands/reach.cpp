@@ -5,6 +5,7 @@
 #include "io/io_error.hpp"
 #include "mobmap/mapping/levels.hpp"
 #include "io/map_files.hpp"
+#include "commands/picture_options.hpp"
 #include "commands/reach_options.hpp"
 #include "pictures/top_view.hpp"
 
@@ -21,8 +22,9 @@
 namespace mobmap::app {
 namespace {
 
-/// Standable places the robot cannot get to, in the pictures.
-constexpr Rgb kUnreachable{150, 70, 210};
+/// Standable places the robot cannot get to, in the pictures: a dark grey on viridis
+/// (whose low end is purple), the purple of the red-green scale on that one.
+Rgb unreachableColour(ColourScale scale) { return scale == ColourScale::kViridis ? Rgb{70, 70, 70} : Rgb{150, 70, 210}; }
 
 /// A surface that cannot be stood on: its colour washed out, so what is reachable stands out.
 Rgb pale(const Rgb& c) {
@@ -42,6 +44,7 @@ Command addReachCommand(CLI::App& app) {
     int max_pixels = 1400;
     double max_z = std::numeric_limits<double>::infinity();
     bool json = false;
+    ColourScale colours = ColourScale::kViridis;
   };
   auto o = std::make_shared<Options>();
   cmd->add_option("MAP", o->map, "A .ot map written by `mobmap build`")->required();
@@ -50,15 +53,16 @@ Command addReachCommand(CLI::App& app) {
       ->check(CLI::IsMember({"map", "world"}))
       ->capture_default_str();
   cmd->add_option("--png", o->png,
-                  "Top view of the highest surface per column: reachable in mobility colours, purple where it can be stood on "
-                  "but not reached, pale where it cannot be stood on");
+                  "Top view of the highest surface per column (.png, .svg or .pdf): reachable in mobility colours, dark grey "
+                  "(purple with --colours red-green) where it can be stood on but not reached, pale where it cannot be stood on")
+      ->check(pictureFile());
   cmd->add_option("--pcd", o->pcd,
                   "Every surface (the top voxel of each run of occupied voxels in a column) at its top face, with fields "
                   "mobility (nan if unknown), standable and reachable (0 or 1: under a standable or reachable sole); map "
                   "frame, ASCII");
   cmd->add_option("--octovis", o->octovis,
                   "A ColorOcTree .ot for stock octovis, in the picture's colours: each place reachable in mobility colours, "
-                  "purple where it can be stood on but not reached, every other occupied voxel (walls, the voxels under a "
+                  "dark grey (or purple) where it can be stood on but not reached, every other occupied voxel (walls, the voxels under a "
                   "place, places that cannot be stood on) pale");
   cmd->add_option("--max-pixels", o->max_pixels, "Longest side of the picture's map area (as export)")
       ->check(CLI::Range(64, 16384))
@@ -66,6 +70,7 @@ Command addReachCommand(CLI::App& app) {
   auto* max_z = cmd->add_option("--max-z", o->max_z,
                                 "Top view: the highest surface at or below this height (map frame, metres), as export: "
                                 "the floor under a table");
+  addColoursOption(*cmd, o->colours);
   cmd->add_flag("--json", o->json, "One JSON object instead of the text");
   return [o, max_z]() {
     if (max_z->count() > 0 && o->png.empty()) throw UsageError("--max-z cuts the top view: it needs --png");
@@ -171,16 +176,16 @@ Command addReachCommand(CLI::App& app) {
       mapping::saveOctovisColorTree(map.tree(), o->octovis,
                                     [&](const octomap::OcTreeKey& key, const mapping::MobilityOcTreeNode& node) -> mapping::VoxelRgb {
                                       const mapping::Place* p = r.placeAt(key);
-                                      if (p && p->reachable) return mobilityColour(p->mobility);
-                                      if (p && p->standable) return kUnreachable;
-                                      return pale(mapping::mobilityRgb(node));
+                                      if (p && p->reachable) return mobilityColour(p->mobility, o->colours);
+                                      if (p && p->standable) return unreachableColour(o->colours);
+                                      return pale(mapping::mobilityRgb(node, o->colours));
                                     });
       if (!o->json) std::printf("wrote %s (open with octovis)\n", o->octovis.c_str());
     }
     if (o->png.empty()) return 0;
     TopView view;
     try {
-      view = computeTopView(map.tree(), path, o->max_pixels, o->max_z);
+      view = computeTopView(map.tree(), path, o->max_pixels, o->max_z, o->colours);
     } catch (const std::invalid_argument& e) {
       throw IoError(o->map, std::string("cannot draw a top view: ") + e.what());
     }
@@ -191,30 +196,33 @@ Command addReachCommand(CLI::App& app) {
       if (!p || !p->standable) {
         view.colour[i] = pale(view.colour[i]);
       } else if (!p->reachable) {
-        view.colour[i] = kUnreachable;
+        view.colour[i] = unreachableColour(o->colours);
       }
     }
     TopViewPicture picture;
     char title[200];
-    std::snprintf(title, sizeof title, "REACHABLE FROM THE START: %.2f X %.2f M SOLES, STEPS UP TO %.2f M, MOBILITY >= %.2f%s",
+    std::snprintf(title, sizeof title, "Reachable from the start: %.2f x %.2f m soles, steps up to %.2f m, mobility >= %.2f%s",
                   q.robot.sole_length_m, q.robot.sole_width_m, q.robot.max_step_m, q.robot.min_mobility,
-                  q.robot.clearance_m > 0 ? ", WITH CLEARANCE" : "");
+                  q.robot.clearance_m > 0 ? ", with clearance" : "");
     picture.title = title;
     if (max_z->count() > 0) {
-      std::snprintf(title, sizeof title, " (HIGHEST SURFACE AT OR BELOW Z = %.2f M)", o->max_z);
+      std::snprintf(title, sizeof title, " (highest surface at or below z = %.2f m)", o->max_z);
       picture.title += title;
     }
     picture.path = std::move(path);
     picture.run_starts = camera.run_starts;
-    picture.swatches = {{kUnreachable, "NOT REACHABLE"}, {pale(mobilityColour(0.0)), "CANNOT STAND (PALE)"}};
+    picture.colours = o->colours;
+    picture.swatches = {{unreachableColour(o->colours), "not reachable"},
+                        {pale(mobilityColour(0.0, o->colours)), "cannot stand (pale)"}};
     picture.mark = Eigen::Vector2d(s.x, s.y);
-    picture.mark_label = "START";
-    const Canvas c = drawTopView(view, picture, o->max_pixels);
+    picture.mark_label = "start";
+    const Picture c = drawTopView(view, picture, o->max_pixels);
     c.save(o->png);
     if (!o->json) {
-      std::printf("wrote %s (%s; the highest surface per column: reachable in mobility colours, purple where it can be "
+      std::printf("wrote %s (%s; the highest surface per column: reachable in mobility colours, %s where it can be "
                   "stood on but not reached, pale where it cannot be stood on)\n",
-                  o->png.c_str(), describeTopView(view, c, o->max_pixels).c_str());
+                  o->png.c_str(), describeTopView(view, c, o->max_pixels).c_str(),
+                  o->colours == ColourScale::kViridis ? "dark grey" : "purple");
     }
     return 0;
   };

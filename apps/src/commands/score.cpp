@@ -2,6 +2,7 @@
 #include "io/config.hpp"
 #include "io/files.hpp"
 #include "io/io_error.hpp"
+#include "commands/picture_options.hpp"
 #include "pictures/mobility_plot.hpp"
 
 #include "mobmap/gp/mobility_model.hpp"
@@ -25,6 +26,7 @@ Command addScoreCommand(CLI::App& app) {
     std::string model = "gp";
     std::string table;
     std::string plot;
+    ColourScale colours = ColourScale::kViridis;
     bool json = false;
     bool fit = false;
   };
@@ -34,7 +36,10 @@ Command addScoreCommand(CLI::App& app) {
   cmd->add_option("--model", o->model, "Scorer: rule (paper Table I) or gp (GP over the table)")
       ->check(CLI::IsMember({"rule", "gp"}))->capture_default_str();
   cmd->add_option("--table", o->table, "Rule table CSV for another robot (see maps/FORMATS.md)");
-  auto* plot = cmd->add_option("--plot", o->plot, "Draw the mobility surface (slope 0-60, roughness 1-2.5) to a PNG");
+  auto* plot = cmd->add_option("--plot", o->plot,
+                               "Draw the mobility surface (slope 0-60, roughness 1-2.5) to a picture: .png, .svg or .pdf")
+                   ->check(pictureFile());
+  addColoursOption(*cmd, o->colours);
   cmd->add_flag("--json", o->json, "Print one JSON object");
   cmd->add_flag("--fit", o->fit, "Fit sf, l, sn by maximising the log marginal likelihood, report and use them");
   slope->needs(rough);
@@ -69,7 +74,7 @@ Command addScoreCommand(CLI::App& app) {
     }
     const gp::MobilityModel model(std::move(table), params);
     if (plot->count() > 0) {
-      plotMobilitySurface(model).save(o->plot);
+      plotMobilitySurface(model, {}, o->colours).save(o->plot);
       if (o->json) {
         std::cout << nlohmann::json{{"plot", o->plot}, {"model", o->model}, {"fit", fit_json}}.dump() << "\n";
       } else {

@@ -2,6 +2,7 @@
 // the browser; with --live, a map being built, served as it grows (serve/api.hpp).
 #include "commands/build_command.hpp"
 #include "commands/commands.hpp"
+#include "commands/picture_options.hpp"
 #include "io/cli_text.hpp"
 #include "io/io_error.hpp"
 #include "io/map_files.hpp"
@@ -106,6 +107,7 @@ Command addServeCommand(CLI::App& app) {
     std::size_t max_batch = serve::Limits{}.max_batch;
     std::size_t max_connections = serve::Limits{}.max_connections;
     double request_timeout = serve::Limits{}.request_read_s;
+    ColourScale colours = ColourScale::kViridis;
     build::BuildOptions build;
   };
   auto o = std::make_shared<Options>();
@@ -135,6 +137,9 @@ Command addServeCommand(CLI::App& app) {
                   "Seconds a request may take to arrive whole; a slower one is cut off")
       ->check(CLI::Range(0.1, 3600.0))
       ->capture_default_str();
+  addColoursOption(*cmd, o->colours)->description(
+      "The viewer's mobility colours: viridis (dark purple 0, teal 0.5, yellow 1; readable with the common colour-vision "
+      "deficiencies) or red-green (the paper's)");
   const std::size_t before = cmd->get_options().size();
   build::addBuildRunOptions(*cmd, o->build);
   const std::vector<CLI::Option*> all = cmd->get_options();
@@ -165,7 +170,7 @@ Command addServeCommand(CLI::App& app) {
         served.metadata = std::make_shared<const mapping::MapMetadata>(std::move(opened.metadata));
       }
       const serve::MapSource source(std::move(served));
-      const serve::Api api(o->path, source, limits);
+      const serve::Api api(o->path, source, limits, o->colours);
       const RunningServer server(api, o->address, o->port);
       catchStopSignals();
       std::printf("serving %s at %s (Ctrl-C stops)\n", o->path.c_str(), urlOf(o->address, server.port()).c_str());
@@ -187,7 +192,7 @@ Command addServeCommand(CLI::App& app) {
       throw UsageError(cliText(e));
     }
     serve::MapSource source(std::move(initial));
-    const serve::Api api(b.out, source, limits);
+    const serve::Api api(b.out, source, limits, o->colours);
     const RunningServer server(api, o->address, o->port);
     const std::string url = urlOf(o->address, server.port());
 

@@ -5,87 +5,87 @@
 
 namespace mobmap::app {
 
-Canvas plotMobilitySurface(const gp::MobilityModel& model, const PlotRange& range) {
-  constexpr int kW = 760, kH = 520;
-  constexpr int kLeft = 80, kRight = 640, kTop = 50, kBottom = 450;  // plot area
+Picture plotMobilitySurface(const gp::MobilityModel& model, const PlotRange& range, ColourScale scale) {
+  constexpr int kW = 800, kH = 540;
+  constexpr double kLeft = 80, kRight = 640, kTop = 56, kBottom = 456;  // plot area
+  constexpr double kText = 12, kTitle = 15;
   const Rgb black{0, 0, 0};
-  Canvas c(kW, kH);
-  const int pw = kRight - kLeft, ph = kBottom - kTop;
-  auto slopeAt = [&](int x) { return range.slope_max_deg * (x - kLeft + 0.5) / pw; };
-  auto roughAt = [&](int y) {
-    return range.roughness_max - (range.roughness_max - range.roughness_min) * (y - kTop + 0.5) / ph;
-  };
+  Picture c(kW, kH);
+  const int pw = static_cast<int>(kRight - kLeft), ph = static_cast<int>(kBottom - kTop);
+  // The surface, one pixel per unit, as an image.
   Eigen::MatrixX2d grid(static_cast<Eigen::Index>(pw) * ph, 2);
-  for (int y = kTop; y < kBottom; ++y) {
-    for (int x = kLeft; x < kRight; ++x) {
-      const Eigen::Index i = static_cast<Eigen::Index>(y - kTop) * pw + (x - kLeft);
-      grid(i, 0) = slopeAt(x);
-      grid(i, 1) = roughAt(y);
+  for (int y = 0; y < ph; ++y) {
+    for (int x = 0; x < pw; ++x) {
+      const Eigen::Index i = static_cast<Eigen::Index>(y) * pw + x;
+      grid(i, 0) = range.slope_max_deg * (x + 0.5) / pw;
+      grid(i, 1) = range.roughness_max - (range.roughness_max - range.roughness_min) * (y + 0.5) / ph;
     }
   }
   const Eigen::VectorXd scores = model.mobility(grid);
-  for (int y = kTop; y < kBottom; ++y) {
-    for (int x = kLeft; x < kRight; ++x) {
-      c.set(x, y, mobilityColour(scores(static_cast<Eigen::Index>(y - kTop) * pw + (x - kLeft))));
-    }
+  ImageRgb surface;
+  surface.width = pw;
+  surface.height = ph;
+  surface.pixels.resize(static_cast<std::size_t>(pw) * static_cast<std::size_t>(ph));
+  for (std::size_t i = 0; i < surface.pixels.size(); ++i) surface.pixels[i] = mobilityColour(scores(static_cast<Eigen::Index>(i)), scale);
+  c.image(surface, kLeft, kTop, 1);
+  const auto xOf = [&](double s) { return kLeft + s / range.slope_max_deg * pw; };
+  const auto yOf = [&](double r) { return kTop + (range.roughness_max - r) / (range.roughness_max - range.roughness_min) * ph; };
+  // Axes, ticks and their numbers first: the table's labels keep clear of them.
+  c.strokeRect(kLeft - 0.5, kTop - 0.5, pw + 1, ph + 1, black, 1);
+  const double text_h = c.textBox("0", kText).y1;
+  for (int s = 0; s <= static_cast<int>(range.slope_max_deg); s += 10) {
+    const double x = xOf(s);
+    c.segments({{x, kBottom, x, kBottom + 5}}, black, 1);
+    const std::string label = std::to_string(s);
+    c.text(x - c.textBox(label, kText).x1 / 2, kBottom + 8, label, black, kText);
   }
-  auto xOf = [&](double s) { return kLeft + static_cast<int>(std::lround(s / range.slope_max_deg * pw)); };
-  auto yOf = [&](double r) {
-    return kTop + static_cast<int>(std::lround((range.roughness_max - r) /
-                                               (range.roughness_max - range.roughness_min) * ph));
-  };
-  // Table cell centres, labelled with the table's value.
+  for (double r = range.roughness_min; r <= range.roughness_max + 1e-9; r += 0.25) {
+    const double y = yOf(r);
+    c.segments({{kLeft - 6, y, kLeft, y}}, black, 1);
+    char buf[16];
+    std::snprintf(buf, sizeof(buf), "%.2f", r);
+    c.text(kLeft - 10 - c.textBox(buf, kText).x1, y - text_h / 2, buf, black, kText);
+  }
+  const std::string x_title = "slope (degrees)";
+  c.text(kLeft + pw / 2.0 - c.textBox(x_title, 14).x1 / 2, kBottom + 30, x_title, black, 14);
+  c.text(kLeft - 60, kTop - 26, "roughness A/A'", black, 14);
+  const bool gp_model = model.process().has_value();
+  const std::string title = gp_model ? "Mobility: Gaussian process (SE kernel) over the rule table" : "Mobility: the rule table";
+  c.text(kLeft + (pw - c.textBox(title, kTitle, true).x1) / 2, 10, title, black, kTitle, true);
+  // Table cell centres, marked, with the table's value beside them where it fits.
   const auto& t = model.table();
   const auto& se = t.slopeEdgesDeg();
   const auto& re = t.roughnessEdges();
+  const Box plot{kLeft, kTop, kRight, kBottom};
+  std::vector<std::array<double, 4>> crosses;
   for (std::size_t i = 0; i < re.size(); ++i) {
     const double r = i + 1 < re.size() ? 0.5 * (re[i] + re[i + 1]) : re[i] + 0.5 * (re[i] - re[i - 1]);
     for (std::size_t j = 0; j < se.size(); ++j) {
       const double s = j + 1 < se.size() ? 0.5 * (se[j] + se[j + 1]) : se[j] + 0.5 * (se[j] - se[j - 1]);
       if (s > range.slope_max_deg || r > range.roughness_max || r < range.roughness_min) continue;
-      const int x = xOf(s), y = yOf(r);
-      c.line(x - 3, y, x + 3, y, black);
-      c.line(x, y - 3, x, y + 3, black);
-      char buf[16];
-      std::snprintf(buf, sizeof(buf), "%.2g", t.values()(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)));
-      c.text(x + 4, y + 3, buf, black);
+      const double x = xOf(s), y = yOf(r);
+      crosses.push_back({x - 3, y, x + 3, y});
+      crosses.push_back({x, y - 3, x, y + 3});
+      c.keepClear({x - 4, y - 4, x + 4, y + 4});
     }
   }
-  // Axes and ticks.
-  c.rect(kLeft - 1, kTop - 1, kRight, kBottom, black);
-  for (int s = 0; s <= static_cast<int>(range.slope_max_deg); s += 10) {
-    const int x = xOf(s);
-    c.line(x, kBottom, x, kBottom + 5, black);
-    const std::string label = std::to_string(s);
-    c.text(x - Canvas::textWidth(label) / 2, kBottom + 9, label, black);
+  c.segments(crosses, black, 1.2);
+  for (std::size_t i = 0; i < re.size(); ++i) {
+    const double r = i + 1 < re.size() ? 0.5 * (re[i] + re[i + 1]) : re[i] + 0.5 * (re[i] - re[i - 1]);
+    for (std::size_t j = 0; j < se.size(); ++j) {
+      const double s = j + 1 < se.size() ? 0.5 * (se[j] + se[j + 1]) : se[j] + 0.5 * (se[j] - se[j - 1]);
+      if (s > range.slope_max_deg || r > range.roughness_max || r < range.roughness_min) continue;
+      char buf[16];
+      std::snprintf(buf, sizeof(buf), "%.2g", t.values()(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)));
+      const Box b = c.textBox(buf, 10);
+      const Eigen::Vector2d at(xOf(s), yOf(r));
+      const double dx = b.x1 / 2 + 8, dy = b.y1 / 2 + 6;
+      c.label({at + Eigen::Vector2d(dx, dy), at + Eigen::Vector2d(dx, -dy), at + Eigen::Vector2d(-dx, dy),
+               at + Eigen::Vector2d(-dx, -dy)},
+              buf, black, 10, plot, 1.5);
+    }
   }
-  for (double r = range.roughness_min; r <= range.roughness_max + 1e-9; r += 0.25) {
-    const int y = yOf(r);
-    c.line(kLeft - 6, y, kLeft - 1, y, black);
-    char buf[16];
-    std::snprintf(buf, sizeof(buf), "%.2f", r);
-    c.text(kLeft - 10 - Canvas::textWidth(buf), y - 3, buf, black);
-  }
-  c.text(kLeft + pw / 2 - Canvas::textWidth("SLOPE (DEG)", 2) / 2, kBottom + 26, "SLOPE (DEG)", black, 2);
-  c.text(8, kTop - 30, "ROUGHNESS A/A'", black, 2);
-  const bool gp_model = model.process().has_value();
-  const std::string title = gp_model ? "MOBILITY: GP (SE KERNEL) OVER THE RULE TABLE" : "MOBILITY: RULE TABLE";
-  c.text(kLeft + (pw - Canvas::textWidth(title, 2)) / 2, 12, title, black, 2);
-  // Colour bar.
-  const int bx0 = 680, bx1 = 705;
-  for (int y = kTop; y < kBottom; ++y) {
-    const double m = 1.0 - static_cast<double>(y - kTop) / (ph - 1);
-    c.fillRect(bx0, y, bx1, y, mobilityColour(m));
-  }
-  c.rect(bx0 - 1, kTop - 1, bx1 + 1, kBottom, black);
-  for (double m : {0.0, 0.25, 0.5, 0.75, 1.0}) {
-    const int y = kTop + static_cast<int>(std::lround((1.0 - m) * (ph - 1)));
-    c.line(bx1 + 1, y, bx1 + 5, y, black);
-    char buf[16];
-    std::snprintf(buf, sizeof(buf), "%.2f", m);
-    c.text(bx1 + 8, y - 3, buf, black);
-  }
-  c.text(bx0 - 20, kTop - 16, "MOBILITY", black);
+  drawMobilityLegend(c, 680, kTop, ph - 80, scale);
   return c;
 }
 

@@ -1,7 +1,7 @@
 #pragma once
 // The mobility surface over (slope, roughness) as a heat map: the paper's Fig. 3.
 
-#include "pictures/canvas.hpp"
+#include "pictures/picture.hpp"
 
 #include "mobmap/gp/mobility_model.hpp"
 
@@ -14,8 +14,10 @@ struct PlotRange {
   double roughness_max = 2.5;
 };
 
-/// Draws mobility over slope (x) and roughness (y) with axes, ticks, a colour bar and
-/// the rule table's cell centres marked with their table value.
-Canvas plotMobilitySurface(const gp::MobilityModel& model, const PlotRange& range = {});
+/// Draws mobility over slope (x) and roughness (y) with axes, ticks, the mobility legend
+/// and the rule table's cell centres marked, each with its table value where the value
+/// fits without covering another text.
+Picture plotMobilitySurface(const gp::MobilityModel& model, const PlotRange& range = {},
+                            ColourScale scale = ColourScale::kViridis);
 
 }  // namespace mobmap::app

@@ -2,15 +2,18 @@
 
 #include "io/io_error.hpp"
 
+#include <Eigen/Cholesky>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <stdexcept>
 
 namespace mobmap::app {
 
 TopView computeTopView(const mapping::MobilityOcTree& t, const std::vector<Eigen::Vector2d>& also_cover,
-                       int max_cells_per_side, double max_z) {
+                       int max_cells_per_side, double max_z, ColourScale scale) {
   if (std::isnan(max_z)) throw std::invalid_argument("the height to cut at is not a number");
   double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
   for (auto it = t.begin_leafs(); it != t.end_leafs(); ++it) {
@@ -66,7 +69,7 @@ TopView computeTopView(const mapping::MobilityOcTree& t, const std::vector<Eigen
       if (voxels_below < 1) continue;
       z = bottom + voxels_below * res;
     }
-    const Rgb colour = voxelColour(*it);
+    const Rgb colour = voxelColour(*it, scale);
     // The cells its columns fall in (one, unless the leaf is larger than a cell).
     const auto cellOf = [per](long column) { return column >= 0 ? column / per : -((-column + per - 1) / per); };
     const long cx_first = std::max(0L, cellOf(col0)), cx_last = std::min<long>(v.columns - 1, cellOf(col0 + span - 1));
@@ -97,28 +100,7 @@ int pixelsPerCell(const TopView& view, int max_pixels) {
 
 const Rgb kBlack{0, 0, 0};
 const Rgb kPathBlue{20, 60, 230};
-
-// Returns the height it took below the bar (the "UNKNOWN" entry and the swatches).
-int drawColourBar(Canvas& c, int x0, int y0, int height, const std::vector<std::pair<Rgb, std::string>>& swatches) {
-  for (int y = 0; y < height; ++y) c.fillRect(x0, y0 + y, x0 + 14, y0 + y, mobilityColour(1.0 - static_cast<double>(y) / (height - 1)));
-  c.rect(x0 - 1, y0 - 1, x0 + 15, y0 + height, kBlack);
-  for (double m : {0.0, 0.5, 1.0}) {
-    const int y = y0 + static_cast<int>(std::lround((1.0 - m) * (height - 1)));
-    char buf[8];
-    std::snprintf(buf, sizeof(buf), "%.1f", m);
-    c.text(x0 + 20, y - 3, buf, kBlack);
-  }
-  c.text(x0 - 10, y0 - 14, "MOBILITY", kBlack);
-  int y = y0 + height + 12;
-  c.fillRect(x0, y, x0 + 14, y + 12, kUnknownGrey);
-  c.text(x0 + 20, y + 3, "UNKNOWN", kBlack);
-  for (const auto& [colour, label] : swatches) {
-    y += 18;
-    c.fillRect(x0, y, x0 + 14, y + 12, colour);
-    c.text(x0 + 20, y + 3, label, kBlack);
-  }
-  return y + 12 - (y0 + height);
-}
+const Rgb kMinorContour{95, 95, 95};
 
 }  // namespace
 
@@ -242,142 +224,205 @@ Contours computeContours(const TopView& view, double voxel_m, std::size_t min_la
       const double dy = static_cast<double>(i / static_cast<std::size_t>(view.columns)) - my;
       if (dx * dx + dy * dy < best_d) best_d = dx * dx + dy * dy, best = i;
     }
-    const auto mid = zs.begin() + static_cast<std::ptrdiff_t>(zs.size() / 2);
-    std::nth_element(zs.begin(), mid, zs.end());
+    // Only a level: an area between two contours on a ramp spans up to an interval of
+    // heights, a level's heights stay within a voxel (the 10th to 90th percentile).
+    std::sort(zs.begin(), zs.end());
+    const double spread = zs[zs.size() * 9 / 10] - zs[zs.size() / 10];
+    if (spread > std::max(voxel_m, 0.5 * step) + 1e-9) continue;
+    const double median = zs[zs.size() / 2];
+    // Nor the last step of a gentle ramp, flat at the map's resolution: the plane through
+    // the smoothed heights within 0.3 m (and 8 cells) of the label's cell and within an
+    // interval of its height rises less than 2 degrees.
+    {
+      const int bx = static_cast<int>(best % static_cast<std::size_t>(view.columns));
+      const int by = static_cast<int>(best / static_cast<std::size_t>(view.columns));
+      const int r = std::max(8, static_cast<int>(std::ceil(0.3 / view.resolution)));
+      Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+      for (int y = std::max(0, by - r); y <= std::min(view.rows - 1, by + r); ++y) {
+        for (int x = std::max(0, bx - r); x <= std::min(view.columns - 1, bx + r); ++x) {
+          const double z = smooth[view.cell(x, y)];
+          if (z == empty || std::abs(z - median) > step + 1e-9 || (x - bx) * (x - bx) + (y - by) * (y - by) > r * r) continue;
+          const Eigen::Vector3d a((x - bx) * view.resolution, (y - by) * view.resolution, 1.0);
+          ata += a * a.transpose();
+          atb += a * (z - median);
+        }
+      }
+      const Eigen::Vector3d plane = ata.ldlt().solve(atb);
+      if (plane.allFinite() && std::hypot(plane.x(), plane.y()) > std::tan(2.0 * M_PI / 180)) continue;
+    }
     out.labels.push_back({static_cast<int>(best % static_cast<std::size_t>(view.columns)),
-                          static_cast<int>(best / static_cast<std::size_t>(view.columns)), *mid, members.size()});
+                          static_cast<int>(best / static_cast<std::size_t>(view.columns)), median, members.size()});
   }
   std::sort(out.labels.begin(), out.labels.end(), [](const Contours::Label& a, const Contours::Label& b) { return a.cells > b.cells; });
   if (out.labels.size() > 24) out.labels.resize(24);
   return out;
 }
 
-Canvas drawTopView(const TopView& view, const TopViewPicture& pic, int max_pixels) {
+Picture drawTopView(const TopView& view, const TopViewPicture& pic, int max_pixels) {
   const double res = view.resolution, x0 = view.x0, y0 = view.y0;
   const double extent = std::max(view.columns, view.rows) * res;
   const int ppv = pixelsPerCell(view, max_pixels);
   const int w = view.columns * ppv, h = view.rows * ppv;
-  const int margin = 50;
-  // The legend (colour bar, swatches, path and mark) and the title need room even when
-  // the map is a thin strip (a corridor) or a small picture was asked for.
-  std::size_t longest_label = pic.contours ? 32 : 11;  // "(BOLD 0.5 M), Z -10.50..-10.45 M", "CAMERA PATH"
-  for (const auto& s : pic.swatches) longest_label = std::max(longest_label, s.second.size());
-  longest_label = std::max(longest_label, pic.mark_label.size());
+  constexpr double kMargin = kTopViewMapX, kGap = 30;
+  constexpr double kTitle = 14, kText = 12, kLabel = 11, kRow = 20;
+  // The legend's entries below the colour bar, each a mark and a text.
   std::vector<std::pair<Rgb, std::string>> outline_labels;
   for (const auto& o : pic.outlines) {
     if (o.label.empty()) continue;
     bool known = false;
     for (const auto& l : outline_labels) known = known || l.second == o.label;
-    if (!known) outline_labels.emplace_back(o.colour, o.label), longest_label = std::max(longest_label, o.label.size());
+    if (!known) outline_labels.emplace_back(o.colour, o.label);
   }
-  const int right = std::max(110, 20 + 6 * static_cast<int>(longest_label));  // labels start 50 px right of the map
-  const int extra_rows =
-      static_cast<int>(pic.swatches.size() + (pic.mark ? 1 : 0) + outline_labels.size() + (pic.contours ? 2 : 0));
-  const int bar_h = std::clamp(h - 60 - 18 * extra_rows, 100, 200);
-  const int legend_h = 20 + bar_h + 60 + 18 * extra_rows;
-  Canvas c(std::max(w + 2 * margin + right, margin + 6 * static_cast<int>(pic.title.size()) + 10),
-           std::max(h, legend_h) + 2 * margin + 20);
-  for (int cy = 0; cy < view.rows; ++cy) {
-    for (int cx = 0; cx < view.columns; ++cx) {
-      const int px = margin + cx * ppv, py = margin + (view.rows - 1 - cy) * ppv;
-      c.fillRect(px, py, px + ppv - 1, py + ppv - 1, view.colour[view.cell(cx, cy)]);
-    }
-  }
-  // Contours: a line along the boundary between two cells a level lies between, drawn
-  // in the cell on the right of (above) the boundary.
+  // Contours first: their legend entry names their interval.
   Contours contours;
   if (pic.contours) {
-    // A label ("Z -1.50", 7 characters) needs an area of about twice its own size.
-    const std::size_t label_px = 2 * static_cast<std::size_t>(Canvas::textWidth("Z -1.50") + 4) * 12;
+    // A label needs an area of about twice its own size (a label is ~48 x 17 units).
+    const std::size_t label_px = 2 * 48 * 17;
     contours = computeContours(view, view.resolution / view.columns_per_cell,
                                std::max<std::size_t>(4, label_px / static_cast<std::size_t>(ppv * ppv)));
-    const Rgb minor{95, 95, 95};
+  }
+  std::vector<std::string> entries;  // legend texts after the swatches, to size the legend
+  if (!pic.path.empty()) entries.push_back(pic.path.size() > 1 ? "camera path" : "camera");
+  for (const auto& l : outline_labels) entries.push_back(l.second);
+  char contour_text[2][96] = {"", ""};
+  if (contours.interval_m > 0) {
+    std::snprintf(contour_text[0], sizeof contour_text[0], "height lines every %g m", contours.interval_m);
+    std::snprintf(contour_text[1], sizeof contour_text[1], "(bold %g m), z %.2f to %.2f m", 5 * contours.interval_m,
+                  contours.z_min, contours.z_max);
+    entries.emplace_back(contour_text[0]);
+    entries.emplace_back(contour_text[1]);
+  }
+  if (pic.mark) entries.push_back(pic.mark_label);
+  entries.emplace_back("x, y: map frame");
+  // Measure with a scratch picture: text widths do not depend on the picture.
+  double legend_w = 0, title_w = 0;
+  {
+    const Picture probe(1, 1);
+    legend_w = mobilityLegendWidth(probe, pic.swatches);
+    for (const std::string& e : entries) legend_w = std::max(legend_w, 20 + probe.textBox(e, kText).x1);
+    title_w = probe.textBox(pic.title, kTitle, true).x1;
+  }
+  const double map_x = kTopViewMapX, map_y = kTopViewMapY;
+  const double legend_rows = static_cast<double>(pic.swatches.size() + entries.size() + 1);
+  const double bar_h = std::clamp(h - 70 - kRow * legend_rows - 60, 80.0, 200.0);
+  const double legend_h = 30 + bar_h + kRow * legend_rows + 70;
+  const int width = static_cast<int>(std::ceil(std::max(map_x + w + kGap + legend_w + kMargin, kMargin + title_w + kMargin)));
+  const int height = static_cast<int>(std::ceil(map_y + std::max<double>(h + 40, legend_h) + kMargin / 2));
+  Picture c(width, height);
+  c.text(kMargin, 14, pic.title, kBlack, kTitle, true);
+  // The cells, one pixel each in an image enlarged ppv times (y up: the top row first).
+  ImageRgb cells;
+  cells.width = view.columns;
+  cells.height = view.rows;
+  cells.pixels.resize(view.colour.size());
+  for (int cy = 0; cy < view.rows; ++cy) {
+    for (int cx = 0; cx < view.columns; ++cx) {
+      cells.pixels[static_cast<std::size_t>(view.rows - 1 - cy) * static_cast<std::size_t>(view.columns) +
+                   static_cast<std::size_t>(cx)] = view.colour[view.cell(cx, cy)];
+    }
+  }
+  c.image(cells, map_x, map_y, ppv);
+  // Contours: a line along the boundary between two cells a level lies between.
+  if (pic.contours) {
+    std::vector<std::array<double, 4>> minor, major;
     for (int cy = 0; cy < view.rows; ++cy) {
       for (int cx = 0; cx < view.columns; ++cx) {
         const std::size_t i = view.cell(cx, cy);
-        const int px = margin + cx * ppv, py = margin + (view.rows - 1 - cy) * ppv;
-        if (contours.right[i]) {
-          const Rgb col = contours.right[i] == 2 ? kBlack : minor;
-          c.fillRect(px + ppv, py, px + ppv, py + ppv - 1, col);
-        }
-        if (contours.up[i]) {
-          const Rgb col = contours.up[i] == 2 ? kBlack : minor;
-          c.fillRect(px, py - 1, px + ppv - 1, py - 1, col);
-        }
+        const double px = map_x + cx * ppv, py = map_y + (view.rows - 1 - cy) * ppv;
+        // A minor line one unit wide in the cell right of (above) the boundary, a major
+        // one two units wide across it: both on whole pixels, so they stay crisp.
+        if (contours.right[i] == 1) minor.push_back({px + ppv + 0.5, py + 0.5, px + ppv + 0.5, py + ppv - 0.5});
+        if (contours.right[i] == 2) major.push_back({px + ppv, py + 1, px + ppv, py + ppv - 1});
+        if (contours.up[i] == 1) minor.push_back({px + 0.5, py - 0.5, px + ppv - 0.5, py - 0.5});
+        if (contours.up[i] == 2) major.push_back({px + 1, py, px + ppv - 1, py});
       }
     }
+    c.segments(minor, kMinorContour, 1);
+    c.segments(major, kBlack, 2);
   }
+  c.strokeRect(map_x - 0.5, map_y - 0.5, w + 1, h + 1, kBlack, 1);
+  const auto toPixel = [&](const Eigen::Vector2d& p) {
+    return Eigen::Vector2d(map_x + ((p.x() - x0) / res + 0.5) * ppv, map_y + (view.rows - 0.5 - (p.y() - y0) / res) * ppv);
+  };
+  // The camera path, a line per run; a square where each run starts.
+  std::vector<Eigen::Vector2d> run;
+  for (std::size_t i = 0; i <= pic.path.size(); ++i) {
+    const bool starts = i == pic.path.size() || std::find(pic.run_starts.begin(), pic.run_starts.end(), i) != pic.run_starts.end();
+    if (starts && !run.empty()) {
+      c.polyline(run, kPathBlue, 2);
+      run.clear();
+    }
+    if (i < pic.path.size()) run.push_back(toPixel(pic.path[i]));
+  }
+  for (const std::size_t start : pic.run_starts) {
+    if (start >= pic.path.size()) continue;
+    const Eigen::Vector2d s = toPixel(pic.path[start]);
+    c.fillRect(s.x() - 3.5, s.y() - 3.5, 7, 7, kPathBlue);
+  }
+  // Outlines (soles): a white casing under the colour, so they read on any mobility.
+  for (const auto& o : pic.outlines) {
+    std::vector<Eigen::Vector2d> corners;
+    for (const auto& p : o.corners) corners.push_back(toPixel(p));
+    c.polyline(corners, {255, 255, 255}, 4, true);
+    c.polyline(corners, o.colour, 2, true);
+  }
+  std::optional<Eigen::Vector2d> mark_px;
+  if (pic.mark) {
+    mark_px = toPixel(*pic.mark);
+    c.circle(mark_px->x(), mark_px->y(), 7, {255, 255, 255}, 4);
+    c.circle(mark_px->x(), mark_px->y(), 7, kBlack, 2);
+    c.keepClear({mark_px->x() - 9, mark_px->y() - 9, mark_px->x() + 9, mark_px->y() + 9});
+  }
+  // Height labels on the levels, largest first; one that would cover another moves
+  // beside its spot or is left out.
+  const Box map_box{map_x, map_y, map_x + w, map_y + h};
   for (const Contours::Label& l : contours.labels) {
     char text[24];
-    std::snprintf(text, sizeof text, "Z %.2f", l.z_m);
-    const int tw = Canvas::textWidth(text);
-    const int px = margin + l.cx * ppv + ppv / 2 - tw / 2, py = margin + (view.rows - 1 - l.cy) * ppv + ppv / 2 - 4;
-    c.fillRect(px - 2, py - 2, px + tw + 1, py + 9, Rgb{255, 255, 255});
-    c.text(px, py, text, kBlack);
+    std::snprintf(text, sizeof text, "%.2f m", l.z_m);
+    const Eigen::Vector2d at(map_x + (l.cx + 0.5) * ppv, map_y + (view.rows - 1 - l.cy + 0.5) * ppv);
+    const Box b = c.textBox(text, kLabel);
+    const double dx = b.x1 + 8, dy = b.y1 + 6;
+    c.label({at, at + Eigen::Vector2d(0, dy), at - Eigen::Vector2d(0, dy), at + Eigen::Vector2d(dx, 0),
+             at - Eigen::Vector2d(dx, 0)},
+            text, kBlack, kLabel, map_box);
   }
-  c.rect(margin - 1, margin - 1, margin + w, margin + h, kBlack);
-  auto toPixel = [&](const Eigen::Vector2d& p) {
-    return std::make_pair(margin + static_cast<int>((p.x() - x0) / res * ppv + ppv / 2),
-                          margin + static_cast<int>((view.rows - 1 - (p.y() - y0) / res) * ppv + ppv / 2));
+  // The legend.
+  const double legend_x = map_x + w + kGap;
+  double legend_y = map_y + drawMobilityLegend(c, legend_x, map_y, bar_h, pic.colours, pic.swatches) + 6;
+  const auto entryText = [&](const std::string& s) {
+    c.text(legend_x + 20, legend_y + 7 - c.textBox(s, kText).y1 / 2, s, kBlack, kText);
+    legend_y += kRow;
   };
-  const int legend_x = margin + w + 30;
-  const int below_bar = drawColourBar(c, legend_x, margin + 20, bar_h, pic.swatches);
-  int legend_y = margin + 20 + bar_h + below_bar + 18;
-  if (!pic.path.empty()) {  // one position (a single frame) is drawn as a start mark alone
-    for (std::size_t i = 1; i < pic.path.size(); ++i) {
-      if (std::find(pic.run_starts.begin(), pic.run_starts.end(), i) != pic.run_starts.end()) continue;
-      const auto a = toPixel(pic.path[i - 1]);
-      const auto b = toPixel(pic.path[i]);
-      c.line(a.first, a.second, b.first, b.second, kPathBlue);
-      c.line(a.first, a.second + 1, b.first, b.second + 1, kPathBlue);
-    }
-    for (const std::size_t start : pic.run_starts) {
-      if (start >= pic.path.size()) continue;
-      const auto s = toPixel(pic.path[start]);
-      c.fillRect(s.first - 3, s.second - 3, s.first + 3, s.second + 3, kPathBlue);
-    }
-    c.fillRect(legend_x, legend_y + 3, legend_x + 14, legend_y + 4, kPathBlue);
-    c.text(legend_x + 20, legend_y, pic.path.size() > 1 ? "CAMERA PATH" : "CAMERA", kPathBlue);
-    legend_y += 18;
-  }
-  for (const auto& o : pic.outlines) {
-    for (std::size_t i = 0; i < o.corners.size(); ++i) {
-      const auto a = toPixel(o.corners[i]);
-      const auto b = toPixel(o.corners[(i + 1) % o.corners.size()]);
-      c.line(a.first, a.second, b.first, b.second, o.colour);
-      c.line(a.first + 1, a.second, b.first + 1, b.second, o.colour);
-      c.line(a.first, a.second + 1, b.first, b.second + 1, o.colour);
-    }
+  if (!pic.path.empty()) {
+    c.polyline({{legend_x, legend_y + 7}, {legend_x + 14, legend_y + 7}}, kPathBlue, 2);
+    entryText(pic.path.size() > 1 ? "camera path" : "camera");
   }
   for (const auto& [colour, label] : outline_labels) {
-    c.rect(legend_x, legend_y, legend_x + 14, legend_y + 7, colour);
-    c.rect(legend_x + 1, legend_y + 1, legend_x + 13, legend_y + 6, colour);
-    c.text(legend_x + 20, legend_y, label, colour);
-    legend_y += 18;
+    c.strokeRect(legend_x + 1, legend_y + 2, 12, 10, colour, 2);
+    entryText(label);
   }
   if (contours.interval_m > 0) {
-    char text[96];
-    c.fillRect(legend_x, legend_y + 3, legend_x + 14, legend_y + 3, Rgb{95, 95, 95});
-    std::snprintf(text, sizeof text, "HEIGHT LINES EVERY %g M", contours.interval_m);
-    c.text(legend_x + 20, legend_y, text, kBlack);
-    legend_y += 12;
-    std::snprintf(text, sizeof text, "(BOLD %g M), Z %.2f..%.2f M", 5 * contours.interval_m, contours.z_min, contours.z_max);
-    c.text(legend_x + 20, legend_y, text, kBlack);
-    legend_y += 18;
+    c.segments({{legend_x, legend_y + 7, legend_x + 14, legend_y + 7}}, kMinorContour, 0.8);
+    entryText(contour_text[0]);
+    legend_y -= kRow - 16;
+    entryText(contour_text[1]);
   }
   if (pic.mark) {
-    const auto drawRing = [&](int px, int py) {
-      for (int r : {6, 7}) {
-        for (int a = 0; a < 64; ++a) {
-          const double t = a * 2 * M_PI / 64;
-          c.set(px + static_cast<int>(std::lround(r * std::cos(t))), py + static_cast<int>(std::lround(r * std::sin(t))), kBlack);
-        }
-      }
-    };
-    const auto m = toPixel(*pic.mark);
-    drawRing(m.first, m.second);
-    drawRing(legend_x + 7, legend_y + 3);
-    c.text(legend_x + 20, legend_y, pic.mark_label, kBlack);
+    c.circle(legend_x + 7, legend_y + 7, 6, kBlack, 2);
+    entryText(pic.mark_label);
+  }
+  // Axes: x to the right, y up, in the map frame.
+  {
+    const double ox = legend_x + 4, oy = legend_y + 44;
+    c.polyline({{ox, oy}, {ox + 30, oy}}, kBlack, 1.5);
+    c.triangle({ox + 36, oy}, {ox + 28, oy - 4}, {ox + 28, oy + 4}, kBlack);
+    c.polyline({{ox, oy}, {ox, oy - 30}}, kBlack, 1.5);
+    c.triangle({ox, oy - 36}, {ox - 4, oy - 28}, {ox + 4, oy - 28}, kBlack);
+    c.text(ox + 40, oy - 8, "x", kBlack, kText);
+    c.text(ox + 6, oy - 44, "y", kBlack, kText);
+    legend_y = oy + 10;
+    entryText("x, y: map frame");
   }
   // Scale bar: the longest of 0.1, 0.2, 0.5, 1, 2, 5 ... m within a quarter of the map.
   double bar_m = 0.1;
@@ -386,17 +431,17 @@ Canvas drawTopView(const TopView& view, const TopViewPicture& pic, int max_pixel
       if (decade * f <= extent / 4) bar_m = decade * f;
     }
   }
-  const int bar_px = std::max(1, static_cast<int>(std::lround(bar_m / res * ppv)));
-  const int by = margin + h + 18;
-  c.fillRect(margin, by, margin + bar_px, by + 4, kBlack);
+  const double bar_px = std::max(1.0, bar_m / res * ppv);
+  const double by = map_y + h + 16;
+  c.fillRect(map_x, by, bar_px, 4, kBlack);
+  c.segments({{map_x, by - 3, map_x, by + 7}, {map_x + bar_px, by - 3, map_x + bar_px, by + 7}}, kBlack, 1);
   char bar_label[32];
-  std::snprintf(bar_label, sizeof(bar_label), "%g M", bar_m);
-  c.text(margin + bar_px + 8, by - 1, bar_label, kBlack);
-  c.text(margin, 14, pic.title, kBlack);
+  std::snprintf(bar_label, sizeof(bar_label), "%g m", bar_m);
+  c.text(map_x + bar_px + 8, by + 2 - c.textBox(bar_label, kText).y1 / 2, bar_label, kBlack, kText);
   return c;
 }
 
-std::string describeTopView(const TopView& view, const Canvas& picture, int max_pixels) {
+std::string describeTopView(const TopView& view, const Picture& picture, int max_pixels) {
   const int ppv = pixelsPerCell(view, max_pixels);
   char text[200];
   if (view.columns_per_cell == 1) {

@@ -1,7 +1,7 @@
 #pragma once
 // The grid behind `export --png`: the highest surface voxel of every map column.
 
-#include "pictures/canvas.hpp"
+#include "pictures/picture.hpp"
 
 #include "mobmap/mapping/mobility_octree.hpp"
 
@@ -34,12 +34,9 @@ struct TopView {
   [[nodiscard]] bool empty(int cx, int cy) const { return top[cell(cx, cy)] == -std::numeric_limits<double>::infinity(); }
 };
 
-/// Colour of unknown mobility (a surface seen, never scored).
-inline constexpr Rgb kUnknownGrey{150, 150, 150};
-
-/// A surface voxel's colour in the pictures: its mobility, or grey when unknown.
-inline Rgb voxelColour(const mapping::MobilityOcTreeNode& n) {
-  return n.hasMobility() ? mobilityColour(n.mobility()) : kUnknownGrey;
+/// A surface voxel's colour in the pictures: its mobility on `scale`, or the unknown colour.
+inline Rgb voxelColour(const mapping::MobilityOcTreeNode& n, ColourScale scale = ColourScale::kViridis) {
+  return mapping::mobilityRgb(n, scale);
 }
 
 /// `max_cells_per_side` > 0 picks the smallest k that keeps both sides within it (0: one
@@ -49,7 +46,8 @@ inline Rgb voxelColour(const mapping::MobilityOcTreeNode& n) {
 /// std::invalid_argument if the tree has no occupied voxel, a point to cover or max_z
 /// is NaN, or the grid would exceed 2^20 cells per side.
 TopView computeTopView(const mapping::MobilityOcTree& tree, const std::vector<Eigen::Vector2d>& also_cover = {},
-                       int max_cells_per_side = 0, double max_z = std::numeric_limits<double>::infinity());
+                       int max_cells_per_side = 0, double max_z = std::numeric_limits<double>::infinity(),
+                       ColourScale scale = ColourScale::kViridis);
 
 /// UsageError "--max-z Z: no surface voxel has its top at or below it (the lowest top is
 /// at z = ...)" when the cut left every cell of `view` empty.
@@ -67,8 +65,10 @@ struct Contours {
   /// Per cell, between it and its +x / +y neighbour (both holding a surface): 0 no line,
   /// 1 a contour crosses, 2 a major one (a multiple of 5 intervals) does.
   std::vector<std::uint8_t> right, up;
-  /// Flat areas between contours that a height label fits in (largest first, at most
-  /// 24): the cell nearest their centroid and their median smoothed height.
+  /// Levels between contours that a height label fits in (largest first, at most 24):
+  /// areas whose smoothed heights (10th to 90th percentile) lie within the larger of a
+  /// voxel and half an interval, so not the band of a ramp between two contours; the
+  /// cell nearest their centroid and their median smoothed height.
   struct Label {
     int cx = 0, cy = 0;
     double z_m = 0;
@@ -86,7 +86,9 @@ struct TopViewPicture {
   std::string title;
   std::vector<Eigen::Vector2d> path;      ///< camera positions, map frame (x, y)
   std::vector<std::size_t> run_starts{0};  ///< indices into path where a run begins (no line into them)
-  /// Legend swatches under "UNKNOWN", e.g. {purple, "NOT REACHABLE"}.
+  /// The colour scale the cells were coloured on (computeTopView's), for the legend.
+  ColourScale colours = ColourScale::kViridis;
+  /// Legend swatches under "unknown", e.g. {dark grey, "not reachable"}.
   std::vector<std::pair<Rgb, std::string>> swatches;
   std::optional<Eigen::Vector2d> mark;     ///< drawn as a black ring, e.g. a start point
   std::string mark_label;                  ///< its legend entry
@@ -102,14 +104,18 @@ struct TopViewPicture {
   bool contours = true;
 };
 
-/// The picture of `export --png` and `reach --png`: the cells (x right, y up), the camera
-/// path, a scale bar, the mobility colour bar and the legend. `max_pixels` is the
-/// longest side of the map area.
-Canvas drawTopView(const TopView& view, const TopViewPicture& picture, int max_pixels);
+/// Where drawTopView puts the top-left corner of the map area, in picture units.
+inline constexpr double kTopViewMapX = 40, kTopViewMapY = 50;
+
+/// The picture of `export --png`, `reach --png` and `plan --png`: the cells (x right, y
+/// up), height lines with labels on the levels (none covering another), the camera path,
+/// outlines, a scale bar, the mobility legend and the axes. `max_pixels` is the longest
+/// side of the map area.
+Picture drawTopView(const TopView& view, const TopViewPicture& picture, int max_pixels);
 
 /// What a drawn top view holds, for the "wrote" line: "1530x1336 px, 8 px per 2 cm
 /// voxel", or for a cell of k x k voxels "438x300 px, 1 px per 6 cm cell: the highest of
 /// 3x3 voxels; --max-pixels for more".
-std::string describeTopView(const TopView& view, const Canvas& picture, int max_pixels);
+std::string describeTopView(const TopView& view, const Picture& picture, int max_pixels);
 
 }  // namespace mobmap::app

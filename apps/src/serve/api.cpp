@@ -410,10 +410,11 @@ struct Api::Cache {
   }
 };
 
-Api::Api(std::string map_label, const MapSource& source, Limits limits)
+Api::Api(std::string map_label, const MapSource& source, Limits limits, mapping::ColourScale colours)
     : label_(std::move(map_label)),
       source_(source),
       limits_(limits),
+      colours_(colours),
       cache_(std::make_shared<Cache>(limits.max_reach_cache_bytes)),
       state_(std::make_shared<State>()) {}
 
@@ -492,6 +493,7 @@ struct Api::Exchange {
   Response heightScan();
   Response plan();
   Response layer();
+  Response colours();
   Response voxels();
   Response cameraPath();
 };
@@ -818,6 +820,14 @@ Response Api::Exchange::voxels() {
   return {200, "application/json", std::move(out)};
 }
 
+// GET /api/colours: the mobility colour scale the viewer draws with, as the pictures do.
+Response Api::Exchange::colours() {
+  nlohmann::json stops = nlohmann::json::array();
+  for (const mapping::VoxelRgb& c : mapping::colourStops(api.colours_)) stops.push_back({c[0], c[1], c[2]});
+  const mapping::VoxelRgb unknown = mapping::unknownRgb(api.colours_);
+  return json({{"scale", mapping::toString(api.colours_)}, {"stops", std::move(stops)}, {"unknown", {unknown[0], unknown[1], unknown[2]}}});
+}
+
 // GET /api/camera_path: the camera positions, map frame.
 Response Api::Exchange::cameraPath() {
   nlohmann::json positions = nlohmann::json::array();
@@ -837,6 +847,7 @@ Response Api::handle(const std::string& method, const std::string& path,
       {"/api/voxels", "GET", &Exchange::voxels},
       {"/api/camera_path", "GET", &Exchange::cameraPath},
       {"/api/layer", "GET", &Exchange::layer},
+      {"/api/colours", "GET", &Exchange::colours},
       {"/api/query", "POST", &Exchange::batch},
       {"/api/foot", "POST", &Exchange::batch},
       {"/api/plan", "POST", &Exchange::plan},

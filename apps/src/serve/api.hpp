@@ -90,7 +90,9 @@ struct Response {
 /// {"error": "..."}. `map_label` is the "map" field of /api/info.
 class Api {
  public:
-  Api(std::string map_label, const MapSource& source, Limits limits = {});
+  /// `colours`: the scale GET /api/colours gives the viewer.
+  Api(std::string map_label, const MapSource& source, Limits limits = {},
+      mapping::ColourScale colours = mapping::ColourScale::kViridis);
   [[nodiscard]] Response handle(const std::string& method, const std::string& path,
                                 const std::multimap<std::string, std::string>& params, const std::string& body) const;
   [[nodiscard]] const Limits& limits() const { return limits_; }
@@ -113,6 +115,7 @@ class Api {
   std::string label_;
   const MapSource& source_;
   Limits limits_;
+  mapping::ColourScale colours_;
   std::shared_ptr<Cache> cache_;
   std::shared_ptr<State> state_;
 };
