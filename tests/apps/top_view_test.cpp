@@ -259,7 +259,10 @@ TEST(TopView, ContoursAndLabelsTellStairTreadsApartAndIgnoreFloorNoise) {
 }
 
 // Labels on levels, not slopes: a floor, a 5 degree ramp (2 cm voxels make it a
-// staircase of 23 cm plateaus), a landing, a 15 degree ramp and a top landing. Each of
+// staircase of 23 cm plateaus), a landing, a 15 degree ramp and a top landing; beside
+// them a lone 5-degree wedge on a 1 cm plinth that drops back to the floor at its high
+// end: its top 13 columns have the same voxel top, above a height line, with lower
+// ground on both sides, so a plane through the heights around them is nearly level. Each of
 // the three level areas gets one label at its height; no label lands on a ramp; and in
 // the drawn picture no two texts (labels, legend, title, scale) overlap.
 TEST(TopView, HeightLabelsMarkLevelsNotRampsAndNoTwoTextsOverlap) {
@@ -276,9 +279,15 @@ TEST(TopView, HeightLabelsMarkLevelsNotRampsAndNoTwoTextsOverlap) {
     return rise5 + rise15;
   };
   const auto flat = [](int i) { return i < 30 || (i >= 60 && i < 90) || i >= 120; };
+  // The wedge: rows 45-79, columns 30-59, rising 5 degrees along x from 1 cm; floor around it.
+  const auto wedge = [&](int i, int j) { return j >= 45 && i >= 30 && i < 60; };
+  const auto heightAt = [&](int i, int j) {
+    if (j < 40) return height(i);
+    return wedge(i, j) ? 0.01 + ((i + 0.5) * res - 0.6) * std::tan(5 * M_PI / 180) : 0.0;
+  };
   for (int i = 0; i < 150; ++i) {
-    for (int j = 0; j < 40; ++j) {
-      const int top_k = static_cast<int>(std::floor(height(i) / res + 1e-9));
+    for (int j = 0; j < 80; ++j) {
+      const int top_k = static_cast<int>(std::floor(heightAt(i, j) / res + 1e-9));
       for (int k = 0; k <= top_k; ++k) {
         tree.updateNode(octomap::point3d((i + 0.5) * res, (j + 0.5) * res, (k + 0.5) * res), true)->fuse(1.0, 0.01, 100.0);
       }
@@ -286,16 +295,18 @@ TEST(TopView, HeightLabelsMarkLevelsNotRampsAndNoTwoTextsOverlap) {
   }
   const TopView view = computeTopView(tree);
   ASSERT_EQ(view.columns, 150);
+  ASSERT_EQ(view.rows, 80);
   const Contours c = computeContours(view, res, 100);
   int floor_labels = 0, landing_labels = 0, top_labels = 0;
+  const auto topOf = [&](double z) { return (std::floor(z / res + 1e-9) + 1) * res; };  // a level's voxel tops
   for (const Contours::Label& l : c.labels) {
-    EXPECT_TRUE(flat(l.cx)) << "a label on a ramp, at column " << l.cx << ", z " << l.z_m;
-    if (!flat(l.cx)) continue;
-    // The label's height: the top face of its level's voxels.
-    const double top = (std::floor(height(l.cx) / res + 1e-9) + 1) * res;
-    EXPECT_NEAR(l.z_m, top, 1e-9) << l.cx;
-    (l.cx < 30 ? floor_labels : l.cx < 90 ? landing_labels : top_labels) += 1;
+    EXPECT_FALSE(wedge(l.cx, l.cy)) << "a label on the wedge, at column " << l.cx << ", z " << l.z_m;
+    EXPECT_TRUE(l.cy >= 40 || flat(l.cx)) << "a label on a ramp, at column " << l.cx << ", z " << l.z_m;
+    floor_labels += std::abs(l.z_m - topOf(0)) < 1e-9;
+    landing_labels += std::abs(l.z_m - topOf(rise5)) < 1e-9;
+    top_labels += std::abs(l.z_m - topOf(rise5 + rise15)) < 1e-9;
   }
+  // One floor: left of the ramps, around the wedge (with its low end) and right of it.
   EXPECT_EQ(floor_labels, 1);
   EXPECT_EQ(landing_labels, 1);
   EXPECT_EQ(top_labels, 1);

@@ -82,7 +82,7 @@ Command addDemoCommand(CLI::App& app) {
               << "  " << seq << "/  " << p.frames << " frames in the 7-Scenes layout (depth/colour/label PNGs, poses, intrinsics)\n"
               << "  " << seq << "/ground_truth.json  every surface with slope, roughness and expected mobility\n"
               << "  " << map_path << "  the mobility OctoMap (MobilityOcTree)\n"
-              << "  " << stem << ".octovis.ot  the same as a ColorOcTree: red 0 ... green 1\n"
+              << "  " << stem << ".octovis.ot  the same as a ColorOcTree: viridis, dark purple 0 ... yellow 1\n"
               << "  " << stem << ".bt  occupancy only;  " << stem << ".json  metadata\n"
               << "  " << plot << "  the GP mobility surface (paper Fig. 3)\n"
               << "View: octovis " << stem << ".octovis.ot   (Debian package octovis)\n"

@@ -2,8 +2,6 @@
 
 #include "io/io_error.hpp"
 
-#include <Eigen/Cholesky>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -216,41 +214,48 @@ Contours computeContours(const TopView& view, double voxel_m, std::size_t min_la
       zs.push_back(smooth[i]);
     }
     const double mx = sx / static_cast<double>(members.size()), my = sy / static_cast<double>(members.size());
-    // The member nearest the centroid (an L-shaped area's centroid may lie outside it).
-    std::size_t best = members.front();
-    double best_d = std::numeric_limits<double>::infinity();
-    for (const std::size_t i : members) {
-      const double dx = static_cast<double>(i % static_cast<std::size_t>(view.columns)) - mx;
-      const double dy = static_cast<double>(i / static_cast<std::size_t>(view.columns)) - my;
-      if (dx * dx + dy * dy < best_d) best_d = dx * dx + dy * dy, best = i;
-    }
     // Only a level: an area between two contours on a ramp spans up to an interval of
     // heights, a level's heights stay within a voxel (the 10th to 90th percentile).
     std::sort(zs.begin(), zs.end());
     const double spread = zs[zs.size() * 9 / 10] - zs[zs.size() / 10];
     if (spread > std::max(voxel_m, 0.5 * step) + 1e-9) continue;
     const double median = zs[zs.size() / 2];
-    // Nor the last step of a gentle ramp, flat at the map's resolution: the plane through
-    // the smoothed heights within 0.3 m (and 8 cells) of the label's cell and within an
-    // interval of its height rises less than 2 degrees.
-    {
-      const int bx = static_cast<int>(best % static_cast<std::size_t>(view.columns));
-      const int by = static_cast<int>(best / static_cast<std::size_t>(view.columns));
-      const int r = std::max(8, static_cast<int>(std::ceil(0.3 / view.resolution)));
-      Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
-      Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+    // Nor the top band of a gentle ramp, flat at the map's resolution. The label goes on
+    // the member nearest the centroid (an L-shaped area's centroid may lie outside it)
+    // whose surroundings are level: of the smoothed heights within 0.3 m (and 8 cells)
+    // and within an interval of the area's, at least 70 % lie within half a voxel of it.
+    // Around a ramp's band the ramp's other bands take their share wherever it is; a
+    // floor passes away from the ramps at its edge. Areas with no such member get none.
+    const int r = std::max(8, static_cast<int>(std::ceil(0.3 / view.resolution)));
+    const auto levelAround = [&](std::size_t at) {
+      const int bx = static_cast<int>(at % static_cast<std::size_t>(view.columns));
+      const int by = static_cast<int>(at / static_cast<std::size_t>(view.columns));
+      std::size_t near = 0, level = 0;
       for (int y = std::max(0, by - r); y <= std::min(view.rows - 1, by + r); ++y) {
         for (int x = std::max(0, bx - r); x <= std::min(view.columns - 1, bx + r); ++x) {
           const double z = smooth[view.cell(x, y)];
           if (z == empty || std::abs(z - median) > step + 1e-9 || (x - bx) * (x - bx) + (y - by) * (y - by) > r * r) continue;
-          const Eigen::Vector3d a((x - bx) * view.resolution, (y - by) * view.resolution, 1.0);
-          ata += a * a.transpose();
-          atb += a * (z - median);
+          ++near;
+          level += std::abs(z - median) <= 0.5 * voxel_m + 1e-9;
         }
       }
-      const Eigen::Vector3d plane = ata.ldlt().solve(atb);
-      if (plane.allFinite() && std::hypot(plane.x(), plane.y()) > std::tan(2.0 * M_PI / 180)) continue;
+      return 10 * level >= 7 * near;
+    };
+    std::vector<std::pair<double, std::size_t>> by_distance;
+    for (const std::size_t i : members) {
+      const double dx = static_cast<double>(i % static_cast<std::size_t>(view.columns)) - mx;
+      const double dy = static_cast<double>(i / static_cast<std::size_t>(view.columns)) - my;
+      by_distance.emplace_back(dx * dx + dy * dy, i);
     }
+    std::sort(by_distance.begin(), by_distance.end());
+    // At most 64 tries, spread over the members from the centroid outwards.
+    const std::size_t stride = std::max<std::size_t>(1, by_distance.size() / 64);
+    std::optional<std::size_t> found;
+    for (std::size_t k = 0; k < by_distance.size() && !found; k += stride) {
+      if (levelAround(by_distance[k].second)) found = by_distance[k].second;
+    }
+    if (!found) continue;
+    const std::size_t best = *found;
     out.labels.push_back({static_cast<int>(best % static_cast<std::size_t>(view.columns)),
                           static_cast<int>(best / static_cast<std::size_t>(view.columns)), median, members.size()});
   }
