@@ -13,7 +13,6 @@
 
 #include <array>
 #include <cstdint>
-#include <memory>
 #include <string>
 #include <vector>
 
@@ -74,7 +73,7 @@ class Picture {
 
   /// The box `s` takes at font `size` with its top-left corner at the origin: the
   /// advance width by the font's ascent plus descent. Loads Cairo (cairo_adapter.hpp)
-  /// the first time: IoError-free, std::runtime_error if it cannot be loaded.
+  /// the first time: std::runtime_error saying where it looked if it cannot.
   [[nodiscard]] Box textBox(const std::string& s, double size, bool bold = false) const;
   /// Draws `s` with its box's top-left corner at (x, y) and records it; returns the box.
   Box text(double x, double y, const std::string& s, Rgb c, double size, bool bold = false);
