@@ -69,6 +69,7 @@ Picture plotMobilitySurface(const gp::MobilityModel& model, const PlotRange& ran
       c.keepClear({x - 4, y - 4, x + 4, y + 4});
     }
   }
+  c.segments(crosses, {255, 255, 255}, 3);  // a white casing: the crosses read on dark purple too
   c.segments(crosses, black, 1.2);
   for (std::size_t i = 0; i < re.size(); ++i) {
     const double r = i + 1 < re.size() ? 0.5 * (re[i] + re[i + 1]) : re[i] + 0.5 * (re[i] - re[i - 1]);
@@ -85,7 +86,7 @@ Picture plotMobilitySurface(const gp::MobilityModel& model, const PlotRange& ran
               buf, black, 10, plot, 1.5);
     }
   }
-  drawMobilityLegend(c, 680, kTop, ph - 80, scale);
+  drawMobilityLegend(c, 680, kTop, ph - 40, scale, {}, false);  // a model has no unknown
   return c;
 }
 

@@ -201,7 +201,7 @@ double mobilityLegendWidth(const Picture& p, const std::vector<std::pair<Rgb, st
 }
 
 double drawMobilityLegend(Picture& p, double x, double y, double height, ColourScale scale,
-                          const std::vector<std::pair<Rgb, std::string>>& swatches) {
+                          const std::vector<std::pair<Rgb, std::string>>& swatches, bool unknown) {
   const Box heading = p.text(x, y, "mobility", kInk, kLegendText, true);
   const double top = heading.y1 + 8;
   const double bar_h = std::max(48.0, height);
@@ -218,7 +218,8 @@ double drawMobilityLegend(Picture& p, double x, double y, double height, ColourS
     p.text(x + kSwatch + 6, ty - tick_h / 2, m == 0.5 ? "0.5" : (m == 1.0 ? "1" : "0"), kInk, kLegendText);
   }
   double row = top + bar_h + tick_h / 2 + 8;
-  std::vector<std::pair<Rgb, std::string>> rows{{unknownColour(scale), "unknown"}};
+  std::vector<std::pair<Rgb, std::string>> rows;
+  if (unknown) rows.emplace_back(unknownColour(scale), "unknown");
   rows.insert(rows.end(), swatches.begin(), swatches.end());
   for (const auto& [colour, text] : rows) {
     p.fillRect(x, row, kSwatch, kSwatch, colour);

@@ -126,10 +126,11 @@ void paintOver(ImageRgb& image, int x, int y, Rgb paint);
 [[nodiscard]] Picture framePictureWithLegend(const ImageRgb& frame, const std::string& caption, ColourScale scale);
 
 /// The mobility colour bar of a legend, `height` units tall, its top-left at (x, y):
-/// the heading "mobility", ticks at 0, 0.5 and 1, then the unknown colour and each of
-/// `swatches` (colour, text) below. Returns the height it took below (x, y).
+/// the heading "mobility", ticks at 0, 0.5 and 1, then (with `unknown`) the unknown
+/// colour and each of `swatches` (colour, text) below. Returns the height it took below
+/// (x, y).
 double drawMobilityLegend(Picture& p, double x, double y, double height, ColourScale scale,
-                          const std::vector<std::pair<Rgb, std::string>>& swatches = {});
+                          const std::vector<std::pair<Rgb, std::string>>& swatches = {}, bool unknown = true);
 /// The widest the legend of drawMobilityLegend gets with these swatches.
 [[nodiscard]] double mobilityLegendWidth(const Picture& p, const std::vector<std::pair<Rgb, std::string>>& swatches = {});
 
