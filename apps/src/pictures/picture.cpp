@@ -100,7 +100,7 @@ void Picture::triangle(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const
   add(DrawOp::kFill, c, {a.x(), a.y(), b.x(), b.y(), d.x(), d.y()});
 }
 
-Box Picture::textBox(const std::string& s, double size, bool bold) const {
+Box Picture::textBox(const std::string& s, double size, bool bold) {
   const TextMetrics m = cairo().measure(s, size, bold);
   return {0, 0, m.width, m.ascent + m.descent};
 }
@@ -193,10 +193,11 @@ constexpr double kRow = 20;
 const Rgb kInk{0, 0, 0};
 }  // namespace
 
-double mobilityLegendWidth(const Picture& p, const std::vector<std::pair<Rgb, std::string>>& swatches) {
-  double w = std::max(p.textBox("mobility", kLegendText, true).x1, kSwatch + 6 + p.textBox("0.5", kLegendText).x1);
-  w = std::max(w, kSwatch + 6 + p.textBox("unknown", kLegendText).x1);
-  for (const auto& s : swatches) w = std::max(w, kSwatch + 6 + p.textBox(s.second, kLegendText).x1);
+double mobilityLegendWidth(const std::vector<std::pair<Rgb, std::string>>& swatches) {
+  using P = Picture;
+  double w = std::max(P::textBox("mobility", kLegendText, true).x1, kSwatch + 6 + P::textBox("0.5", kLegendText).x1);
+  w = std::max(w, kSwatch + 6 + P::textBox("unknown", kLegendText).x1);
+  for (const auto& s : swatches) w = std::max(w, kSwatch + 6 + P::textBox(s.second, kLegendText).x1);
   return w;
 }
 
@@ -234,12 +235,9 @@ Picture framePictureWithLegend(const ImageRgb& frame, const std::string& caption
   // The legend runs along the bottom: the caption, then the colour scale laid flat.
   constexpr double kStrip = 58;
   // As wide as the frame, or as its caption and the scale when they are wider.
-  double needed = 0;
-  {
-    const Picture probe(1, 1);
-    needed = std::max(16 + probe.textBox(caption, kLegendText).x1,
-                      40 + probe.textBox("mobility 0 1 unknown", kLegendText).x1 + kSwatch + std::min(200.0, frame.width / 3.0));
-  }
+  const double needed = std::max(16 + Picture::textBox(caption, kLegendText).x1,
+                                  40 + Picture::textBox("mobility 0 1 unknown", kLegendText).x1 + kSwatch +
+                                      std::min(200.0, frame.width / 3.0));
   Picture p(std::max(frame.width, static_cast<int>(std::ceil(needed))), frame.height + static_cast<int>(kStrip), {255, 255, 255});
   p.image(frame, 0, 0, 1);
   const double y = frame.height + 6;

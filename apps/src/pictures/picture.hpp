@@ -74,7 +74,7 @@ class Picture {
   /// The box `s` takes at font `size` with its top-left corner at the origin: the
   /// advance width by the font's ascent plus descent. Loads Cairo (cairo_adapter.hpp)
   /// the first time: std::runtime_error saying where it looked if it cannot.
-  [[nodiscard]] Box textBox(const std::string& s, double size, bool bold = false) const;
+  [[nodiscard]] static Box textBox(const std::string& s, double size, bool bold = false);
   /// Draws `s` with its box's top-left corner at (x, y) and records it; returns the box.
   Box text(double x, double y, const std::string& s, Rgb c, double size, bool bold = false);
   /// A label on a white background `pad` units wider than its text on every side, at
@@ -132,6 +132,6 @@ void paintOver(ImageRgb& image, int x, int y, Rgb paint);
 double drawMobilityLegend(Picture& p, double x, double y, double height, ColourScale scale,
                           const std::vector<std::pair<Rgb, std::string>>& swatches = {}, bool unknown = true);
 /// The widest the legend of drawMobilityLegend gets with these swatches.
-[[nodiscard]] double mobilityLegendWidth(const Picture& p, const std::vector<std::pair<Rgb, std::string>>& swatches = {});
+[[nodiscard]] double mobilityLegendWidth(const std::vector<std::pair<Rgb, std::string>>& swatches = {});
 
 }  // namespace mobmap::app

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <optional>
 #include <stdexcept>
 
@@ -287,27 +288,51 @@ Picture drawTopView(const TopView& view, const TopViewPicture& pic, int max_pixe
     contours = computeContours(view, view.resolution / view.columns_per_cell,
                                std::max<std::size_t>(4, label_px / static_cast<std::size_t>(ppv * ppv)));
   }
-  std::vector<std::string> entries;  // legend texts after the swatches, to size the legend
-  if (!pic.path.empty()) entries.push_back(pic.path.size() > 1 ? "camera path" : "camera");
-  for (const auto& l : outline_labels) entries.push_back(l.second);
-  char contour_text[2][96] = {"", ""};
+  // The legend's rows after the colour bar and swatches, each a text and what marks it
+  // (drawn with the row's top-left corner); one list sizes the legend and draws it.
+  struct LegendRow {
+    std::string text;
+    std::function<void(Picture&, double, double)> mark;  // may be empty
+    double above = 0;     // room above the row (the axes' arrows)
+    double after = kRow;  // down to the next row
+  };
+  std::vector<LegendRow> entries;
+  if (!pic.path.empty()) {
+    entries.push_back({pic.path.size() > 1 ? "camera path" : "camera", [](Picture& p, double x, double y) {
+                         p.polyline({{x, y + 7}, {x + 14, y + 7}}, kPathBlue, 2);
+                       }});
+  }
+  for (const auto& [colour, label] : outline_labels) {
+    entries.push_back({label, [colour = colour](Picture& p, double x, double y) { p.strokeRect(x + 1, y + 2, 12, 10, colour, 2); }});
+  }
   if (contours.interval_m > 0) {
-    std::snprintf(contour_text[0], sizeof contour_text[0], "height lines every %g m", contours.interval_m);
-    std::snprintf(contour_text[1], sizeof contour_text[1], "(bold %g m), z %.2f to %.2f m", 5 * contours.interval_m,
-                  contours.z_min, contours.z_max);
-    entries.emplace_back(contour_text[0]);
-    entries.emplace_back(contour_text[1]);
+    char text[2][96];
+    std::snprintf(text[0], sizeof text[0], "height lines every %g m", contours.interval_m);
+    std::snprintf(text[1], sizeof text[1], "(bold %g m), z %.2f to %.2f m", 5 * contours.interval_m, contours.z_min,
+                  contours.z_max);
+    entries.push_back({text[0],
+                       [](Picture& p, double x, double y) { p.segments({{x, y + 7, x + 14, y + 7}}, kMinorContour, 0.8); },
+                       0, 16});
+    entries.push_back({text[1], {}});
   }
-  if (pic.mark) entries.push_back(pic.mark_label);
-  entries.emplace_back("x, y: map frame");
-  // Measure with a scratch picture: text widths do not depend on the picture.
-  double legend_w = 0, title_w = 0;
-  {
-    const Picture probe(1, 1);
-    legend_w = mobilityLegendWidth(probe, pic.swatches);
-    for (const std::string& e : entries) legend_w = std::max(legend_w, 20 + probe.textBox(e, kText).x1);
-    title_w = probe.textBox(pic.title, kTitle, true).x1;
+  if (pic.mark) {
+    entries.push_back({pic.mark_label, [](Picture& p, double x, double y) { p.circle(x + 7, y + 7, 6, kBlack, 2); }});
   }
+  // Axes: x to the right, y up, in the map frame, their arrows above the row.
+  entries.push_back({"x, y: map frame",
+                     [](Picture& p, double x, double y) {
+                       const double ox = x + 4, oy = y - 10;
+                       p.polyline({{ox, oy}, {ox + 30, oy}}, kBlack, 1.5);
+                       p.triangle({ox + 36, oy}, {ox + 28, oy - 4}, {ox + 28, oy + 4}, kBlack);
+                       p.polyline({{ox, oy}, {ox, oy - 30}}, kBlack, 1.5);
+                       p.triangle({ox, oy - 36}, {ox - 4, oy - 28}, {ox + 4, oy - 28}, kBlack);
+                       p.text(ox + 40, oy - 8, "x", kBlack, kText);
+                       p.text(ox + 6, oy - 44, "y", kBlack, kText);
+                     },
+                     54});
+  double legend_w = mobilityLegendWidth(pic.swatches);
+  for (const LegendRow& e : entries) legend_w = std::max(legend_w, 20 + Picture::textBox(e.text, kText).x1);
+  const double title_w = Picture::textBox(pic.title, kTitle, true).x1;
   const double map_x = kTopViewMapX, map_y = kTopViewMapY;
   const double legend_rows = static_cast<double>(pic.swatches.size() + entries.size() + 1);
   const double bar_h = std::clamp(h - 70 - kRow * legend_rows - 60, 80.0, 200.0);
@@ -395,39 +420,11 @@ Picture drawTopView(const TopView& view, const TopViewPicture& pic, int max_pixe
   // The legend.
   const double legend_x = map_x + w + kGap;
   double legend_y = map_y + drawMobilityLegend(c, legend_x, map_y, bar_h, pic.colours, pic.swatches) + 6;
-  const auto entryText = [&](const std::string& s) {
-    c.text(legend_x + 20, legend_y + 7 - c.textBox(s, kText).y1 / 2, s, kBlack, kText);
-    legend_y += kRow;
-  };
-  if (!pic.path.empty()) {
-    c.polyline({{legend_x, legend_y + 7}, {legend_x + 14, legend_y + 7}}, kPathBlue, 2);
-    entryText(pic.path.size() > 1 ? "camera path" : "camera");
-  }
-  for (const auto& [colour, label] : outline_labels) {
-    c.strokeRect(legend_x + 1, legend_y + 2, 12, 10, colour, 2);
-    entryText(label);
-  }
-  if (contours.interval_m > 0) {
-    c.segments({{legend_x, legend_y + 7, legend_x + 14, legend_y + 7}}, kMinorContour, 0.8);
-    entryText(contour_text[0]);
-    legend_y -= kRow - 16;
-    entryText(contour_text[1]);
-  }
-  if (pic.mark) {
-    c.circle(legend_x + 7, legend_y + 7, 6, kBlack, 2);
-    entryText(pic.mark_label);
-  }
-  // Axes: x to the right, y up, in the map frame.
-  {
-    const double ox = legend_x + 4, oy = legend_y + 44;
-    c.polyline({{ox, oy}, {ox + 30, oy}}, kBlack, 1.5);
-    c.triangle({ox + 36, oy}, {ox + 28, oy - 4}, {ox + 28, oy + 4}, kBlack);
-    c.polyline({{ox, oy}, {ox, oy - 30}}, kBlack, 1.5);
-    c.triangle({ox, oy - 36}, {ox - 4, oy - 28}, {ox + 4, oy - 28}, kBlack);
-    c.text(ox + 40, oy - 8, "x", kBlack, kText);
-    c.text(ox + 6, oy - 44, "y", kBlack, kText);
-    legend_y = oy + 10;
-    entryText("x, y: map frame");
+  for (const LegendRow& e : entries) {
+    legend_y += e.above;
+    if (e.mark) e.mark(c, legend_x, legend_y);
+    c.text(legend_x + 20, legend_y + 7 - Picture::textBox(e.text, kText).y1 / 2, e.text, kBlack, kText);
+    legend_y += e.after;
   }
   // Scale bar: the longest of 0.1, 0.2, 0.5, 1, 2, 5 ... m within a quarter of the map.
   double bar_m = 0.1;
