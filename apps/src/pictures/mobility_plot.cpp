@@ -57,34 +57,38 @@ Picture plotMobilitySurface(const gp::MobilityModel& model, const PlotRange& ran
   const auto& se = t.slopeEdgesDeg();
   const auto& re = t.roughnessEdges();
   const Box plot{kLeft, kTop, kRight, kBottom};
-  std::vector<std::array<double, 4>> crosses;
+  // The centres within the plot, each with its table value: the crosses are drawn (and
+  // kept clear) first, so that no value covers another cell's cross.
+  struct Centre {
+    Eigen::Vector2d at;
+    double value;
+  };
+  std::vector<Centre> centres;
   for (std::size_t i = 0; i < re.size(); ++i) {
     const double r = i + 1 < re.size() ? 0.5 * (re[i] + re[i + 1]) : re[i] + 0.5 * (re[i] - re[i - 1]);
     for (std::size_t j = 0; j < se.size(); ++j) {
       const double s = j + 1 < se.size() ? 0.5 * (se[j] + se[j + 1]) : se[j] + 0.5 * (se[j] - se[j - 1]);
       if (s > range.slope_max_deg || r > range.roughness_max || r < range.roughness_min) continue;
-      const double x = xOf(s), y = yOf(r);
-      crosses.push_back({x - 3, y, x + 3, y});
-      crosses.push_back({x, y - 3, x, y + 3});
-      c.keepClear({x - 4, y - 4, x + 4, y + 4});
+      centres.push_back({{xOf(s), yOf(r)}, t.values()(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j))});
     }
+  }
+  std::vector<std::array<double, 4>> crosses;
+  for (const Centre& k : centres) {
+    const double x = k.at.x(), y = k.at.y();
+    crosses.push_back({x - 3, y, x + 3, y});
+    crosses.push_back({x, y - 3, x, y + 3});
+    c.keepClear({x - 4, y - 4, x + 4, y + 4});
   }
   c.segments(crosses, {255, 255, 255}, 3);  // a white casing: the crosses read on dark purple too
   c.segments(crosses, black, 1.2);
-  for (std::size_t i = 0; i < re.size(); ++i) {
-    const double r = i + 1 < re.size() ? 0.5 * (re[i] + re[i + 1]) : re[i] + 0.5 * (re[i] - re[i - 1]);
-    for (std::size_t j = 0; j < se.size(); ++j) {
-      const double s = j + 1 < se.size() ? 0.5 * (se[j] + se[j + 1]) : se[j] + 0.5 * (se[j] - se[j - 1]);
-      if (s > range.slope_max_deg || r > range.roughness_max || r < range.roughness_min) continue;
-      char buf[16];
-      std::snprintf(buf, sizeof(buf), "%.2g", t.values()(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)));
-      const Box b = c.textBox(buf, 10);
-      const Eigen::Vector2d at(xOf(s), yOf(r));
-      const double dx = b.x1 / 2 + 8, dy = b.y1 / 2 + 6;
-      c.label({at + Eigen::Vector2d(dx, dy), at + Eigen::Vector2d(dx, -dy), at + Eigen::Vector2d(-dx, dy),
-               at + Eigen::Vector2d(-dx, -dy)},
-              buf, black, 10, plot, 1.5);
-    }
+  for (const Centre& k : centres) {
+    char buf[16];
+    std::snprintf(buf, sizeof(buf), "%.2g", k.value);
+    const Box b = Picture::textBox(buf, 10);
+    const double dx = b.x1 / 2 + 8, dy = b.y1 / 2 + 6;
+    c.label({k.at + Eigen::Vector2d(dx, dy), k.at + Eigen::Vector2d(dx, -dy), k.at + Eigen::Vector2d(-dx, dy),
+             k.at + Eigen::Vector2d(-dx, -dy)},
+            buf, black, 10, plot, 1.5);
   }
   drawMobilityLegend(c, 680, kTop, ph - 40, scale, {}, false);  // a model has no unknown
   return c;
