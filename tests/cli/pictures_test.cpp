@@ -57,6 +57,14 @@ TEST(Pictures, EveryPictureCommandDrawsTextsThatNeverOverlapInPngSvgAndPdf) {
   }
   // The old scale too, on one picture of each kind of drawing.
   draw("export " + map + " --png " + dir + "/top_rg.png --colours red-green");
+  // A scale of another name, or a picture of another format: usage errors naming both.
+  const Result jet = run("export " + map + " --png " + dir + "/jet.png --colours jet");
+  EXPECT_EQ(jet.code, 2);
+  EXPECT_NE(jet.out.find("--colours: jet not in {viridis,red-green}"), std::string::npos) << jet.out;
+  const Result gif = run("export " + map + " --png " + dir + "/top.gif");
+  EXPECT_EQ(gif.code, 2);
+  EXPECT_NE(gif.out.find(dir + "/top.gif: a picture's name must end in .png, .svg or .pdf"), std::string::npos) << gif.out;
+  EXPECT_FALSE(fs::exists(dir + "/jet.png") || fs::exists(dir + "/top.gif"));
   const std::vector<Logged> pictures = readLog(log);
   ASSERT_EQ(pictures.size(), 3u * 7 + 1);
   std::size_t level_labels = 0;

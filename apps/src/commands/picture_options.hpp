@@ -6,7 +6,6 @@
 
 #include <CLI/CLI.hpp>
 
-#include <map>
 #include <string>
 
 namespace mobmap::app {
@@ -25,15 +24,15 @@ inline CLI::Validator pictureFile() {
       "PICTURE");
 }
 
-/// `--colours viridis|red-green` into `scale` (viridis by default).
+/// `--colours viridis|red-green` into `scale` (viridis by default); another name is a
+/// usage error listing the two.
 inline CLI::Option* addColoursOption(CLI::App& cmd, ColourScale& scale) {
-  static const std::map<std::string, ColourScale> kNames{{"viridis", ColourScale::kViridis},
-                                                          {"red-green", ColourScale::kRedGreen}};
   return cmd
-      .add_option("--colours", scale,
-                  "Mobility colours: viridis (dark purple 0, teal 0.5, yellow 1; readable with the common "
-                  "colour-vision deficiencies) or red-green (red 0, yellow 0.5, green 1, the paper's)")
-      ->transform(CLI::CheckedTransformer(kNames))
+      .add_option_function<std::string>(
+          "--colours", [&scale](const std::string& name) { scale = *mapping::colourScaleNamed(name); },
+          "Mobility colours: viridis (dark purple 0, teal 0.5, yellow 1; readable with the common "
+          "colour-vision deficiencies) or red-green (red 0, yellow 0.5, green 1, the paper's)")
+      ->check(CLI::IsMember({"viridis", "red-green"}))
       ->default_str("viridis");
 }
 
